@@ -1,0 +1,1 @@
+//! Actor: environment, planners, rollouts (issue 3). Empty for now.

@@ -1,0 +1,667 @@
+//! The one DUPAC configuration: a TOML file whose every key has a serde default, that rejects
+//! unknown keys, and that `--set a.b=v` overrides from the command line.
+//!
+//! Defaults follow `spec/radio.md` (radio), `spec/env.md` (scenario) and issue 2 (maps, cache).
+//! [`Config::load`] parses, applies overrides and validates once; everything downstream receives a
+//! resolved, valid [`Config`].
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Errors while reading, overriding or validating the configuration. Each names the file, the
+/// override or the key at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("config file {path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("--set {arg:?}: {message}")]
+    Override { arg: String, message: String },
+    #[error("config key `{key}`: {message}")]
+    Invalid { key: String, message: String },
+}
+
+/// The whole configuration of a DUPAC run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    pub scenario: ScenarioConfig,
+    pub radio: RadioConfig,
+    pub map: MapConfig,
+    pub cache: CacheConfig,
+}
+
+/// Which kind of city a scenario is built from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CityKind {
+    /// Real OpenStreetMap footprints with heights from `scenario.buildings_file`.
+    Osm,
+    /// Seeded procedural Manhattan grid (`scenario.procedural`).
+    Procedural,
+}
+
+/// How OSM building outlines that have 3D `building_part`s are extruded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BuildingDetail {
+    /// Outlines with parts are replaced by their parts (each from `min_height_m` to `height_m`).
+    Parts,
+    /// Every outline is extruded from the ground to its roof (conservative, over-estimates set-backs).
+    Outlines,
+}
+
+/// A lon/lat box (WGS84 degrees).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LonLatBox {
+    pub lon_min_deg: f64,
+    pub lon_max_deg: f64,
+    pub lat_min_deg: f64,
+    pub lat_max_deg: f64,
+}
+
+impl LonLatBox {
+    /// Centre of the box, `(lon, lat)` in degrees: the origin of the local ENU frame.
+    pub fn centre_deg(&self) -> (f64, f64) {
+        (
+            0.5 * (self.lon_min_deg + self.lon_max_deg),
+            0.5 * (self.lat_min_deg + self.lat_max_deg),
+        )
+    }
+}
+
+/// The scenario: which city, which flight area, where the base stations are.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ScenarioConfig {
+    /// Name written into caches and reports.
+    pub name: String,
+    pub city: CityKind,
+    /// GeoJSON of building footprints (OSM export format of `data/README.md`).
+    pub buildings_file: PathBuf,
+    pub detail: BuildingDetail,
+    /// The flight area (spec/env.md "World"); its centre is the frame origin.
+    pub area: LonLatBox,
+    /// LTE cell-site estimates (CSV with `lat,lon,...,enb_id`), used when `sites_file` is unset.
+    pub cells_file: PathBuf,
+    /// Optional explicit sites (CSV or TOML), replacing the placement from `cells_file`.
+    pub sites_file: Option<PathBuf>,
+    /// M, the number of GBSs (paper: 30).
+    pub n_sites: usize,
+    /// Roof search radius for mounting a site on a building (m).
+    pub roof_search_m: f64,
+    /// Mast height above the roof for a rooftop site (m).
+    pub roof_mast_m: f64,
+    /// Antenna height of a street-pole site when no roof is within `roof_search_m` (m).
+    pub pole_height_m: f64,
+    /// Radius within which the median rooftop height decides macro vs micro (m).
+    pub macro_radius_m: f64,
+    pub procedural: ProceduralConfig,
+}
+
+impl Default for ScenarioConfig {
+    fn default() -> Self {
+        Self {
+            name: "midtown".into(),
+            city: CityKind::Osm,
+            buildings_file: "data/nyc_midtown_buildings.geojson".into(),
+            detail: BuildingDetail::Parts,
+            area: LonLatBox {
+                lon_min_deg: -73.9935,
+                lon_max_deg: -73.9765,
+                lat_min_deg: 40.7460,
+                lat_max_deg: 40.7590,
+            },
+            cells_file: "data/nyc_midtown_cells.csv".into(),
+            sites_file: None,
+            n_sites: 30,
+            roof_search_m: 50.0,
+            roof_mast_m: 3.0,
+            pole_height_m: 10.0,
+            macro_radius_m: 150.0,
+            procedural: ProceduralConfig::default(),
+        }
+    }
+}
+
+/// The seeded Manhattan-grid generator, calibrated on Midtown (`data/README.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ProceduralConfig {
+    pub seed: u64,
+    /// Size of the square area (m); the frame origin is its centre.
+    pub size_m: f64,
+    /// Grid rotation, degrees east of true north (Manhattan: 29°).
+    pub rotation_deg: f64,
+    /// Street pitch along the avenues, centre to centre (m).
+    pub street_pitch_m: f64,
+    pub street_width_m: f64,
+    /// Avenue spacing, centre to centre (m).
+    pub avenue_spacing_m: f64,
+    pub avenue_width_m: f64,
+    /// Building height distribution: log-normal with this median and 90th percentile (m).
+    pub height_median_m: f64,
+    pub height_p90_m: f64,
+    pub height_min_m: f64,
+    pub height_max_m: f64,
+    /// Number of sites placed on a jittered lattice over the area.
+    pub n_sites: usize,
+}
+
+impl Default for ProceduralConfig {
+    fn default() -> Self {
+        Self {
+            seed: 7,
+            size_m: 1400.0,
+            rotation_deg: 29.0,
+            street_pitch_m: 79.0,
+            street_width_m: 18.0,
+            avenue_spacing_m: 274.0,
+            avenue_width_m: 30.0,
+            height_median_m: 30.0,
+            height_p90_m: 95.0,
+            height_min_m: 6.0,
+            height_max_m: 400.0,
+            n_sites: 30,
+        }
+    }
+}
+
+/// Antenna model (spec/radio.md §2, TR 38.901 Table 7.3-1 + vertical ULA).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AntennaConfig {
+    /// G_E,max (dBi).
+    pub element_gain_max_dbi: f64,
+    /// θ_3dB (deg).
+    pub theta_3db_deg: f64,
+    /// φ_3dB (deg).
+    pub phi_3db_deg: f64,
+    /// SLA_V (dB).
+    pub sla_v_db: f64,
+    /// A_m, front-to-back ratio (dB).
+    pub a_max_db: f64,
+    /// N, elements of the vertical uniform linear array.
+    pub n_elements: u32,
+    /// Element spacing in wavelengths.
+    pub spacing_wavelengths: f64,
+    /// Electrical downtilt (deg); the beam points at θ = 90° + tilt.
+    pub electrical_tilt_deg: f64,
+    /// Sector boresights (deg, CCW from east).
+    pub boresights_deg: Vec<f64>,
+    /// Floor of |AF|² in linear power, only to avoid log10(0).
+    pub af_floor_linear: f64,
+    /// Optional floor on the composite gain (dBi); off by default (spec §2).
+    pub gain_floor_dbi: Option<f64>,
+}
+
+impl Default for AntennaConfig {
+    fn default() -> Self {
+        Self {
+            element_gain_max_dbi: 8.0,
+            theta_3db_deg: 65.0,
+            phi_3db_deg: 65.0,
+            sla_v_db: 30.0,
+            a_max_db: 30.0,
+            n_elements: 8,
+            spacing_wavelengths: 0.5,
+            electrical_tilt_deg: 10.0,
+            boresights_deg: vec![30.0, 150.0, 270.0],
+            af_floor_linear: 1e-12,
+            gain_floor_dbi: None,
+        }
+    }
+}
+
+/// A3 handover (spec/radio.md §4, TS 36.331 §5.5.4.4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct A3Config {
+    /// a3-Offset (dB).
+    pub offset_db: f64,
+    /// Hysteresis (dB).
+    pub hysteresis_db: f64,
+    /// timeToTrigger (ms).
+    pub time_to_trigger_ms: f64,
+    /// Optional L3 filter coefficient k (F = (1 − a)F + aM, a = 1/2^(k/4)); off by default.
+    pub l3_filter_k: Option<u32>,
+}
+
+impl Default for A3Config {
+    fn default() -> Self {
+        Self {
+            offset_db: 3.0,
+            hysteresis_db: 1.0,
+            time_to_trigger_ms: 160.0,
+            l3_filter_k: None,
+        }
+    }
+}
+
+/// The radio model (spec/radio.md), every parameter with the paper's default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RadioConfig {
+    /// Carrier frequency f_c (GHz).
+    pub fc_ghz: f64,
+    /// Reference-signal power per RE, P (dBm).
+    pub tx_power_dbm: f64,
+    /// UE (UAV) antenna gain (dBi).
+    pub ue_gain_dbi: f64,
+    /// h_UT clamp, lower end (m) (D3).
+    pub h_ut_min_m: f64,
+    /// Terrestrial/aerial band split (m): h ≤ this is terrestrial (D4).
+    pub h_ut_band_split_m: f64,
+    /// h_UT clamp, upper end (m) (D3).
+    pub h_ut_max_m: f64,
+    /// Smallest d3D used in a log (m), a guard against log(0) only.
+    pub d3d_min_m: f64,
+    /// RSRP class C1 lower bound: excellent when RSRP ≥ this (dBm).
+    pub rsrp_excellent_dbm: f64,
+    /// RSRP class C2 lower bound: poor when RSRP < this (dBm).
+    pub rsrp_poor_dbm: f64,
+    pub antenna: AntennaConfig,
+    pub a3: A3Config,
+}
+
+impl Default for RadioConfig {
+    fn default() -> Self {
+        Self {
+            fc_ghz: 2.0,
+            tx_power_dbm: 15.2,
+            ue_gain_dbi: 0.0,
+            h_ut_min_m: 1.5,
+            h_ut_band_split_m: 22.5,
+            h_ut_max_m: 300.0,
+            d3d_min_m: 1.0,
+            rsrp_excellent_dbm: -80.0,
+            rsrp_poor_dbm: -100.0,
+            antenna: AntennaConfig::default(),
+            a3: A3Config::default(),
+        }
+    }
+}
+
+/// Coverage maps (`dupac map`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MapConfig {
+    /// Altitudes of the horizontal slices (m above ground).
+    pub altitudes_m: Vec<f64>,
+    /// Grid resolution (m).
+    pub resolution_m: f64,
+    /// Output directory.
+    pub out_dir: PathBuf,
+}
+
+impl Default for MapConfig {
+    fn default() -> Self {
+        Self {
+            altitudes_m: vec![30.0, 60.0, 90.0, 120.0],
+            resolution_m: 5.0,
+            out_dir: "out/map".into(),
+        }
+    }
+}
+
+/// The per-site 3D RSRP cache used by the environment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CacheConfig {
+    /// Horizontal grid step (m).
+    pub horizontal_m: f64,
+    /// Vertical grid step (m).
+    pub vertical_m: f64,
+    /// Lowest and highest altitude of the grid (m): the UAV altitude band of spec/env.md.
+    pub z_min_m: f64,
+    pub z_max_m: f64,
+    /// Cache file; rebuilt when its header does not match the scenario and radio config.
+    pub path: PathBuf,
+}
+
+impl Default for CacheConfig {
+    fn default() -> Self {
+        Self {
+            horizontal_m: 5.0,
+            vertical_m: 5.0,
+            z_min_m: 20.0,
+            z_max_m: 120.0,
+            path: "out/cache/rsrp.bin".into(),
+        }
+    }
+}
+
+impl Config {
+    /// Parses a TOML string (`origin` names it in errors), applies `--set` overrides, validates.
+    pub fn from_toml_str(text: &str, origin: &str, sets: &[String]) -> Result<Config, ConfigError> {
+        let mut value: toml::Table = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        for arg in sets {
+            apply_override(&mut value, arg)?;
+        }
+        let config: Config =
+            Config::deserialize(toml::Value::Table(value)).map_err(|e| ConfigError::Parse {
+                path: if sets.is_empty() {
+                    origin.to_string()
+                } else {
+                    format!("{origin} (with --set overrides)")
+                },
+                message: e.to_string(),
+            })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Loads `path` (or the defaults when `None`), applies `--set a.b=v` overrides, validates.
+    pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config, ConfigError> {
+        match path {
+            Some(p) => {
+                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                    path: p.to_path_buf(),
+                    source,
+                })?;
+                Self::from_toml_str(&text, &p.display().to_string(), sets)
+            }
+            None => Self::from_toml_str("", "<defaults>", sets),
+        }
+    }
+
+    /// The configuration as TOML (what a run records next to its outputs).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}"))
+    }
+
+    /// Range checks that serde cannot express; each error names the key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        fn bad(key: &str, message: impl Into<String>) -> ConfigError {
+            ConfigError::Invalid {
+                key: key.to_string(),
+                message: message.into(),
+            }
+        }
+        fn positive(key: &str, v: f64) -> Result<(), ConfigError> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(bad(key, format!("must be a finite number > 0, got {v}")))
+            }
+        }
+        fn finite(key: &str, v: f64) -> Result<(), ConfigError> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(bad(key, format!("must be finite, got {v}")))
+            }
+        }
+        let s = &self.scenario;
+        let a = &s.area;
+        for (k, v) in [
+            ("scenario.area.lon_min_deg", a.lon_min_deg),
+            ("scenario.area.lon_max_deg", a.lon_max_deg),
+        ] {
+            if !(v.is_finite() && (-180.0..=180.0).contains(&v)) {
+                return Err(bad(
+                    k,
+                    format!("must be a longitude in [-180, 180], got {v}"),
+                ));
+            }
+        }
+        for (k, v) in [
+            ("scenario.area.lat_min_deg", a.lat_min_deg),
+            ("scenario.area.lat_max_deg", a.lat_max_deg),
+        ] {
+            if !(v.is_finite() && (-85.0..=85.0).contains(&v)) {
+                return Err(bad(k, format!("must be a latitude in [-85, 85], got {v}")));
+            }
+        }
+        if a.lon_min_deg >= a.lon_max_deg {
+            return Err(bad("scenario.area.lon_max_deg", "must be > lon_min_deg"));
+        }
+        if a.lat_min_deg >= a.lat_max_deg {
+            return Err(bad("scenario.area.lat_max_deg", "must be > lat_min_deg"));
+        }
+        if s.n_sites == 0 || s.n_sites > usize::from(u16::MAX) {
+            return Err(bad("scenario.n_sites", "must be in 1..=65535"));
+        }
+        positive("scenario.roof_search_m", s.roof_search_m)?;
+        finite("scenario.roof_mast_m", s.roof_mast_m)?;
+        positive("scenario.pole_height_m", s.pole_height_m)?;
+        positive("scenario.macro_radius_m", s.macro_radius_m)?;
+        let p = &s.procedural;
+        positive("scenario.procedural.size_m", p.size_m)?;
+        finite("scenario.procedural.rotation_deg", p.rotation_deg)?;
+        positive("scenario.procedural.street_pitch_m", p.street_pitch_m)?;
+        positive("scenario.procedural.avenue_spacing_m", p.avenue_spacing_m)?;
+        if !(p.street_width_m >= 0.0 && p.street_width_m < p.street_pitch_m) {
+            return Err(bad(
+                "scenario.procedural.street_width_m",
+                "must be in [0, street_pitch_m)",
+            ));
+        }
+        if !(p.avenue_width_m >= 0.0 && p.avenue_width_m < p.avenue_spacing_m) {
+            return Err(bad(
+                "scenario.procedural.avenue_width_m",
+                "must be in [0, avenue_spacing_m)",
+            ));
+        }
+        positive("scenario.procedural.height_median_m", p.height_median_m)?;
+        if !(p.height_p90_m.is_finite() && p.height_p90_m > p.height_median_m) {
+            return Err(bad(
+                "scenario.procedural.height_p90_m",
+                "must be > height_median_m",
+            ));
+        }
+        positive("scenario.procedural.height_min_m", p.height_min_m)?;
+        if !(p.height_max_m.is_finite() && p.height_max_m > p.height_min_m) {
+            return Err(bad(
+                "scenario.procedural.height_max_m",
+                "must be > height_min_m",
+            ));
+        }
+        if p.n_sites == 0 || p.n_sites > usize::from(u16::MAX) {
+            return Err(bad("scenario.procedural.n_sites", "must be in 1..=65535"));
+        }
+
+        let r = &self.radio;
+        positive("radio.fc_ghz", r.fc_ghz)?;
+        finite("radio.tx_power_dbm", r.tx_power_dbm)?;
+        finite("radio.ue_gain_dbi", r.ue_gain_dbi)?;
+        positive("radio.h_ut_min_m", r.h_ut_min_m)?;
+        if !(r.h_ut_min_m <= r.h_ut_band_split_m && r.h_ut_band_split_m <= r.h_ut_max_m) {
+            return Err(bad(
+                "radio.h_ut_band_split_m",
+                "must satisfy h_ut_min_m <= h_ut_band_split_m <= h_ut_max_m",
+            ));
+        }
+        positive("radio.d3d_min_m", r.d3d_min_m)?;
+        finite("radio.rsrp_excellent_dbm", r.rsrp_excellent_dbm)?;
+        if !(r.rsrp_poor_dbm.is_finite() && r.rsrp_poor_dbm < r.rsrp_excellent_dbm) {
+            return Err(bad("radio.rsrp_poor_dbm", "must be < rsrp_excellent_dbm"));
+        }
+        let an = &r.antenna;
+        finite(
+            "radio.antenna.element_gain_max_dbi",
+            an.element_gain_max_dbi,
+        )?;
+        positive("radio.antenna.theta_3db_deg", an.theta_3db_deg)?;
+        positive("radio.antenna.phi_3db_deg", an.phi_3db_deg)?;
+        positive("radio.antenna.sla_v_db", an.sla_v_db)?;
+        positive("radio.antenna.a_max_db", an.a_max_db)?;
+        if an.n_elements == 0 || an.n_elements > 1024 {
+            return Err(bad("radio.antenna.n_elements", "must be in 1..=1024"));
+        }
+        positive("radio.antenna.spacing_wavelengths", an.spacing_wavelengths)?;
+        if !(an.electrical_tilt_deg.is_finite() && (-90.0..=90.0).contains(&an.electrical_tilt_deg))
+        {
+            return Err(bad(
+                "radio.antenna.electrical_tilt_deg",
+                "must be in [-90, 90]",
+            ));
+        }
+        if an.boresights_deg.is_empty() || an.boresights_deg.iter().any(|b| !b.is_finite()) {
+            return Err(bad(
+                "radio.antenna.boresights_deg",
+                "must be a non-empty list of finite angles",
+            ));
+        }
+        positive("radio.antenna.af_floor_linear", an.af_floor_linear)?;
+        if let Some(g) = an.gain_floor_dbi {
+            finite("radio.antenna.gain_floor_dbi", g)?;
+        }
+        let a3 = &r.a3;
+        if !(a3.offset_db.is_finite() && (-15.0..=15.0).contains(&a3.offset_db)) {
+            return Err(bad(
+                "radio.a3.offset_db",
+                "must be in [-15, 15] dB (TS 36.331)",
+            ));
+        }
+        if !(a3.hysteresis_db.is_finite() && (0.0..=15.0).contains(&a3.hysteresis_db)) {
+            return Err(bad(
+                "radio.a3.hysteresis_db",
+                "must be in [0, 15] dB (TS 36.331)",
+            ));
+        }
+        if !(a3.time_to_trigger_ms.is_finite() && a3.time_to_trigger_ms >= 0.0) {
+            return Err(bad("radio.a3.time_to_trigger_ms", "must be >= 0"));
+        }
+        if let Some(k) = a3.l3_filter_k
+            && k > 19
+        {
+            return Err(bad("radio.a3.l3_filter_k", "must be in 0..=19 (TS 36.331)"));
+        }
+
+        let m = &self.map;
+        if m.altitudes_m.is_empty() {
+            return Err(bad("map.altitudes_m", "must list at least one altitude"));
+        }
+        for h in &m.altitudes_m {
+            if !(h.is_finite() && *h >= 0.0 && *h <= 1000.0) {
+                return Err(bad(
+                    "map.altitudes_m",
+                    format!("altitude {h} not in [0, 1000] m"),
+                ));
+            }
+        }
+        if !(m.resolution_m.is_finite() && m.resolution_m >= 0.5) {
+            return Err(bad("map.resolution_m", "must be >= 0.5 m"));
+        }
+        let c = &self.cache;
+        if !(c.horizontal_m.is_finite() && c.horizontal_m >= 0.5) {
+            return Err(bad("cache.horizontal_m", "must be >= 0.5 m"));
+        }
+        if !(c.vertical_m.is_finite() && c.vertical_m >= 0.5) {
+            return Err(bad("cache.vertical_m", "must be >= 0.5 m"));
+        }
+        finite("cache.z_min_m", c.z_min_m)?;
+        if !(c.z_max_m.is_finite() && c.z_max_m > c.z_min_m) {
+            return Err(bad("cache.z_max_m", "must be > cache.z_min_m"));
+        }
+        Ok(())
+    }
+}
+
+/// Applies one `a.b.c=value` override to a TOML table. The value is parsed as TOML (numbers,
+/// booleans, arrays, quoted strings); anything that does not parse is taken as a bare string.
+fn apply_override(root: &mut toml::Table, arg: &str) -> Result<(), ConfigError> {
+    let err = |message: String| ConfigError::Override {
+        arg: arg.to_string(),
+        message,
+    };
+    let (key, raw) = arg
+        .split_once('=')
+        .ok_or_else(|| err("expected KEY=VALUE, e.g. map.resolution_m=10".into()))?;
+    let key = key.trim();
+    if key.is_empty() || key.split('.').any(|p| p.is_empty()) {
+        return Err(err(format!("malformed key {key:?}")));
+    }
+    let raw = raw.trim();
+    let value: toml::Value = match toml::from_str::<toml::Table>(&format!("v = {raw}")) {
+        Ok(mut t) => t
+            .remove("v")
+            .unwrap_or(toml::Value::String(raw.to_string())),
+        Err(_) => toml::Value::String(raw.to_string()),
+    };
+    let parts: Vec<&str> = key.split('.').collect();
+    let (last, parents) = parts
+        .split_last()
+        .ok_or_else(|| err(format!("malformed key {key:?}")))?;
+    let mut table = root;
+    for (i, p) in parents.iter().enumerate() {
+        let entry = table
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        table = entry.as_table_mut().ok_or_else(|| {
+            err(format!(
+                "`{}` is a value, not a section",
+                parts[..=i].join(".")
+            ))
+        })?;
+    }
+    table.insert(last.to_string(), value);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_papers() {
+        let c = Config::load(None, &[]).expect("defaults valid");
+        assert_eq!(c.radio.fc_ghz, 2.0);
+        assert_eq!(c.radio.tx_power_dbm, 15.2);
+        assert_eq!(c.radio.antenna.boresights_deg, vec![30.0, 150.0, 270.0]);
+        assert_eq!(c.scenario.n_sites, 30);
+        assert_eq!(c.map.altitudes_m, vec![30.0, 60.0, 90.0, 120.0]);
+    }
+
+    #[test]
+    fn unknown_key_is_rejected_and_named() {
+        let e = Config::from_toml_str("[radio]\nfc_gz = 3.0\n", "x.toml", &[]).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("fc_gz"), "{msg}");
+        assert!(msg.contains("x.toml"), "{msg}");
+    }
+
+    #[test]
+    fn set_overrides_nested_keys_with_typed_values() {
+        let sets = vec![
+            "radio.fc_ghz=3.5".to_string(),
+            "map.altitudes_m=[50, 100]".to_string(),
+            "scenario.city=procedural".to_string(),
+            "radio.antenna.gain_floor_dbi=-30".to_string(),
+        ];
+        let c = Config::load(None, &sets).expect("valid");
+        assert_eq!(c.radio.fc_ghz, 3.5);
+        assert_eq!(c.map.altitudes_m, vec![50.0, 100.0]);
+        assert_eq!(c.scenario.city, CityKind::Procedural);
+        assert_eq!(c.radio.antenna.gain_floor_dbi, Some(-30.0));
+    }
+
+    #[test]
+    fn out_of_range_value_names_the_key() {
+        let e = Config::load(None, &["radio.fc_ghz=-1".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("radio.fc_ghz"), "{e}");
+        let e = Config::load(None, &["radio.a3.offset_db=20".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("radio.a3.offset_db"), "{e}");
+        let e = Config::load(None, &["map.resolution_m".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("KEY=VALUE"), "{e}");
+        let e = Config::load(None, &["radio.fc_ghz.x=1".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("radio.fc_ghz"), "{e}");
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let c = Config::load(None, &["radio.a3.l3_filter_k=4".to_string()]).expect("valid");
+        let text = c.to_toml_string();
+        let back = Config::from_toml_str(&text, "roundtrip", &[]).expect("valid");
+        assert_eq!(c, back);
+    }
+}

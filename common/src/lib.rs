@@ -1,0 +1,12 @@
+//! The contract shared by every DUPAC process: typed ids, the one TOML configuration, and
+//! (in later issues) key expressions, messages, codec and the observation layout.
+//!
+//! Units are in names (`_m`, `_dbm`, `_deg`, `_ghz`) and the frame is east-north-up metres with
+//! the origin at the scenario centre (x east, y north, z up = height above flat ground).
+
+pub mod config;
+pub mod fingerprint;
+pub mod ids;
+
+pub use config::{Config, ConfigError};
+pub use ids::SiteId;

@@ -1,0 +1,1 @@
+//! Learner: PPO (issue 4). Empty for now.

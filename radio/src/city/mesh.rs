@@ -1,0 +1,300 @@
+//! The building mesh: every prism triangulated into one parry3d [`TriMesh`], whose BVH answers the
+//! geometric line-of-sight test of spec/radio.md D9 (segment GBS antenna → UAV against buildings)
+//! and the distance queries of the environment.
+//!
+//! parry3d ≥ 0.26 speaks glam `f32`; this is the only module that converts. Coordinates stay
+//! within a few km of the origin, so `f32` resolves them to better than 0.5 mm.
+
+use super::building::Building;
+use crate::error::RadioError;
+use parry3d::math::Vec3;
+use parry3d::partitioning::TraversalAction;
+use parry3d::query::{Ray, RayCast};
+use parry3d::shape::TriMesh;
+
+/// Triangulated buildings with a BVH.
+#[derive(Clone)]
+pub struct CityMesh {
+    trimesh: TriMesh,
+    /// Per triangle: `v0`, `e1 = v1 − v0`, `e2 = v2 − v0` for a Möller–Trumbore test that needs no
+    /// index chasing.
+    tris: Vec<[Vec3; 3]>,
+}
+
+impl std::fmt::Debug for CityMesh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CityMesh")
+            .field("triangles", &self.tris.len())
+            .finish()
+    }
+}
+
+/// Relative tolerance on the segment parameter: hits within this fraction of either end do not
+/// block (an antenna mounted on a roof does not see its own roof as an obstacle at t = 0).
+const SEGMENT_END_EPS: f32 = 1e-6;
+
+impl CityMesh {
+    /// Triangulates the buildings: roof (ear clipping with holes), walls, and a floor only for
+    /// floating parts (`z_min_m > 0`; a floor on the ground cannot be crossed from above ground).
+    pub fn build(buildings: &[Building]) -> Result<CityMesh, RadioError> {
+        let mut vertices: Vec<Vec3> = Vec::new();
+        let mut indices: Vec<[u32; 3]> = Vec::new();
+        for b in buildings {
+            add_prism(b, &mut vertices, &mut indices)?;
+        }
+        if indices.is_empty() {
+            return Err(RadioError::Mesh("no triangles: the city is empty".into()));
+        }
+        let trimesh = TriMesh::new(vertices, indices)
+            .map_err(|e| RadioError::Mesh(format!("cannot build the triangle mesh: {e:?}")))?;
+        let tris = trimesh
+            .triangles()
+            .map(|t| [t.a, t.b - t.a, t.c - t.a])
+            .collect();
+        Ok(CityMesh { trimesh, tris })
+    }
+
+    /// The parry3d mesh (for shape casts and other queries).
+    pub fn trimesh(&self) -> &TriMesh {
+        &self.trimesh
+    }
+
+    /// Number of triangles.
+    pub fn num_triangles(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Whether the open segment `a_m → b_m` crosses any building surface (any-hit query over the
+    /// BVH, exits at the first hit). `true` means NLoS (spec/radio.md D9).
+    pub fn segment_blocked(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+        let origin = to_vec3(a_m);
+        let dir = to_vec3(b_m) - origin;
+        let ray = Ray::new(origin, dir);
+        let mut hit = false;
+        self.trimesh.bvh().traverse(|node| {
+            if node.cast_ray(&ray, 1.0) == f32::MAX || hit {
+                return TraversalAction::Prune;
+            }
+            if let Some(leaf) = node.leaf_data() {
+                if let Some(t) = self.tris.get(leaf as usize)
+                    && let Some(s) = ray_triangle(origin, dir, t)
+                    && s > SEGMENT_END_EPS
+                    && s < 1.0 - SEGMENT_END_EPS
+                {
+                    hit = true;
+                    return TraversalAction::EarlyExit;
+                }
+                return TraversalAction::Prune;
+            }
+            TraversalAction::Continue
+        });
+        hit
+    }
+
+    /// Distance (m) along the unit-or-not direction `dir` from `origin_m` to the first building
+    /// surface within `max_m`, or `None` when the ray is free for `max_m` metres.
+    pub fn ray_distance_m(&self, origin_m: [f64; 3], dir: [f64; 3], max_m: f64) -> Option<f64> {
+        let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        if n.is_nan() || n <= 0.0 {
+            return None;
+        }
+        let unit = [dir[0] / n, dir[1] / n, dir[2] / n];
+        let ray = Ray::new(to_vec3(origin_m), to_vec3(unit));
+        self.trimesh
+            .cast_local_ray(&ray, max_m as f32, false)
+            .map(f64::from)
+    }
+}
+
+/// `[f64; 3]` metres → glam `Vec3` (the geometry boundary).
+#[inline]
+pub fn to_vec3(p: [f64; 3]) -> Vec3 {
+    Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
+}
+
+/// Two-sided Möller–Trumbore: the ray parameter `t` of the hit (in units of `dir`), if any.
+#[inline(always)]
+fn ray_triangle(origin: Vec3, dir: Vec3, tri: &[Vec3; 3]) -> Option<f32> {
+    let [v0, e1, e2] = *tri;
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = origin - v0;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
+}
+
+fn add_prism(
+    b: &Building,
+    vertices: &mut Vec<Vec3>,
+    indices: &mut Vec<[u32; 3]>,
+) -> Result<(), RadioError> {
+    let z0 = b.z_min_m as f32;
+    let z1 = b.z_max_m as f32;
+    // Flattened rings for earcut: outer first, then holes.
+    let mut flat: Vec<f64> = Vec::new();
+    let mut hole_starts: Vec<usize> = Vec::new();
+    let mut ring_ranges: Vec<(usize, usize)> = Vec::new();
+    for (r, ring) in std::iter::once(&b.outer_m)
+        .chain(b.holes_m.iter())
+        .enumerate()
+    {
+        let start = flat.len() / 2;
+        if r > 0 {
+            hole_starts.push(start);
+        }
+        for p in ring {
+            flat.push(p[0]);
+            flat.push(p[1]);
+        }
+        ring_ranges.push((start, ring.len()));
+    }
+    let n = flat.len() / 2;
+    let base = u32::try_from(vertices.len())
+        .map_err(|_| RadioError::Mesh("more than 2^32 vertices".into()))?;
+    // Vertices: bottom ring set [base, base+n), top ring set [base+n, base+2n).
+    for z in [z0, z1] {
+        for i in 0..n {
+            vertices.push(Vec3::new(flat[2 * i] as f32, flat[2 * i + 1] as f32, z));
+        }
+    }
+    let bottom = |i: usize| base + i as u32;
+    let top = |i: usize| base + (n + i) as u32;
+    // Roof (and floor of a floating part).
+    let tri = earcutr::earcut(&flat, &hole_starts, 2)
+        .map_err(|e| RadioError::Mesh(format!("building {}: triangulation failed: {e:?}", b.id)))?;
+    if tri.len() < 3 {
+        return Err(RadioError::Mesh(format!(
+            "building {}: footprint triangulates to nothing",
+            b.id
+        )));
+    }
+    for t in tri.chunks_exact(3) {
+        indices.push([top(t[0]), top(t[1]), top(t[2])]);
+        if b.z_min_m > 0.0 {
+            indices.push([bottom(t[0]), bottom(t[2]), bottom(t[1])]);
+        }
+    }
+    // Walls.
+    for (start, len) in ring_ranges {
+        for k in 0..len {
+            let i = start + k;
+            let j = start + (k + 1) % len;
+            indices.push([bottom(i), bottom(j), top(j)]);
+            indices.push([bottom(i), top(j), top(i)]);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An L-shaped (non-convex) building, 30 m tall, plus a floating slab 50–60 m.
+    fn scene() -> CityMesh {
+        let l_shape = Building {
+            id: "L".into(),
+            outer_m: vec![
+                [0.0, 0.0],
+                [20.0, 0.0],
+                [20.0, 10.0],
+                [10.0, 10.0],
+                [10.0, 20.0],
+                [0.0, 20.0],
+            ],
+            holes_m: vec![],
+            z_min_m: 0.0,
+            z_max_m: 30.0,
+        };
+        let slab = Building {
+            id: "slab".into(),
+            outer_m: vec![[100.0, 0.0], [110.0, 0.0], [110.0, 10.0], [100.0, 10.0]],
+            holes_m: vec![],
+            z_min_m: 50.0,
+            z_max_m: 60.0,
+        };
+        let courtyard = Building {
+            id: "court".into(),
+            outer_m: vec![[200.0, 0.0], [240.0, 0.0], [240.0, 40.0], [200.0, 40.0]],
+            holes_m: vec![vec![
+                [210.0, 10.0],
+                [210.0, 30.0],
+                [230.0, 30.0],
+                [230.0, 10.0],
+            ]],
+            z_min_m: 0.0,
+            z_max_m: 20.0,
+        };
+        CityMesh::build(&[l_shape, slab, courtyard]).expect("mesh")
+    }
+
+    #[test]
+    fn segment_through_the_l_is_blocked_but_the_notch_is_free() {
+        let m = scene();
+        // Through the solid arm at 10 m height.
+        assert!(m.segment_blocked([-10.0, 5.0, 10.0], [30.0, 5.0, 10.0]));
+        // Through the notch of the L (x, y ∈ (10, 20)): free.
+        assert!(!m.segment_blocked([15.0, 25.0, 10.0], [25.0, 15.0, 10.0]));
+        // Above the roof: free; grazing below it: blocked.
+        assert!(!m.segment_blocked([-10.0, 5.0, 31.0], [30.0, 5.0, 31.0]));
+        assert!(m.segment_blocked([-10.0, 5.0, 29.0], [30.0, 5.0, 29.0]));
+        // Diagonal from a roof-level antenna to a low UAV behind the building.
+        assert!(m.segment_blocked([-5.0, 5.0, 40.0], [40.0, 5.0, 1.0]));
+    }
+
+    #[test]
+    fn segment_stopping_short_of_a_wall_is_free() {
+        let m = scene();
+        assert!(!m.segment_blocked([-10.0, 5.0, 10.0], [-0.5, 5.0, 10.0]));
+    }
+
+    #[test]
+    fn floating_part_blocks_only_its_own_height_band() {
+        let m = scene();
+        assert!(m.segment_blocked([90.0, 5.0, 55.0], [120.0, 5.0, 55.0]));
+        assert!(
+            !m.segment_blocked([90.0, 5.0, 40.0], [120.0, 5.0, 40.0]),
+            "under the slab"
+        );
+        assert!(
+            m.segment_blocked([105.0, 5.0, 40.0], [105.0, 5.0, 70.0]),
+            "vertical through its floor"
+        );
+    }
+
+    #[test]
+    fn courtyard_hole_is_open_from_above() {
+        let m = scene();
+        assert!(!m.segment_blocked([220.0, 20.0, 100.0], [220.0, 20.0, 5.0]));
+        assert!(m.segment_blocked([205.0, 20.0, 100.0], [205.0, 20.0, 5.0]));
+    }
+
+    #[test]
+    fn ray_distance_finds_the_nearest_wall() {
+        let m = scene();
+        let d = m
+            .ray_distance_m([-10.0, 5.0, 10.0], [1.0, 0.0, 0.0], 50.0)
+            .expect("hit");
+        assert!((d - 10.0).abs() < 1e-3, "{d}");
+        assert!(
+            m.ray_distance_m([-10.0, 5.0, 10.0], [-1.0, 0.0, 0.0], 50.0)
+                .is_none()
+        );
+        let down = m
+            .ray_distance_m([5.0, 5.0, 100.0], [0.0, 0.0, -1.0], 200.0)
+            .expect("roof");
+        assert!((down - 70.0).abs() < 1e-3, "{down}");
+    }
+}

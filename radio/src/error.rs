@@ -1,0 +1,50 @@
+//! Errors of the radio crate. Every variant names the file, line, feature or field at fault.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RadioError {
+    #[error("cannot read {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not valid GeoJSON: {message}")]
+    GeoJson { path: PathBuf, message: String },
+    #[error("{path}: feature {index} ({id}): {message}")]
+    Feature {
+        path: PathBuf,
+        index: usize,
+        id: String,
+        message: String,
+    },
+    #[error("{path}: no usable buildings inside the scenario area")]
+    NoBuildings { path: PathBuf },
+    #[error("{path}:{line}: {message}")]
+    Table {
+        path: PathBuf,
+        line: u64,
+        message: String,
+    },
+    #[error("{path}: {message}")]
+    Sites { path: PathBuf, message: String },
+    #[error("building mesh: {0}")]
+    Mesh(String),
+    #[error("position {what} = {value:?} is {message}")]
+    Position {
+        what: &'static str,
+        value: [f64; 3],
+        message: String,
+    },
+    #[error("cache {path}: {message}")]
+    Cache { path: PathBuf, message: String },
+}
+
+impl RadioError {
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        RadioError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,497 @@
+//! Ground base stations (GBS): plain data, placement from LTE cell estimates, and user sites files.
+
+use crate::pathloss::Scenario;
+use dupac_common::SiteId;
+use serde::{Deserialize, Serialize};
+
+/// Site class (spec/radio.md §5 item 10): `macro` when the antenna is above the surrounding
+/// rooftops (TR 36.777 UMa), else `micro` (UMi).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SiteKind {
+    Micro,
+    Macro,
+}
+
+impl SiteKind {
+    /// The TR 36.777 scenario whose path loss applies.
+    pub fn scenario(self) -> Scenario {
+        match self {
+            SiteKind::Micro => Scenario::Umi,
+            SiteKind::Macro => Scenario::Uma,
+        }
+    }
+}
+
+/// One GBS: a 3-sector site (spec/radio.md §2, D12).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Site {
+    pub id: SiteId,
+    /// Human-readable origin, e.g. `enb:12345` or a user-given name.
+    pub name: String,
+    /// Antenna position `[x_m, y_m, z_m]`, z = antenna height above ground.
+    pub position_m: [f64; 3],
+    pub kind: SiteKind,
+    /// Sector boresights (deg, CCW from east).
+    pub boresights_deg: Vec<f64>,
+    /// Electrical downtilt (deg).
+    pub electrical_tilt_deg: f64,
+    /// Reference-signal power per RE (dBm).
+    pub tx_power_dbm: f64,
+    /// How the antenna is mounted: `roof` of a building, or a street `pole`.
+    pub mount: Mount,
+}
+
+/// How a site's antenna is mounted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mount {
+    /// On the roof of the building with this id, at roof + mast.
+    Roof { building: String, roof_m: f64 },
+    /// On a street pole.
+    Pole,
+    /// Given by the user's sites file.
+    User,
+}
+
+/// One row of a user sites file (CSV or TOML `[[site]]`). Unset fields follow the placement rule
+/// and the radio defaults.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteSpec {
+    pub name: Option<String>,
+    /// Local position (m); give either `x_m`/`y_m` or `lon_deg`/`lat_deg`.
+    pub x_m: Option<f64>,
+    pub y_m: Option<f64>,
+    pub lon_deg: Option<f64>,
+    pub lat_deg: Option<f64>,
+    /// Antenna height above ground (m); default: rooftop/pole rule.
+    pub z_m: Option<f64>,
+    pub kind: Option<SiteKind>,
+    /// Boresights (deg); in CSV a `;`-separated list such as `30;150;270`.
+    #[serde(default, deserialize_with = "de_boresights")]
+    pub boresights_deg: Option<Vec<f64>>,
+    pub tilt_deg: Option<f64>,
+    pub tx_power_dbm: Option<f64>,
+}
+
+fn de_boresights<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Raw {
+        List(Vec<f64>),
+        Text(String),
+        Number(f64),
+    }
+    match Option::<Raw>::deserialize(d)? {
+        None => Ok(None),
+        Some(Raw::List(v)) => Ok(Some(v)),
+        Some(Raw::Number(x)) => Ok(Some(vec![x])),
+        Some(Raw::Text(s)) if s.trim().is_empty() => Ok(None),
+        Some(Raw::Text(s)) => s
+            .split(';')
+            .map(|p| p.trim().parse::<f64>())
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+            .map_err(|e| serde::de::Error::custom(format!("boresights_deg {s:?}: {e}"))),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SitesToml {
+    site: Vec<SiteSpec>,
+}
+
+/// A site position before mounting (from a cell-site estimate or a procedural lattice).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub name: String,
+    pub xy_m: [f64; 2],
+}
+
+use crate::city::{Building, City};
+use crate::error::RadioError;
+use crate::geo::LocalProjection;
+use dupac_common::config::{CityKind, RadioConfig, ScenarioConfig};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Reads LTE cell estimates (`data/nyc_midtown_cells.csv`: columns `lat`, `lon`, `enb_id`, …) and
+/// merges the cells of each eNodeB into one site at their mean position (issue 2).
+pub fn read_cells_csv(
+    path: &Path,
+    projection: &LocalProjection,
+) -> Result<Vec<Candidate>, RadioError> {
+    let table_err = |line: u64, message: String| RadioError::Table {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| match e.kind() {
+            csv::ErrorKind::Io(_) => RadioError::Sites {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            },
+            _ => table_err(1, e.to_string()),
+        })?;
+    let headers = reader
+        .headers()
+        .map_err(|e| table_err(1, e.to_string()))?
+        .clone();
+    let column = |name: &str| {
+        headers
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| table_err(1, format!("missing column `{name}` (header: {headers:?})")))
+    };
+    let (c_lat, c_lon, c_enb) = (column("lat")?, column("lon")?, column("enb_id")?);
+    let mut by_enb: BTreeMap<u64, (f64, f64, usize)> = BTreeMap::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| {
+            let line = e.position().map(|p| p.line()).unwrap_or(0);
+            table_err(line, e.to_string())
+        })?;
+        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let field = |c: usize, name: &str| -> Result<&str, RadioError> {
+            record
+                .get(c)
+                .filter(|s| !s.is_empty())
+                .ok_or_else(|| table_err(line, format!("column `{name}` is empty")))
+        };
+        let num = |c: usize, name: &str| -> Result<f64, RadioError> {
+            let s = field(c, name)?;
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    table_err(
+                        line,
+                        format!("column `{name}`: {s:?} is not a finite number"),
+                    )
+                })
+        };
+        let lat = num(c_lat, "lat")?;
+        let lon = num(c_lon, "lon")?;
+        if lat.abs() > 90.0 || lon.abs() > 180.0 {
+            return Err(table_err(
+                line,
+                format!("({lat}, {lon}) is not a WGS84 lat/lon"),
+            ));
+        }
+        let s = field(c_enb, "enb_id")?;
+        let enb: u64 = s
+            .parse()
+            .map_err(|_| table_err(line, format!("column `enb_id`: {s:?} is not an integer")))?;
+        let e = by_enb.entry(enb).or_insert((0.0, 0.0, 0));
+        e.0 += lon;
+        e.1 += lat;
+        e.2 += 1;
+    }
+    Ok(by_enb
+        .into_iter()
+        .map(|(enb, (slon, slat, n))| Candidate {
+            name: format!("enb:{enb}"),
+            xy_m: projection.to_local_m(slon / n as f64, slat / n as f64),
+        })
+        .collect())
+}
+
+/// Reads a user sites file: TOML (`[[site]]` tables) when the name ends in `.toml`, else CSV with
+/// a header naming [`SiteSpec`] fields (any subset; `x_m`+`y_m` or `lon_deg`+`lat_deg` required).
+pub fn read_sites_file(path: &Path) -> Result<Vec<(u64, SiteSpec)>, RadioError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RadioError::io(path, e))?;
+    let specs: Vec<(u64, SiteSpec)> = if path.extension().is_some_and(|e| e == "toml") {
+        let parsed: SitesToml = toml::from_str(&text).map_err(|e| RadioError::Sites {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        parsed
+            .site
+            .into_iter()
+            .enumerate()
+            .map(|(i, s)| (i as u64 + 1, s))
+            .collect()
+    } else {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let mut out = Vec::new();
+        for row in reader.deserialize::<SiteSpec>() {
+            let spec = row.map_err(|e| RadioError::Table {
+                path: path.to_path_buf(),
+                line: e.position().map(|p| p.line()).unwrap_or(0),
+                message: e.to_string(),
+            })?;
+            out.push((out.len() as u64 + 2, spec));
+        }
+        out
+    };
+    if specs.is_empty() {
+        return Err(RadioError::Sites {
+            path: path.to_path_buf(),
+            message: "no sites in file".into(),
+        });
+    }
+    Ok(specs)
+}
+
+/// Places the scenario's M sites (issue 2): from the user's sites file when given, else the
+/// `n_sites` cell-site estimates (or procedural candidates) nearest the centre, each mounted on
+/// the nearest roof within `roof_search_m` (antenna = roof + `roof_mast_m`) or on a pole, and
+/// classed macro/micro against the median rooftop within `macro_radius_m`.
+pub fn place_sites(
+    cfg: &ScenarioConfig,
+    radio: &RadioConfig,
+    city: &City,
+) -> Result<Vec<Site>, RadioError> {
+    if let Some(path) = &cfg.sites_file {
+        let specs = read_sites_file(path)?;
+        return specs
+            .into_iter()
+            .enumerate()
+            .map(|(i, (line, spec))| {
+                resolve_spec(&spec, i, cfg, radio, city).map_err(|message| RadioError::Table {
+                    path: path.clone(),
+                    line,
+                    message,
+                })
+            })
+            .collect();
+    }
+    let (mut candidates, source) = match cfg.city {
+        CityKind::Osm => {
+            let projection = city
+                .projection
+                .unwrap_or_else(|| LocalProjection::centred_on(&cfg.area));
+            (
+                read_cells_csv(&cfg.cells_file, &projection)?,
+                cfg.cells_file.clone(),
+            )
+        }
+        CityKind::Procedural => {
+            let generated = crate::city::procedural::generate(&cfg.procedural);
+            let c = generated
+                .site_candidates_m
+                .into_iter()
+                .enumerate()
+                .map(|(i, xy_m)| Candidate {
+                    name: format!("proc-site:{i}"),
+                    xy_m,
+                })
+                .collect();
+            (c, "scenario.procedural".into())
+        }
+    };
+    if candidates.len() < cfg.n_sites {
+        return Err(RadioError::Sites {
+            path: source,
+            message: format!(
+                "{} distinct sites available, scenario.n_sites asks for {}",
+                candidates.len(),
+                cfg.n_sites
+            ),
+        });
+    }
+    candidates.sort_by(|a, b| {
+        let da = a.xy_m[0].hypot(a.xy_m[1]);
+        let db = b.xy_m[0].hypot(b.xy_m[1]);
+        da.total_cmp(&db).then_with(|| a.name.cmp(&b.name))
+    });
+    candidates.truncate(cfg.n_sites);
+    Ok(candidates
+        .into_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let (position_m, mount) = mount_site(city, c.xy_m, cfg);
+            let kind = classify_kind(city, position_m, cfg.macro_radius_m);
+            Site {
+                id: SiteId(i as u16),
+                name: c.name,
+                position_m,
+                kind,
+                boresights_deg: radio.antenna.boresights_deg.clone(),
+                electrical_tilt_deg: radio.antenna.electrical_tilt_deg,
+                tx_power_dbm: radio.tx_power_dbm,
+                mount,
+            }
+        })
+        .collect())
+}
+
+fn resolve_spec(
+    spec: &SiteSpec,
+    i: usize,
+    cfg: &ScenarioConfig,
+    radio: &RadioConfig,
+    city: &City,
+) -> Result<Site, String> {
+    let finite = |name: &str, v: Option<f64>| -> Result<Option<f64>, String> {
+        match v {
+            Some(x) if !x.is_finite() => Err(format!("field `{name}` = {x} is not finite")),
+            other => Ok(other),
+        }
+    };
+    let xy = match (
+        finite("x_m", spec.x_m)?,
+        finite("y_m", spec.y_m)?,
+        finite("lon_deg", spec.lon_deg)?,
+        finite("lat_deg", spec.lat_deg)?,
+    ) {
+        (Some(x), Some(y), None, None) => [x, y],
+        (None, None, Some(lon), Some(lat)) => {
+            let p = city
+                .projection
+                .ok_or("`lon_deg`/`lat_deg` need a real (OSM) city; use `x_m`/`y_m`")?;
+            p.to_local_m(lon, lat)
+        }
+        _ => {
+            return Err(
+                "give exactly one position: `x_m` and `y_m`, or `lon_deg` and `lat_deg`".into(),
+            );
+        }
+    };
+    let (position_m, mount) = match finite("z_m", spec.z_m)? {
+        Some(z) if z > 0.0 => ([xy[0], xy[1], z], Mount::User),
+        Some(z) => return Err(format!("field `z_m` = {z} must be > 0 (antenna height, m)")),
+        None => mount_site(city, xy, cfg),
+    };
+    let kind = spec
+        .kind
+        .unwrap_or_else(|| classify_kind(city, position_m, cfg.macro_radius_m));
+    let boresights_deg = spec
+        .boresights_deg
+        .clone()
+        .unwrap_or_else(|| radio.antenna.boresights_deg.clone());
+    if boresights_deg.is_empty() || boresights_deg.iter().any(|b| !b.is_finite()) {
+        return Err("field `boresights_deg` must list finite angles".into());
+    }
+    let electrical_tilt_deg =
+        finite("tilt_deg", spec.tilt_deg)?.unwrap_or(radio.antenna.electrical_tilt_deg);
+    if !(-90.0..=90.0).contains(&electrical_tilt_deg) {
+        return Err(format!(
+            "field `tilt_deg` = {electrical_tilt_deg} not in [-90, 90]"
+        ));
+    }
+    Ok(Site {
+        id: SiteId(i as u16),
+        name: spec.name.clone().unwrap_or_else(|| format!("site:{i}")),
+        position_m,
+        kind,
+        boresights_deg,
+        electrical_tilt_deg,
+        tx_power_dbm: finite("tx_power_dbm", spec.tx_power_dbm)?.unwrap_or(radio.tx_power_dbm),
+        mount,
+    })
+}
+
+/// Mounts an antenna near `xy_m`: on the nearest roof within `roof_search_m` (moved onto the
+/// footprint, 1 m inside its edge, at the highest roof there + `roof_mast_m`) or on a street pole.
+pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3], Mount) {
+    let [x, y] = xy_m;
+    let mut best: Option<(f64, [f64; 2], &Building)> = None;
+    for i in city.index.near(x, y, cfg.roof_search_m) {
+        let Some(b) = city.buildings.get(i as usize) else {
+            continue;
+        };
+        let (d, q) = if b.contains_xy(x, y) {
+            (0.0, xy_m)
+        } else {
+            nearest_on_rings(b, xy_m)
+        };
+        if d <= cfg.roof_search_m && best.as_ref().is_none_or(|(bd, _, _)| d < *bd) {
+            best = Some((d, q, b));
+        }
+    }
+    match best {
+        Some((d, q, b)) => {
+            let on = if d > 0.0 {
+                // Step 1 m past the edge, into the footprint.
+                let ux = (q[0] - x) / d;
+                let uy = (q[1] - y) / d;
+                let inside = [q[0] + ux, q[1] + uy];
+                if b.contains_xy(inside[0], inside[1]) {
+                    inside
+                } else {
+                    q
+                }
+            } else {
+                q
+            };
+            let roof_m = city.roof_height_m(on[0], on[1]).max(b.z_max_m);
+            (
+                [on[0], on[1], roof_m + cfg.roof_mast_m],
+                Mount::Roof {
+                    building: b.id.clone(),
+                    roof_m,
+                },
+            )
+        }
+        None => ([x, y, cfg.pole_height_m], Mount::Pole),
+    }
+}
+
+/// Nearest point on a footprint's rings to `p` and its distance (m).
+fn nearest_on_rings(b: &Building, p: [f64; 2]) -> (f64, [f64; 2]) {
+    let mut best = (f64::INFINITY, p);
+    for ring in std::iter::once(&b.outer_m).chain(b.holes_m.iter()) {
+        for k in 0..ring.len() {
+            let a = ring[k];
+            let c = ring[(k + 1) % ring.len()];
+            let (dx, dy) = (c[0] - a[0], c[1] - a[1]);
+            let len2 = dx * dx + dy * dy;
+            let t = if len2 > 0.0 {
+                (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let q = [a[0] + t * dx, a[1] + t * dy];
+            let d = (q[0] - p[0]).hypot(q[1] - p[1]);
+            if d < best.0 {
+                best = (d, q);
+            }
+        }
+    }
+    best
+}
+
+/// Sampling step for the median rooftop height around a site (m).
+const ROOFTOP_SAMPLE_M: f64 = 5.0;
+
+/// `macro` when the antenna is above the median rooftop height of the built area within
+/// `radius_m` (spec/radio.md §5 item 10), else `micro`. No buildings around: `macro`.
+pub fn classify_kind(city: &City, antenna_m: [f64; 3], radius_m: f64) -> SiteKind {
+    let mut roofs = Vec::new();
+    let n = (radius_m / ROOFTOP_SAMPLE_M).ceil() as i64;
+    for j in -n..=n {
+        for i in -n..=n {
+            let (dx, dy) = (i as f64 * ROOFTOP_SAMPLE_M, j as f64 * ROOFTOP_SAMPLE_M);
+            if dx.hypot(dy) > radius_m {
+                continue;
+            }
+            let r = city.roof_height_m(antenna_m[0] + dx, antenna_m[1] + dy);
+            if r > 0.0 {
+                roofs.push(r);
+            }
+        }
+    }
+    if roofs.is_empty() {
+        return SiteKind::Macro;
+    }
+    roofs.sort_by(f64::total_cmp);
+    let median = if roofs.len() % 2 == 1 {
+        roofs[roofs.len() / 2]
+    } else {
+        0.5 * (roofs[roofs.len() / 2 - 1] + roofs[roofs.len() / 2])
+    };
+    if antenna_m[2] > median {
+        SiteKind::Macro
+    } else {
+        SiteKind::Micro
+    }
+}

@@ -1,0 +1,218 @@
+//! `dupac radio link` (the scriptable link calculator) and `dupac radio sites`.
+
+use crate::GlobalArgs;
+use anyhow::{Context, Result};
+use clap::Subcommand;
+use dupac_common::Config;
+use dupac_radio::antenna::AntennaPattern;
+use dupac_radio::city::City;
+use dupac_radio::link::{LinkModel, Transmitter};
+use dupac_radio::pathloss::Scenario;
+use dupac_radio::world::RadioWorld;
+use serde::Deserialize;
+use std::io::{BufRead, Write};
+use std::process::ExitCode;
+
+#[derive(Subcommand, Debug)]
+pub enum RadioCommand {
+    /// Link budgets: one JSON object per input line on stdin, one JSON line per input on stdout.
+    ///
+    /// Input fields: `bs_xyz`, `uav_xyz` (m, local frame, z above ground), `scenario`
+    /// ("umi"/"uma"), optional `los` (absent: decided against the scenario's city), and optional
+    /// overrides `boresights_deg`, `n`, `spacing_wavelengths`, `tilt_deg`, `fc_ghz`,
+    /// `tx_power_dbm`. Output fields: `d3d_m`, `d2d_m`, `theta_deg`, `best_sector`, `gain_dbi`,
+    /// `pl_db`, `rsrp_dbm`, `class`, `los`. A bad line is reported on stderr with its line
+    /// number; the rest is still processed; the exit status is 1 if any line failed.
+    Link,
+    /// The scenario's resolved sites as CSV, in the sites-file format (`scenario.sites_file`).
+    Sites,
+}
+
+pub fn run(global: &GlobalArgs, cmd: &RadioCommand) -> Result<ExitCode> {
+    let cfg = global.config()?;
+    match cmd {
+        RadioCommand::Link => {
+            let stdin = std::io::stdin();
+            let stdout = std::io::stdout();
+            let mut out = std::io::BufWriter::new(stdout.lock());
+            let failed = link_stream(&cfg, stdin.lock(), &mut out, &mut std::io::stderr())?;
+            out.flush()?;
+            Ok(if failed == 0 {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            })
+        }
+        RadioCommand::Sites => {
+            let world = RadioWorld::build(&cfg).context("building the radio world")?;
+            let stdout = std::io::stdout();
+            let mut out = stdout.lock();
+            write_sites_csv(&world, &mut out)?;
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+/// One input line of `dupac radio link`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LinkRequest {
+    bs_xyz: [f64; 3],
+    uav_xyz: [f64; 3],
+    scenario: Scenario,
+    los: Option<bool>,
+    boresights_deg: Option<Vec<f64>>,
+    n: Option<u32>,
+    spacing_wavelengths: Option<f64>,
+    tilt_deg: Option<f64>,
+    fc_ghz: Option<f64>,
+    tx_power_dbm: Option<f64>,
+}
+
+/// Processes JSON Lines from `input`; returns the number of failed lines.
+pub fn link_stream(
+    cfg: &Config,
+    input: impl BufRead,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<usize> {
+    let mut city: Option<City> = None;
+    let mut failed = 0usize;
+    for (i, line) in input.lines().enumerate() {
+        let lineno = i + 1;
+        let line = line.with_context(|| format!("reading stdin line {lineno}"))?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        match link_one(cfg, &line, &mut city) {
+            Ok(json) => writeln!(out, "{json}")?,
+            Err(e) => {
+                failed += 1;
+                writeln!(err, "line {lineno}: {e}")?;
+            }
+        }
+    }
+    Ok(failed)
+}
+
+fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String, String> {
+    let req: LinkRequest = serde_json::from_str(line).map_err(|e| e.to_string())?;
+    let finite3 = |name: &str, v: [f64; 3]| {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(format!("field `{name}`: {v:?} is not finite"))
+        }
+    };
+    finite3("bs_xyz", req.bs_xyz)?;
+    finite3("uav_xyz", req.uav_xyz)?;
+    let mut radio = cfg.radio.clone();
+    if let Some(f) = req.fc_ghz {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(format!("field `fc_ghz`: {f} must be > 0"));
+        }
+        radio.fc_ghz = f;
+    }
+    let tx_power_dbm = match req.tx_power_dbm {
+        Some(p) if !p.is_finite() => {
+            return Err(format!("field `tx_power_dbm`: {p} is not finite"));
+        }
+        Some(p) => p,
+        None => radio.tx_power_dbm,
+    };
+    let n = req.n.unwrap_or(radio.antenna.n_elements);
+    if n == 0 || n > 1024 {
+        return Err(format!("field `n`: {n} must be in 1..=1024"));
+    }
+    let spacing = req
+        .spacing_wavelengths
+        .unwrap_or(radio.antenna.spacing_wavelengths);
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(format!(
+            "field `spacing_wavelengths`: {spacing} must be > 0"
+        ));
+    }
+    let tilt = req.tilt_deg.unwrap_or(radio.antenna.electrical_tilt_deg);
+    if !(tilt.is_finite() && (-90.0..=90.0).contains(&tilt)) {
+        return Err(format!("field `tilt_deg`: {tilt} must be in [-90, 90]"));
+    }
+    let boresights = req
+        .boresights_deg
+        .unwrap_or_else(|| radio.antenna.boresights_deg.clone());
+    if boresights.is_empty() || boresights.iter().any(|b| !b.is_finite()) {
+        return Err("field `boresights_deg`: must list finite angles".into());
+    }
+    let los = match req.los {
+        Some(l) => l,
+        None => {
+            if city.is_none() {
+                *city = Some(
+                    City::load(&cfg.scenario)
+                        .map_err(|e| format!("cannot load the city for geometric LoS: {e}"))?,
+                );
+            }
+            let c = city.as_ref().ok_or("no city")?;
+            for (name, p) in [("bs_xyz", req.bs_xyz), ("uav_xyz", req.uav_xyz)] {
+                if !c.in_area(p[0], p[1]) {
+                    let a = c.area_m;
+                    return Err(format!(
+                        "field `{name}`: {p:?} is outside the map (x in [{:.1}, {:.1}], y in [{:.1}, {:.1}] m); give `los` explicitly for points off the map",
+                        a[0], a[2], a[1], a[3]
+                    ));
+                }
+            }
+            !c.segment_blocked(req.bs_xyz, req.uav_xyz)
+        }
+    };
+    let antenna = AntennaPattern::with_array(&radio.antenna, n, spacing, tilt);
+    let model = LinkModel::from_config(&radio);
+    let tx = Transmitter {
+        position_m: req.bs_xyz,
+        antenna: &antenna,
+        boresights_deg: &boresights,
+        scenario: req.scenario,
+        tx_power_dbm,
+    };
+    let budget = model.evaluate(&tx, req.uav_xyz, los);
+    let v = serde_json::json!({
+        "d3d_m": budget.d3d_m,
+        "d2d_m": budget.d2d_m,
+        "theta_deg": budget.theta_deg,
+        "best_sector": budget.best_sector,
+        "gain_dbi": budget.gain_dbi,
+        "pl_db": budget.pl_db,
+        "rsrp_dbm": budget.rsrp_dbm,
+        "class": budget.class,
+        "los": budget.los,
+    });
+    Ok(v.to_string())
+}
+
+/// The resolved sites as a sites-file CSV, loadable again with `scenario.sites_file`:
+/// `name,x_m,y_m,z_m,kind,boresights_deg,tilt_deg,tx_power_dbm`.
+pub fn write_sites_csv(world: &RadioWorld, w: &mut dyn Write) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "name,x_m,y_m,z_m,kind,boresights_deg,tilt_deg,tx_power_dbm"
+    )?;
+    for s in &world.sites {
+        let kind = match s.kind {
+            dupac_radio::sites::SiteKind::Macro => "macro",
+            dupac_radio::sites::SiteKind::Micro => "micro",
+        };
+        let bores: Vec<String> = s.boresights_deg.iter().map(|b| format!("{b}")).collect();
+        writeln!(
+            w,
+            "{},{:.2},{:.2},{:.2},{},{},{},{}",
+            s.name,
+            s.position_m[0],
+            s.position_m[1],
+            s.position_m[2],
+            kind,
+            bores.join(";"),
+            s.electrical_tilt_deg,
+            s.tx_power_dbm
+        )?;
+    }
+    Ok(())
+}

@@ -1,0 +1,96 @@
+//! `dupac`, the one command: a thin layer of argument parsing over the DUPAC libraries.
+
+mod commands;
+mod io;
+mod plot;
+
+use anyhow::Result;
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// DUPAC: Deep UAV Path planning with Assured Connectivity in dense urban settings.
+#[derive(Parser, Debug)]
+#[command(name = "dupac", version, about, long_about = None)]
+struct Cli {
+    #[command(flatten)]
+    global: GlobalArgs,
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// Options every subcommand takes.
+#[derive(Args, Debug, Clone)]
+pub struct GlobalArgs {
+    /// TOML configuration file (every key has a default; unknown keys are rejected).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Override one configuration key, e.g. `--set map.resolution_m=10` (repeatable).
+    #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+    /// No progress bars.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+}
+
+impl GlobalArgs {
+    /// The resolved, validated configuration.
+    pub fn config(&self) -> Result<dupac_common::Config> {
+        Ok(dupac_common::Config::load(
+            self.config.as_deref(),
+            &self.set,
+        )?)
+    }
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Best-server coverage maps of the scenario (paper Fig. 2(b)): PNG, CSV grid, summary.
+    Map(commands::map::MapArgs),
+    /// Radio tools: the scriptable link calculator, the site list.
+    #[command(subcommand)]
+    Radio(commands::radio::RadioCommand),
+    /// The per-site 3D RSRP cache used by the environment.
+    #[command(subcommand)]
+    Cache(commands::cache::CacheCommand),
+    /// Print the resolved configuration as TOML (defaults + file + --set).
+    Config,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_tracing(cli.global.verbose);
+    let result = match &cli.command {
+        Command::Map(a) => commands::map::run(&cli.global, a),
+        Command::Radio(c) => commands::radio::run(&cli.global, c),
+        Command::Cache(c) => commands::cache::run(&cli.global, c),
+        Command::Config => cli.global.config().map(|c| {
+            print!("{}", c.to_toml_string());
+            ExitCode::SUCCESS
+        }),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_tracing(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
