@@ -390,8 +390,9 @@ fn resolve_spec(
     })
 }
 
-/// Mounts an antenna near `xy_m`: on the nearest roof within `roof_search_m` (moved onto the
-/// footprint, 1 m inside its edge, at the highest roof there + `roof_mast_m`) or on a street pole.
+/// Mounts an antenna near `xy_m`: on the nearest roof within `roof_search_m` (at the point of the
+/// roof edge nearest `xy_m`, 1 m inside it, at the highest roof there + `roof_mast_m`) or on a
+/// street pole of `pole_height_m`.
 pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3], Mount) {
     let [x, y] = xy_m;
     let mut best: Option<(f64, [f64; 2], &Building)> = None;
@@ -400,7 +401,7 @@ pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3
             continue;
         };
         let (d, q) = if b.contains_xy(x, y) {
-            (0.0, xy_m)
+            (0.0, nearest_on_rings(b, xy_m).1)
         } else {
             nearest_on_rings(b, xy_m)
         };
@@ -410,18 +411,22 @@ pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3
     }
     match best {
         Some((d, q, b)) => {
-            let on = if d > 0.0 {
-                // Step 1 m past the edge, into the footprint.
-                let ux = (q[0] - x) / d;
-                let uy = (q[1] - y) / d;
-                let inside = [q[0] + ux, q[1] + uy];
-                if b.contains_xy(inside[0], inside[1]) {
-                    inside
-                } else {
-                    q
-                }
+            // Antennas stand at the roof edge (parapet) nearest the estimated position, 1 m
+            // inside it, where they see down into the street; a mast in the middle of a large
+            // roof would be shadowed by its own roof for every low UAV.
+            let to_edge = (q[0] - x).hypot(q[1] - y);
+            let on = if to_edge <= EDGE_SETBACK_M {
+                if d > 0.0 { q } else { xy_m }
             } else {
-                q
+                let (ux, uy) = ((q[0] - x) / to_edge, (q[1] - y) / to_edge);
+                // Outside: step past the edge inwards; inside: stop short of the edge.
+                let s = if d > 0.0 {
+                    EDGE_SETBACK_M
+                } else {
+                    -EDGE_SETBACK_M
+                };
+                let p = [q[0] + s * ux, q[1] + s * uy];
+                if b.contains_xy(p[0], p[1]) { p } else { q }
             };
             let roof_m = city.roof_height_m(on[0], on[1]).max(b.z_max_m);
             (
@@ -435,6 +440,9 @@ pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3
         None => ([x, y, cfg.pole_height_m], Mount::Pole),
     }
 }
+
+/// How far inside the roof edge a rooftop antenna stands (m).
+const EDGE_SETBACK_M: f64 = 1.0;
 
 /// Nearest point on a footprint's rings to `p` and its distance (m).
 fn nearest_on_rings(b: &Building, p: [f64; 2]) -> (f64, [f64; 2]) {

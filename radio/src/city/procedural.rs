@@ -392,10 +392,28 @@ mod tests {
 
     #[test]
     fn rings_are_ccw_open_and_inside_the_square() {
-        let c = cfg();
-        let city = generate(&c);
+        for c in [
+            cfg(),
+            ProceduralConfig {
+                rotation_deg: 0.0,
+                ..cfg()
+            },
+            ProceduralConfig {
+                rotation_deg: -15.0,
+                size_m: 500.0,
+                seed: 3,
+                ..cfg()
+            },
+        ] {
+            check_rings(&c);
+        }
+    }
+
+    fn check_rings(c: &ProceduralConfig) {
+        let city = generate(c);
+        let expect = (c.size_m * c.size_m / 2000.0) as usize;
         assert!(
-            city.buildings.len() > 500,
+            city.buildings.len() > expect,
             "{} buildings",
             city.buildings.len()
         );
