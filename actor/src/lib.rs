@@ -1,1 +1,6 @@
-//! Actor: environment, planners, rollouts (issue 3). Empty for now.
+//! The actor side of DUPAC: the UAV flight environment (the paper's MDP, spec/env.md), the
+//! planners (shortest flyable path, coverage-aware path) and the episode pairs.
+
+pub mod env;
+pub mod pairs;
+pub mod planner;

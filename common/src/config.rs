@@ -33,6 +33,9 @@ pub struct Config {
     pub radio: RadioConfig,
     pub map: MapConfig,
     pub cache: CacheConfig,
+    pub env: EnvConfig,
+    pub pairs: PairsConfig,
+    pub planner: PlannerConfig,
 }
 
 /// Which kind of city a scenario is built from.
@@ -336,6 +339,211 @@ impl Default for CacheConfig {
     }
 }
 
+/// How the serving GBS is chosen (spec/env.md "Association").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Association {
+    /// DUPAC: the action's discrete part picks the serving site.
+    Learned,
+    /// The paper's base method: the A3 rule of spec/radio.md §4.
+    A3,
+    /// Oracle (evaluation only): always the strongest site.
+    BestRsrp,
+}
+
+/// Where the environment gets RSRP from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RadioMode {
+    /// The memory-mapped per-site grid (`cache.*`), trilinear interpolation.
+    Cache,
+    /// A line-of-sight ray cast per site per step (validation).
+    Exact,
+}
+
+/// Reward of paper Eq. (8) plus the terminal terms of spec/env.md.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RewardConfig {
+    /// μ1, weight of the progress Δd (per metre).
+    pub mu1: f64,
+    /// μ2, weight of the RSRP (dBm) in the mediocre class.
+    pub mu2: f64,
+    /// μ3, weight of the RSRP (dBm) in the poor class.
+    pub mu3: f64,
+    /// Reward for reaching the goal (terminated).
+    pub goal_reward: f64,
+    /// Reward for a collision (terminated).
+    pub collision_reward: f64,
+    /// Reward for leaving the flight area (terminated).
+    pub out_of_bounds_reward: f64,
+    /// Reward added per handover (0 in the paper; for ablations).
+    pub handover_reward: f64,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        Self {
+            mu1: 10.0,
+            mu2: 0.01,
+            mu3: 0.1,
+            goal_reward: 100.0,
+            collision_reward: -100.0,
+            out_of_bounds_reward: -100.0,
+            handover_reward: 0.0,
+        }
+    }
+}
+
+/// Which parts of the observation are present (spec/env.md "Observation"); each addition to the
+/// paper's state can be switched off for ablations.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ObservationConfig {
+    /// Goal vector and its norm.
+    pub goal: bool,
+    /// The full 26-ray obstacle-sensor fan (c_t and θ_t are always present).
+    pub sensor_fan: bool,
+    /// Measured RSRP of every site.
+    pub rsrp_all: bool,
+    /// RSRP of the serving site.
+    pub rsrp_serving: bool,
+    /// Obstacle sensor range (m).
+    pub sensor_range_m: f64,
+    /// Scale of distances to the goal (m): goal vector / this.
+    pub goal_scale_m: f64,
+    /// RSRP normalisation: (RSRP − centre) / scale.
+    pub rsrp_centre_dbm: f64,
+    pub rsrp_scale_db: f64,
+}
+
+impl Default for ObservationConfig {
+    fn default() -> Self {
+        Self {
+            goal: true,
+            sensor_fan: true,
+            rsrp_all: true,
+            rsrp_serving: true,
+            sensor_range_m: 50.0,
+            goal_scale_m: 800.0,
+            rsrp_centre_dbm: -90.0,
+            rsrp_scale_db: 30.0,
+        }
+    }
+}
+
+/// The UAV flight environment (spec/env.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EnvConfig {
+    /// Lowest and highest flight altitude (m); moves are clamped to the band (FAA Part 107).
+    pub z_min_m: f64,
+    pub z_max_m: f64,
+    /// UAV radius for collisions (m).
+    pub uav_radius_m: f64,
+    /// Displacement per unit action per axis (m).
+    pub max_step_m: f64,
+    /// Flight speed (m/s) fixing the decision interval Δt = max_step_m / speed_mps.
+    pub speed_mps: f64,
+    /// Goal reached within this distance of the destination (m).
+    pub goal_radius_m: f64,
+    /// Time limit T = ceil(time_limit_factor × shortest path / max_step_m) steps.
+    pub time_limit_factor: f64,
+    pub association: Association,
+    pub radio_mode: RadioMode,
+    /// A return to the previous site within this time is a ping-pong (s).
+    pub ping_pong_window_s: f64,
+    pub reward: RewardConfig,
+    pub observation: ObservationConfig,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        Self {
+            z_min_m: 20.0,
+            z_max_m: 120.0,
+            uav_radius_m: 0.5,
+            max_step_m: 1.0,
+            speed_mps: 75.0 / 3.6,
+            goal_radius_m: 10.0,
+            time_limit_factor: 3.0,
+            association: Association::Learned,
+            radio_mode: RadioMode::Cache,
+            ping_pong_window_s: 1.0,
+            reward: RewardConfig::default(),
+            observation: ObservationConfig::default(),
+        }
+    }
+}
+
+impl EnvConfig {
+    /// Decision interval Δt (s) = max_step_m / speed_mps (spec/env.md "Time").
+    pub fn dt_s(&self) -> f64 {
+        self.max_step_m / self.speed_mps
+    }
+}
+
+/// Source/destination pairs (spec/env.md "Episodes").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PairsConfig {
+    /// Training pairs: shortest flyable path length uniform in [min_m, max_m].
+    pub min_m: f64,
+    pub max_m: f64,
+    /// Endpoints keep at least this clearance from buildings (m).
+    pub endpoint_clearance_m: f64,
+    /// Held-out evaluation bins (shortest path, m), ± `bin_tolerance` (fraction).
+    pub eval_bins_m: Vec<f64>,
+    pub bin_tolerance: f64,
+    /// Pairs per evaluation bin (K).
+    pub eval_per_bin: usize,
+    pub eval_seed: u64,
+    /// Where `dupac pairs` writes the evaluation set.
+    pub eval_file: PathBuf,
+}
+
+impl Default for PairsConfig {
+    fn default() -> Self {
+        Self {
+            min_m: 200.0,
+            max_m: 800.0,
+            endpoint_clearance_m: 5.0,
+            eval_bins_m: vec![200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0],
+            bin_tolerance: 0.05,
+            eval_per_bin: 50,
+            eval_seed: 2024,
+            eval_file: "out/pairs/eval_pairs.jsonl".into(),
+        }
+    }
+}
+
+/// The voxel planners (shortest flyable path, coverage-aware path).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlannerConfig {
+    /// Voxel edge (m).
+    pub voxel_m: f64,
+    /// Clearance kept from buildings (m); must be ≥ env.uav_radius_m.
+    pub clearance_m: f64,
+    /// λ of the coverage-aware planner: edge cost = length · (1 + λ · penalty(class)).
+    pub lambda: f64,
+    /// Penalty per metre by RSRP class of the best site (excellent is 0).
+    pub penalty_mediocre: f64,
+    pub penalty_poor: f64,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        Self {
+            voxel_m: 5.0,
+            clearance_m: 1.5,
+            lambda: 1.0,
+            penalty_mediocre: 1.0,
+            penalty_poor: 10.0,
+        }
+    }
+}
+
 impl Config {
     /// Parses a TOML string (`origin` names it in errors), applies `--set` overrides, validates.
     pub fn from_toml_str(text: &str, origin: &str, sets: &[String]) -> Result<Config, ConfigError> {
@@ -562,6 +770,75 @@ impl Config {
         finite("cache.z_min_m", c.z_min_m)?;
         if !(c.z_max_m.is_finite() && c.z_max_m > c.z_min_m) {
             return Err(bad("cache.z_max_m", "must be > cache.z_min_m"));
+        }
+
+        let e = &self.env;
+        positive("env.z_min_m", e.z_min_m)?;
+        if !(e.z_max_m.is_finite() && e.z_max_m > e.z_min_m) {
+            return Err(bad("env.z_max_m", "must be > env.z_min_m"));
+        }
+        positive("env.uav_radius_m", e.uav_radius_m)?;
+        positive("env.max_step_m", e.max_step_m)?;
+        positive("env.speed_mps", e.speed_mps)?;
+        positive("env.goal_radius_m", e.goal_radius_m)?;
+        positive("env.time_limit_factor", e.time_limit_factor)?;
+        positive("env.ping_pong_window_s", e.ping_pong_window_s)?;
+        let rw = &e.reward;
+        for (k, v) in [
+            ("env.reward.mu1", rw.mu1),
+            ("env.reward.mu2", rw.mu2),
+            ("env.reward.mu3", rw.mu3),
+            ("env.reward.goal_reward", rw.goal_reward),
+            ("env.reward.collision_reward", rw.collision_reward),
+            ("env.reward.out_of_bounds_reward", rw.out_of_bounds_reward),
+            ("env.reward.handover_reward", rw.handover_reward),
+        ] {
+            finite(k, v)?;
+        }
+        let o = &e.observation;
+        positive("env.observation.sensor_range_m", o.sensor_range_m)?;
+        positive("env.observation.goal_scale_m", o.goal_scale_m)?;
+        finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
+        positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;
+        if e.radio_mode == RadioMode::Cache && (c.z_min_m > e.z_min_m || c.z_max_m < e.z_max_m) {
+            return Err(bad(
+                "cache.z_min_m",
+                "the RSRP cache must span the flight band env.z_min_m..env.z_max_m",
+            ));
+        }
+
+        let pr = &self.pairs;
+        positive("pairs.min_m", pr.min_m)?;
+        if !(pr.max_m.is_finite() && pr.max_m >= pr.min_m) {
+            return Err(bad("pairs.max_m", "must be >= pairs.min_m"));
+        }
+        finite("pairs.endpoint_clearance_m", pr.endpoint_clearance_m)?;
+        if pr.endpoint_clearance_m < e.uav_radius_m {
+            return Err(bad(
+                "pairs.endpoint_clearance_m",
+                "must be >= env.uav_radius_m",
+            ));
+        }
+        if pr.eval_bins_m.iter().any(|b| !(b.is_finite() && *b > 0.0)) {
+            return Err(bad("pairs.eval_bins_m", "must be positive distances"));
+        }
+        if !(pr.bin_tolerance.is_finite() && pr.bin_tolerance > 0.0 && pr.bin_tolerance < 0.5) {
+            return Err(bad("pairs.bin_tolerance", "must be in (0, 0.5)"));
+        }
+
+        let pl = &self.planner;
+        positive("planner.voxel_m", pl.voxel_m)?;
+        if !(pl.clearance_m.is_finite() && pl.clearance_m >= e.uav_radius_m) {
+            return Err(bad("planner.clearance_m", "must be >= env.uav_radius_m"));
+        }
+        for (k, v) in [
+            ("planner.lambda", pl.lambda),
+            ("planner.penalty_mediocre", pl.penalty_mediocre),
+            ("planner.penalty_poor", pl.penalty_poor),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(k, format!("must be a finite number >= 0, got {v}")));
+            }
         }
         Ok(())
     }

@@ -7,6 +7,7 @@
 pub mod config;
 pub mod fingerprint;
 pub mod ids;
+pub mod obs;
 
 pub use config::{Config, ConfigError};
 pub use ids::SiteId;

@@ -1,0 +1,55 @@
+//! What every step reports besides the observation: the record evaluation is built from.
+
+use dupac_common::SiteId;
+use dupac_radio::class::RsrpClass;
+use serde::{Deserialize, Serialize};
+
+/// Why an episode ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Within `env.goal_radius_m` of the destination (terminated).
+    Goal,
+    /// The swept UAV sphere touched a building (terminated).
+    Collision,
+    /// Left the flight area laterally (terminated).
+    OutOfBounds,
+    /// Reached the time limit T (truncated: the learner bootstraps).
+    TimeLimit,
+}
+
+impl Outcome {
+    /// Terminated (a true terminal state) rather than truncated.
+    pub fn is_terminal(self) -> bool {
+        !matches!(self, Outcome::TimeLimit)
+    }
+}
+
+/// One step's record (spec/env.md "Metrics").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StepInfo {
+    /// Step index within the episode (1 for the first step).
+    pub step: u32,
+    /// UAV position after the move (m).
+    pub position_m: [f64; 3],
+    pub serving: SiteId,
+    pub serving_rsrp_dbm: f64,
+    /// The strongest site and its RSRP at this position.
+    pub best_site: SiteId,
+    pub best_rsrp_dbm: f64,
+    /// Class of the serving RSRP.
+    pub class: RsrpClass,
+    /// Whether the serving link is line of sight (geometric).
+    pub los: bool,
+    pub handover: bool,
+    /// A handover back to the previous site within `env.ping_pong_window_s`.
+    pub ping_pong: bool,
+    /// Length of this step's move (m).
+    pub step_length_m: f64,
+    /// Distance flown since the start of the episode (m).
+    pub distance_flown_m: f64,
+    /// Euclidean distance to the destination after the move (m).
+    pub distance_to_goal_m: f64,
+    pub reward: f64,
+    pub outcome: Option<Outcome>,
+}

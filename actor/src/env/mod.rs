@@ -1,0 +1,495 @@
+//! The UAV flight environment: the paper's MDP (Sec. III) made exact (spec/env.md).
+//!
+//! `Env::reset(seed, pair)` starts an episode; `Env::step(&action)` moves the UAV by the clipped
+//! action, checks the swept sphere against the building mesh, measures every site's RSRP,
+//! applies the association rule, and returns the reward of paper Eq. (8) plus the terminal terms
+//! of the spec, with termination and truncation kept apart. The observation layout is
+//! [`dupac_common::obs::ObsLayout`] (version [`dupac_common::obs::OBS_VERSION`]).
+//!
+//! Deviations from the paper (all configurable) are listed in `docs/env.md`.
+
+mod association;
+mod info;
+mod reward;
+
+pub use association::{Associator, argmax};
+pub use info::{Outcome, StepInfo};
+pub use reward::step_reward;
+
+use dupac_common::SiteId;
+use dupac_common::config::{Association, Config, EnvConfig};
+use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
+use dupac_radio::a3::A3Params;
+use dupac_radio::cache::RsrpSource;
+use dupac_radio::class::RsrpThresholds;
+use dupac_radio::world::RadioWorld;
+use std::ops::Range;
+use std::sync::Arc;
+
+/// Errors of `reset` and `step`: bad input never panics and never silently runs a wrong episode.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EnvError {
+    #[error("action move {0:?} is not finite")]
+    NonFiniteAction([f64; 3]),
+    #[error("action site {site} is out of range: the scenario has {n_sites} sites")]
+    SiteOutOfRange { site: u16, n_sites: usize },
+    #[error("{which} {position:?}: {message}")]
+    BadEndpoint {
+        which: &'static str,
+        position: [f64; 3],
+        message: String,
+    },
+    #[error("pair shortest_m = {0} must be a finite length > 0")]
+    BadShortest(f64),
+    #[error("step called on a finished episode; call reset first")]
+    EpisodeOver,
+    #[error("the RSRP source has {got} sites, the world {want}")]
+    SiteCountMismatch { got: usize, want: usize },
+}
+
+/// The hybrid action: a continuous move in [−1, 1]³ (clipped per axis; the unclipped value is
+/// what the learner stores) and the chosen serving site (ignored unless `association = learned`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Action {
+    pub move_: [f64; 3],
+    pub site: SiteId,
+}
+
+/// An episode's endpoints and its shortest flyable path length (for the time limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Episode {
+    pub source_m: [f64; 3],
+    pub destination_m: [f64; 3],
+    /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
+    pub shortest_m: f64,
+}
+
+/// Result of one step (the observation is read with [`Env::observation`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    pub reward: f64,
+    /// A true terminal state (goal, collision, out of bounds): no bootstrapping.
+    pub terminated: bool,
+    /// Cut by the time limit: the learner bootstraps from the value of the final observation.
+    pub truncated: bool,
+    pub info: StepInfo,
+}
+
+/// Observation slices resolved once from the layout.
+#[derive(Debug, Clone)]
+struct Slots {
+    position: Range<usize>,
+    velocity: Range<usize>,
+    goal_vector: Option<Range<usize>>,
+    goal_distance: Option<Range<usize>>,
+    obstacle_distance: Range<usize>,
+    obstacle_direction: Range<usize>,
+    sensor_fan: Option<Range<usize>>,
+    serving_one_hot: Range<usize>,
+    rsrp_all: Option<Range<usize>>,
+    rsrp_serving: Option<Range<usize>>,
+}
+
+/// One UAV environment. Cheap to clone the shared parts (`Arc`), so many run in parallel.
+pub struct Env {
+    cfg: EnvConfig,
+    world: Arc<RadioWorld>,
+    rsrp: Arc<dyn RsrpSource + Send + Sync>,
+    thresholds: RsrpThresholds,
+    a3: A3Params,
+    layout: ObsLayout,
+    slots: Slots,
+    sensor_dirs: [[f64; 3]; 26],
+    ping_pong_steps: u32,
+    // Episode state.
+    episode: Option<Episode>,
+    position_m: [f64; 3],
+    velocity_m: [f64; 3],
+    serving: SiteId,
+    associator: Associator,
+    rsrp_dbm: Vec<f64>,
+    step: u32,
+    time_limit: u32,
+    distance_flown_m: f64,
+    distance_to_goal_m: f64,
+    /// (site before the last handover, step of the last handover).
+    last_handover: Option<(SiteId, u32)>,
+    done: bool,
+    seed: u64,
+    obs: Vec<f32>,
+}
+
+impl Env {
+    /// An environment over `world`, measuring RSRP with `rsrp` (the cache, or the world itself
+    /// for exact mode).
+    pub fn new(
+        cfg: &Config,
+        world: Arc<RadioWorld>,
+        rsrp: Arc<dyn RsrpSource + Send + Sync>,
+    ) -> Result<Env, EnvError> {
+        let m = world.num_sites();
+        if rsrp.num_sites() != m {
+            return Err(EnvError::SiteCountMismatch {
+                got: rsrp.num_sites(),
+                want: m,
+            });
+        }
+        let env = cfg.env.clone();
+        let layout = ObsLayout::new(&env.observation, m);
+        let req = |name: &str| layout.range(name).unwrap_or(0..0);
+        let slots = Slots {
+            position: req(field::POSITION),
+            velocity: req(field::VELOCITY),
+            goal_vector: layout.range(field::GOAL_VECTOR),
+            goal_distance: layout.range(field::GOAL_DISTANCE),
+            obstacle_distance: req(field::OBSTACLE_DISTANCE),
+            obstacle_direction: req(field::OBSTACLE_DIRECTION),
+            sensor_fan: layout.range(field::SENSOR_FAN),
+            serving_one_hot: req(field::SERVING_ONE_HOT),
+            rsrp_all: layout.range(field::RSRP_ALL),
+            rsrp_serving: layout.range(field::RSRP_SERVING),
+        };
+        let mut sensor_dirs = [[0.0; 3]; 26];
+        for (d, s) in sensor_dirs.iter_mut().zip(SENSOR_DIRECTIONS) {
+            let v = [f64::from(s[0]), f64::from(s[1]), f64::from(s[2])];
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            *d = [v[0] / n, v[1] / n, v[2] / n];
+        }
+        let dt = env.dt_s();
+        let a3 = A3Params::from_config(&cfg.radio.a3, dt);
+        let ping_pong_steps = (env.ping_pong_window_s / dt).ceil().max(1.0) as u32;
+        let obs = vec![0.0; layout.len()];
+        Ok(Env {
+            thresholds: RsrpThresholds::from_config(&cfg.radio),
+            a3,
+            layout,
+            slots,
+            sensor_dirs,
+            ping_pong_steps,
+            episode: None,
+            position_m: [0.0; 3],
+            velocity_m: [0.0; 3],
+            serving: SiteId(0),
+            associator: Associator::Learned,
+            rsrp_dbm: vec![f64::NEG_INFINITY; m],
+            step: 0,
+            time_limit: 0,
+            distance_flown_m: 0.0,
+            distance_to_goal_m: 0.0,
+            last_handover: None,
+            done: true,
+            seed: 0,
+            obs,
+            cfg: env,
+            world,
+            rsrp,
+        })
+    }
+
+    /// The observation layout (length, field ranges).
+    pub fn layout(&self) -> &ObsLayout {
+        &self.layout
+    }
+
+    /// M, the number of sites (size of the discrete action).
+    pub fn num_sites(&self) -> usize {
+        self.world.num_sites()
+    }
+
+    /// The current observation.
+    pub fn observation(&self) -> &[f32] {
+        &self.obs
+    }
+
+    pub fn position_m(&self) -> [f64; 3] {
+        self.position_m
+    }
+
+    pub fn serving(&self) -> SiteId {
+        self.serving
+    }
+
+    /// RSRP of every site at the current position (dBm).
+    pub fn rsrp_dbm(&self) -> &[f64] {
+        &self.rsrp_dbm
+    }
+
+    pub fn episode(&self) -> Option<&Episode> {
+        self.episode.as_ref()
+    }
+
+    /// The seed the episode was reset with.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Time limit T of the current episode (steps).
+    pub fn time_limit(&self) -> u32 {
+        self.time_limit
+    }
+
+    pub fn config(&self) -> &EnvConfig {
+        &self.cfg
+    }
+
+    pub fn world(&self) -> &RadioWorld {
+        &self.world
+    }
+
+    /// Checks an endpoint: finite, in the area and band, not inside a building.
+    pub fn check_endpoint(&self, which: &'static str, p: [f64; 3]) -> Result<(), EnvError> {
+        let bad = |message: String| EnvError::BadEndpoint {
+            which,
+            position: p,
+            message,
+        };
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(bad("not finite".into()));
+        }
+        let a = self.world.city.area_m;
+        if !self.world.city.in_area(p[0], p[1]) {
+            return Err(bad(format!(
+                "outside the flight area x ∈ [{:.1}, {:.1}], y ∈ [{:.1}, {:.1}] m",
+                a[0], a[2], a[1], a[3]
+            )));
+        }
+        if p[2] < self.cfg.z_min_m || p[2] > self.cfg.z_max_m {
+            return Err(bad(format!(
+                "altitude outside the band [{}, {}] m",
+                self.cfg.z_min_m, self.cfg.z_max_m
+            )));
+        }
+        if self.world.city.is_inside_building(p) {
+            return Err(bad("inside a building".into()));
+        }
+        Ok(())
+    }
+
+    /// Starts an episode. The environment is deterministic: `seed` is recorded (for rollouts that
+    /// derive their own randomness from it) and the same episode and actions give a bit-identical
+    /// trajectory.
+    pub fn reset(&mut self, seed: u64, episode: Episode) -> Result<&[f32], EnvError> {
+        self.check_endpoint("source", episode.source_m)?;
+        self.check_endpoint("destination", episode.destination_m)?;
+        if !(episode.shortest_m.is_finite() && episode.shortest_m > 0.0) {
+            return Err(EnvError::BadShortest(episode.shortest_m));
+        }
+        self.seed = seed;
+        self.episode = Some(episode);
+        self.position_m = episode.source_m;
+        self.velocity_m = [0.0; 3];
+        self.step = 0;
+        self.time_limit = (self.cfg.time_limit_factor * episode.shortest_m / self.cfg.max_step_m)
+            .ceil()
+            .clamp(1.0, f64::from(u32::MAX)) as u32;
+        self.distance_flown_m = 0.0;
+        self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
+        self.last_handover = None;
+        self.done = false;
+        self.rsrp.rsrp_all_dbm(self.position_m, &mut self.rsrp_dbm);
+        let (assoc, first) = Associator::start(self.cfg.association, self.a3, &self.rsrp_dbm);
+        self.associator = assoc;
+        self.serving = first;
+        self.write_observation();
+        Ok(&self.obs)
+    }
+
+    /// One decision step (Δt = max_step_m / speed).
+    pub fn step(&mut self, action: &Action) -> Result<Step, EnvError> {
+        if self.done {
+            return Err(EnvError::EpisodeOver);
+        }
+        let episode = self.episode.ok_or(EnvError::EpisodeOver)?;
+        if action.move_.iter().any(|v| !v.is_finite()) {
+            return Err(EnvError::NonFiniteAction(action.move_));
+        }
+        let m = self.world.num_sites();
+        if self.cfg.association == Association::Learned && action.site.index() >= m {
+            return Err(EnvError::SiteOutOfRange {
+                site: action.site.0,
+                n_sites: m,
+            });
+        }
+        self.step += 1;
+        let from = self.position_m;
+        let mut to = [0.0; 3];
+        for k in 0..3 {
+            to[k] = from[k] + action.move_[k].clamp(-1.0, 1.0) * self.cfg.max_step_m;
+        }
+        // The altitude band is a clamp, not a failure (spec/env.md "UAV and motion").
+        to[2] = to[2].clamp(self.cfg.z_min_m, self.cfg.z_max_m);
+
+        let mut outcome = None;
+        if let Some(t) = self
+            .world
+            .city
+            .mesh
+            .sphere_sweep(from, to, self.cfg.uav_radius_m)
+        {
+            // Stop at the contact point.
+            for k in 0..3 {
+                to[k] = from[k] + t * (to[k] - from[k]);
+            }
+            outcome = Some(Outcome::Collision);
+        } else if !self.world.city.in_area(to[0], to[1]) {
+            outcome = Some(Outcome::OutOfBounds);
+        }
+        let step_length_m = dist(from, to);
+        self.velocity_m = [
+            (to[0] - from[0]) / self.cfg.max_step_m,
+            (to[1] - from[1]) / self.cfg.max_step_m,
+            (to[2] - from[2]) / self.cfg.max_step_m,
+        ];
+        self.position_m = to;
+        self.distance_flown_m += step_length_m;
+        let d_prev = self.distance_to_goal_m;
+        self.distance_to_goal_m = dist(to, episode.destination_m);
+        let progress_m = d_prev - self.distance_to_goal_m;
+
+        // Radio: every site's RSRP at the new position, then the association rule.
+        self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);
+        let before = self.serving;
+        self.serving = self.associator.next(action.site, &self.rsrp_dbm);
+        let handover = self.serving != before;
+        let mut ping_pong = false;
+        if handover {
+            if let Some((prev, at)) = self.last_handover
+                && prev == self.serving
+                && self.step - at <= self.ping_pong_steps
+            {
+                ping_pong = true;
+            }
+            self.last_handover = Some((before, self.step));
+        }
+        let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
+        let class = self.thresholds.classify(serving_rsrp_dbm);
+        let best_site = argmax(&self.rsrp_dbm);
+
+        let r = &self.cfg.reward;
+        let mut reward = match outcome {
+            Some(Outcome::Collision) => r.collision_reward,
+            Some(Outcome::OutOfBounds) => r.out_of_bounds_reward,
+            _ => step_reward(r, class, progress_m, serving_rsrp_dbm),
+        };
+        if handover {
+            reward += r.handover_reward;
+        }
+        if outcome.is_none() && self.distance_to_goal_m <= self.cfg.goal_radius_m {
+            outcome = Some(Outcome::Goal);
+            reward += r.goal_reward;
+        }
+        let terminated = outcome.is_some();
+        let truncated = !terminated && self.step >= self.time_limit;
+        if truncated {
+            outcome = Some(Outcome::TimeLimit);
+        }
+        self.done = terminated || truncated;
+        self.write_observation();
+        let info = StepInfo {
+            step: self.step,
+            position_m: to,
+            serving: self.serving,
+            serving_rsrp_dbm,
+            best_site,
+            best_rsrp_dbm: self.rsrp_dbm[best_site.index()],
+            class,
+            los: self.world.los(self.serving, to),
+            handover,
+            ping_pong,
+            step_length_m,
+            distance_flown_m: self.distance_flown_m,
+            distance_to_goal_m: self.distance_to_goal_m,
+            reward,
+            outcome,
+        };
+        Ok(Step {
+            reward,
+            terminated,
+            truncated,
+            info,
+        })
+    }
+
+    /// Whether the current episode has ended (terminated or truncated).
+    pub fn is_done(&self) -> bool {
+        self.done
+    }
+
+    /// Nearest obstacle along the sensor fan: writes normalised distances into `fan` and returns
+    /// (c_t normalised, index of the nearest ray or `None`).
+    fn sense(&self, fan: &mut [f32; 26]) -> (f32, Option<usize>) {
+        let range = self.cfg.observation.sensor_range_m;
+        let mut best = (1.0f32, None);
+        for (i, d) in self.sensor_dirs.iter().enumerate() {
+            let v = match self
+                .world
+                .city
+                .mesh
+                .ray_distance_m(self.position_m, *d, range)
+            {
+                Some(t) => (t / range) as f32,
+                None => 1.0,
+            };
+            fan[i] = v;
+            if v < best.0 {
+                best = (v, Some(i));
+            }
+        }
+        best
+    }
+
+    fn write_observation(&mut self) {
+        let s = self.slots.clone();
+        let o = &self.cfg.observation;
+        let a = self.world.city.area_m;
+        let (cx, cy) = (0.5 * (a[0] + a[2]), 0.5 * (a[1] + a[3]));
+        let (hx, hy) = (0.5 * (a[2] - a[0]), 0.5 * (a[3] - a[1]));
+        let zc = 0.5 * (self.cfg.z_min_m + self.cfg.z_max_m);
+        let hz = 0.5 * (self.cfg.z_max_m - self.cfg.z_min_m);
+        let p = self.position_m;
+        let pos = [(p[0] - cx) / hx, (p[1] - cy) / hy, (p[2] - zc) / hz];
+        let mut fan = [1.0f32; 26];
+        let (c_t, nearest) = self.sense(&mut fan);
+        let rsrp_norm = |v: f64| {
+            let x = (v - o.rsrp_centre_dbm) / o.rsrp_scale_db;
+            // −∞ (a site that cannot be measured) and extreme nulls are clipped.
+            x.clamp(-10.0, 10.0) as f32
+        };
+        let obs = &mut self.obs;
+        for (k, v) in pos.iter().enumerate() {
+            obs[s.position.start + k] = *v as f32;
+        }
+        for k in 0..3 {
+            obs[s.velocity.start + k] = self.velocity_m[k] as f32;
+        }
+        if let (Some(gv), Some(gd), Some(ep)) = (&s.goal_vector, &s.goal_distance, &self.episode) {
+            for k in 0..3 {
+                obs[gv.start + k] = ((ep.destination_m[k] - p[k]) / o.goal_scale_m) as f32;
+            }
+            obs[gd.start] = (self.distance_to_goal_m / o.goal_scale_m) as f32;
+        }
+        obs[s.obstacle_distance.start] = c_t;
+        let dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
+        for k in 0..3 {
+            obs[s.obstacle_direction.start + k] = dir[k] as f32;
+        }
+        if let Some(f) = &s.sensor_fan {
+            obs[f.clone()].copy_from_slice(&fan);
+        }
+        obs[s.serving_one_hot.clone()].fill(0.0);
+        obs[s.serving_one_hot.start + self.serving.index()] = 1.0;
+        if let Some(r) = &s.rsrp_all {
+            for (i, v) in self.rsrp_dbm.iter().enumerate() {
+                obs[r.start + i] = rsrp_norm(*v);
+            }
+        }
+        if let Some(r) = &s.rsrp_serving {
+            obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
+        }
+    }
+}
+
+#[inline]
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}

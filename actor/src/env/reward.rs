@@ -1,0 +1,46 @@
+//! The paper's reward, Eq. (8), with the RSRP classes of spec/radio.md §3.
+
+use dupac_common::config::RewardConfig;
+use dupac_radio::class::RsrpClass;
+
+/// Per-step reward of paper Eq. (8): excellent `μ1·Δd`; mediocre `μ1·Δd + μ2·w`; poor `μ3·w`,
+/// with `Δd` the progress towards the destination (m) and `w` the serving RSRP (dBm).
+#[inline]
+pub fn step_reward(
+    cfg: &RewardConfig,
+    class: RsrpClass,
+    progress_m: f64,
+    serving_rsrp_dbm: f64,
+) -> f64 {
+    match class {
+        RsrpClass::Excellent => cfg.mu1 * progress_m,
+        RsrpClass::Mediocre => cfg.mu1 * progress_m + cfg.mu2 * serving_rsrp_dbm,
+        RsrpClass::Poor => cfg.mu3 * serving_rsrp_dbm,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dupac_radio::class::RsrpThresholds;
+
+    fn r(rsrp: f64, progress: f64) -> f64 {
+        let t = RsrpThresholds::default();
+        step_reward(&RewardConfig::default(), t.classify(rsrp), progress, rsrp)
+    }
+
+    #[test]
+    fn each_class_and_its_boundaries() {
+        // Excellent (≥ −80): 10 · Δd, RSRP ignored.
+        assert_eq!(r(-60.0, 0.5), 5.0);
+        assert_eq!(r(-80.0, 1.0), 10.0);
+        // Mediocre [−100, −80): 10 · Δd + 0.01 · w.
+        assert!((r(-80.0001, 1.0) - (10.0 - 0.800001)).abs() < 1e-9);
+        assert!((r(-90.0, 1.0) - 9.1).abs() < 1e-12);
+        assert!((r(-100.0, -1.0) - (-10.0 - 1.0)).abs() < 1e-12);
+        // Poor (< −100): 0.1 · w, no progress term.
+        assert!((r(-100.5, 1.0) - (-10.05)).abs() < 1e-12);
+        assert!((r(-120.0, 1.0) - (-12.0)).abs() < 1e-12);
+        assert_eq!(r(-120.0, 1.0), r(-120.0, -1.0));
+    }
+}

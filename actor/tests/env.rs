@@ -1,0 +1,411 @@
+//! Environment tests on hand-built geometry with a scripted RSRP field.
+
+use dupac_actor::env::{Action, Env, EnvError, Episode, Outcome};
+use dupac_common::SiteId;
+use dupac_common::config::{Association, Config};
+use dupac_common::obs::field;
+use dupac_radio::cache::RsrpSource;
+use dupac_radio::city::{Building, City};
+use dupac_radio::class::RsrpClass;
+use dupac_radio::sites::{Mount, Site, SiteKind};
+use dupac_radio::world::RadioWorld;
+use std::sync::Arc;
+
+/// A scripted RSRP field: site `s` gives `f(s, p)`.
+struct Field(fn(usize, [f64; 3]) -> f64, usize);
+
+impl RsrpSource for Field {
+    fn num_sites(&self) -> usize {
+        self.1
+    }
+    fn rsrp_all_dbm(&self, p: [f64; 3], out: &mut [f64]) {
+        for (s, o) in out.iter_mut().enumerate().take(self.1) {
+            *o = (self.0)(s, p);
+        }
+    }
+}
+
+fn block(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, z0: f64, z1: f64) -> Building {
+    Building {
+        id: id.into(),
+        outer_m: vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1]],
+        holes_m: vec![],
+        z_min_m: z0,
+        z_max_m: z1,
+    }
+}
+
+fn site(id: u16, xyz: [f64; 3]) -> Site {
+    Site {
+        id: SiteId(id),
+        name: format!("s{id}"),
+        position_m: xyz,
+        kind: SiteKind::Macro,
+        boresights_deg: vec![30.0, 150.0, 270.0],
+        electrical_tilt_deg: 10.0,
+        tx_power_dbm: 15.2,
+        mount: Mount::User,
+    }
+}
+
+/// 400 m square; a 60 m block at x ∈ [50, 70]; a 1 m thin part at x ∈ [−50, −49], y ∈ [−20, 20],
+/// 0–100 m; two sites.
+fn world() -> Arc<RadioWorld> {
+    let cfg = Config::default();
+    let city = City::from_buildings(
+        "test",
+        [-200.0, -200.0, 200.0, 200.0],
+        vec![
+            block("block", 50.0, -100.0, 70.0, 100.0, 0.0, 60.0),
+            block("thin", -50.0, -20.0, -49.0, 20.0, 0.0, 100.0),
+        ],
+        None,
+    )
+    .expect("city");
+    Arc::new(RadioWorld::from_parts(
+        city,
+        vec![site(0, [-150.0, 0.0, 25.0]), site(1, [150.0, 150.0, 25.0])],
+        &cfg.radio,
+    ))
+}
+
+fn env_with(assoc: Association, f: fn(usize, [f64; 3]) -> f64) -> Env {
+    let mut cfg = Config::default();
+    cfg.env.association = assoc;
+    Env::new(&cfg, world(), Arc::new(Field(f, 2))).expect("env")
+}
+
+fn ep(src: [f64; 3], dst: [f64; 3]) -> Episode {
+    let d =
+        ((src[0] - dst[0]).powi(2) + (src[1] - dst[1]).powi(2) + (src[2] - dst[2]).powi(2)).sqrt();
+    Episode {
+        source_m: src,
+        destination_m: dst,
+        shortest_m: d,
+    }
+}
+
+fn mv(x: f64, y: f64, z: f64, s: u16) -> Action {
+    Action {
+        move_: [x, y, z],
+        site: SiteId(s),
+    }
+}
+
+const EXCELLENT: fn(usize, [f64; 3]) -> f64 = |s, _| if s == 0 { -70.0 } else { -95.0 };
+
+#[test]
+fn reward_follows_the_class_of_the_serving_site() {
+    // Site 0 is excellent (−70), site 1 mediocre (−95); learned association.
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    assert_eq!(e.serving(), SiteId(0), "starts on the strongest site");
+    let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+    assert!(
+        (s.reward - 10.0).abs() < 1e-9,
+        "excellent: μ1·Δd = 10, got {}",
+        s.reward
+    );
+    assert_eq!(s.info.class, RsrpClass::Excellent);
+    let s = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step");
+    assert!(s.info.handover);
+    assert!(
+        (s.reward - (10.0 - 0.95)).abs() < 1e-9,
+        "mediocre: 10·1 + 0.01·(−95)"
+    );
+    // Poor: a field at −105 dBm for site 1.
+    let mut e = env_with(
+        Association::Learned,
+        |s, _| if s == 0 { -70.0 } else { -105.0 },
+    );
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    let s = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step");
+    assert_eq!(s.info.class, RsrpClass::Poor);
+    assert!(
+        (s.reward - (-10.5)).abs() < 1e-9,
+        "poor: 0.1·(−105), no progress term"
+    );
+    // Moving away in excellent RSRP is penalised by −μ1.
+    let s = e.step(&mv(0.0, -1.0, 0.0, 0)).expect("step");
+    assert!((s.reward - (-10.0)).abs() < 1e-9, "{}", s.reward);
+}
+
+#[test]
+fn collision_with_a_wall_stops_at_contact_and_terminates() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([45.0, 0.0, 30.0], [45.0, 150.0, 30.0]))
+        .expect("reset");
+    let mut last = None;
+    for _ in 0..10 {
+        let s = e.step(&mv(1.0, 0.0, 0.0, 0)).expect("step");
+        if s.terminated {
+            last = Some(s);
+            break;
+        }
+    }
+    let s = last.expect("must hit the wall at x = 50");
+    assert_eq!(s.info.outcome, Some(Outcome::Collision));
+    assert!(!s.truncated);
+    assert_eq!(s.reward, -100.0);
+    assert!(
+        (s.info.position_m[0] - 49.5).abs() < 1e-3,
+        "{:?}",
+        s.info.position_m
+    );
+    assert!(matches!(
+        e.step(&mv(0.0, 0.0, 0.0, 0)),
+        Err(EnvError::EpisodeOver)
+    ));
+}
+
+#[test]
+fn collision_with_a_roof_and_with_a_thin_part() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([60.0, 0.0, 62.0], [0.0, 0.0, 62.0]))
+        .expect("reset");
+    let s1 = e.step(&mv(0.0, 0.0, -1.0, 0)).expect("step");
+    assert!(!s1.terminated, "61 m: 0.5 m above the roof plus margin");
+    let s2 = e.step(&mv(0.0, 0.0, -1.0, 0)).expect("step");
+    assert_eq!(s2.info.outcome, Some(Outcome::Collision), "roof at 60 m");
+    // The 1 m thick part: diagonal moves must not tunnel through it.
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([-52.0, 0.0, 50.0], [-30.0, 0.0, 50.0]))
+        .expect("reset");
+    let mut hit = false;
+    for _ in 0..5 {
+        let s = e.step(&mv(1.0, 1.0, 1.0, 0)).expect("step");
+        if s.info.outcome == Some(Outcome::Collision) {
+            hit = true;
+            break;
+        }
+    }
+    assert!(hit, "diagonal move through a thin part collides");
+}
+
+#[test]
+fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([0.0, 0.0, 119.5], [0.0, 100.0, 100.0]))
+        .expect("reset");
+    let s = e.step(&mv(0.0, 0.0, 1.0, 0)).expect("step");
+    assert_eq!(s.info.position_m[2], 120.0);
+    assert!(!s.terminated);
+    let s = e.step(&mv(0.0, 0.0, 5.0, 0)).expect("step");
+    assert_eq!(
+        s.info.position_m[2], 120.0,
+        "clipped action, clamped altitude"
+    );
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([-199.5, 150.0, 30.0], [0.0, 150.0, 30.0]))
+        .expect("reset");
+    let s = e.step(&mv(-1.0, 0.0, 0.0, 0)).expect("step");
+    assert_eq!(s.info.outcome, Some(Outcome::OutOfBounds));
+    assert!(s.terminated);
+    assert_eq!(s.reward, -100.0);
+}
+
+#[test]
+fn goal_terminates_and_time_limit_truncates() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 12.0, 50.0]))
+        .expect("reset");
+    let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+    assert!(!s.terminated);
+    let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+    assert_eq!(s.info.outcome, Some(Outcome::Goal), "within 10 m");
+    assert!(s.terminated && !s.truncated);
+    assert!((s.reward - 110.0).abs() < 1e-9, "progress 10 + goal 100");
+
+    // T = ceil(3 · 12 / 1) = 36 steps of hovering: truncated on step 36, not terminated.
+    e.reset(2, ep([0.0, 0.0, 50.0], [0.0, 12.0, 50.0]))
+        .expect("reset");
+    assert_eq!(e.time_limit(), 36);
+    for i in 1..=36 {
+        let s = e.step(&mv(0.0, 0.0, 0.0, 0)).expect("step");
+        assert_eq!(s.truncated, i == 36);
+        assert!(!s.terminated);
+        if i == 36 {
+            assert_eq!(s.info.outcome, Some(Outcome::TimeLimit));
+        }
+    }
+}
+
+#[test]
+fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
+    // Site 1 is 6 dB stronger than site 0 for y ≥ 5 (> Off + Hys = 4 dB), weaker before.
+    let f: fn(usize, [f64; 3]) -> f64 = |s, p| match (s, p[1] >= 5.0) {
+        (0, _) => -80.0,
+        (_, true) => -74.0,
+        (_, false) => -90.0,
+    };
+    let mut e = env_with(Association::A3, f);
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    assert_eq!(e.serving(), SiteId(0));
+    // TTT 160 ms at Δt = 1 m / 20.83 m/s = 48 ms → 4 steps. y = 5 is reached on step 5; the
+    // condition holds on steps 5, 6, 7, 8 → handover on step 8.
+    let mut handover_step = None;
+    for i in 1..=12 {
+        // The action asks for site 0 every time; A3 ignores it.
+        let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+        if s.info.handover {
+            handover_step = Some(i);
+            assert_eq!(s.info.serving, SiteId(1));
+        }
+    }
+    assert_eq!(handover_step, Some(8));
+    // The oracle switches at once.
+    let mut e = env_with(Association::BestRsrp, f);
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    let mut first = None;
+    for i in 1..=8 {
+        if e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").info.handover && first.is_none() {
+            first = Some(i);
+        }
+    }
+    assert_eq!(first, Some(5));
+}
+
+#[test]
+fn handovers_and_ping_pongs_are_counted() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    let sites = [1, 0, 0, 1];
+    let mut flags = Vec::new();
+    for s in sites {
+        let st = e.step(&mv(0.0, 1.0, 0.0, s)).expect("step");
+        flags.push((st.info.handover, st.info.ping_pong));
+    }
+    // 0→1 (handover), 1→0 within 1 s (ping-pong back to the previous site), stay, 0→1 again
+    // within 1 s of the last handover from 1 (ping-pong).
+    assert_eq!(
+        flags,
+        vec![(true, false), (true, true), (false, false), (true, true)]
+    );
+}
+
+#[test]
+fn same_episode_and_actions_give_a_bit_identical_trajectory() {
+    let w = world();
+    let cfg = Config::default();
+    let run = |src: [f64; 3]| {
+        let mut e = Env::new(&cfg, w.clone(), w.clone()).expect("env");
+        e.reset(7, ep(src, [0.0, 150.0, 60.0])).expect("reset");
+        let mut trace: Vec<Vec<f32>> = vec![e.observation().to_vec()];
+        let mut rewards = Vec::new();
+        for i in 0..40 {
+            let a = mv(
+                ((i as f64) * 0.7).sin(),
+                0.9,
+                ((i as f64) * 0.3).cos() * 0.5,
+                (i % 2) as u16,
+            );
+            let s = e.step(&a).expect("step");
+            trace.push(e.observation().to_vec());
+            rewards.push(s.reward.to_bits());
+            if s.terminated || s.truncated {
+                break;
+            }
+        }
+        (trace, rewards)
+    };
+    let a = run([0.0, 0.0, 50.0]);
+    let b = run([0.0, 0.0, 50.0]);
+    assert_eq!(a, b, "bit-identical");
+    let c = run([10.0, 0.0, 50.0]);
+    assert_ne!(a.0, c.0, "a different episode differs");
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    let inside = e
+        .reset(1, ep([60.0, 0.0, 30.0], [0.0, 0.0, 30.0]))
+        .unwrap_err();
+    assert!(
+        inside.to_string().contains("source") && inside.to_string().contains("inside a building"),
+        "{inside}"
+    );
+    let outside = e
+        .reset(1, ep([0.0, 0.0, 30.0], [500.0, 0.0, 30.0]))
+        .unwrap_err();
+    assert!(
+        outside.to_string().contains("destination") && outside.to_string().contains("outside"),
+        "{outside}"
+    );
+    let low = e
+        .reset(1, ep([0.0, 0.0, 5.0], [0.0, 50.0, 30.0]))
+        .unwrap_err();
+    assert!(low.to_string().contains("band"), "{low}");
+    let nan = e
+        .reset(1, ep([f64::NAN, 0.0, 30.0], [0.0, 50.0, 30.0]))
+        .unwrap_err();
+    assert!(nan.to_string().contains("not finite"));
+    assert!(matches!(
+        e.step(&mv(0.0, 0.0, 0.0, 0)),
+        Err(EnvError::EpisodeOver)
+    ));
+    e.reset(1, ep([0.0, 0.0, 30.0], [0.0, 50.0, 30.0]))
+        .expect("reset");
+    assert!(matches!(
+        e.step(&mv(f64::NAN, 0.0, 0.0, 0)),
+        Err(EnvError::NonFiniteAction(_))
+    ));
+    assert!(matches!(
+        e.step(&mv(0.0, f64::INFINITY, 0.0, 0)),
+        Err(EnvError::NonFiniteAction(_))
+    ));
+    assert!(matches!(
+        e.step(&mv(0.0, 1.0, 0.0, 2)),
+        Err(EnvError::SiteOutOfRange {
+            site: 2,
+            n_sites: 2
+        })
+    ));
+    // The rejected actions did not advance the episode.
+    let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+    assert_eq!(s.info.step, 1);
+}
+
+#[test]
+fn observation_layout_holds_what_it_documents() {
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([45.0, 0.0, 70.0], [45.0, 80.0, 70.0]))
+        .expect("reset");
+    let l = e.layout().clone();
+    assert_eq!(e.observation().len(), l.len());
+    let o = e.observation().to_vec();
+    let get = |name: &str| o[l.range(name).expect(name)].to_vec();
+    // Position: x/200, y/200, (z − 70)/50.
+    assert_eq!(get(field::POSITION), vec![45.0 / 200.0, 0.0, 0.0]);
+    assert_eq!(get(field::GOAL_VECTOR), vec![0.0, 80.0 / 800.0, 0.0]);
+    assert_eq!(get(field::GOAL_DISTANCE), vec![0.1]);
+    assert_eq!(get(field::SERVING_ONE_HOT), vec![1.0, 0.0]);
+    // RSRP: (−70 + 90) / 30 and (−95 + 90) / 30.
+    let r = get(field::RSRP_ALL);
+    assert!((r[0] - 20.0 / 30.0).abs() < 1e-6 && (r[1] + 5.0 / 30.0).abs() < 1e-6);
+    // The 60 m block starts 5 m east; from 70 m the ray (1, 0, −1)/√2 meets its roof after
+    // 10·√2 = 14.1 m, nearer than any other ray (straight down is 70 m, out of range).
+    let c = get(field::OBSTACLE_DISTANCE)[0];
+    assert!((c - (10.0 * 2f32.sqrt() / 50.0)).abs() < 1e-3, "c_t = {c}");
+    let d = get(field::OBSTACLE_DIRECTION);
+    assert!(
+        (d[0] - 0.7071).abs() < 1e-3 && d[1].abs() < 1e-6 && (d[2] + 0.7071).abs() < 1e-3,
+        "{d:?}"
+    );
+    let s = e.step(&mv(0.0, 0.5, 0.0, 1)).expect("step");
+    assert!(s.info.handover);
+    let o = e.observation().to_vec();
+    assert_eq!(
+        o[l.range(field::VELOCITY).expect("v")].to_vec(),
+        vec![0.0, 0.5, 0.0]
+    );
+    assert_eq!(
+        o[l.range(field::SERVING_ONE_HOT).expect("one-hot")].to_vec(),
+        vec![0.0, 1.0]
+    );
+}

@@ -1,0 +1,200 @@
+//! The observation layout (spec/env.md "Observation", version [`OBS_VERSION`]): which field sits
+//! at which index of the flat `f32` observation vector. The environment writes it, the learner
+//! and every exported policy read it; nothing indexes observations by bare numbers.
+
+use crate::config::ObservationConfig;
+use std::ops::Range;
+
+/// Version of the observation layout; bump on any change of order, scaling or meaning.
+pub const OBS_VERSION: u32 = 1;
+
+/// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),
+/// in lexicographic order of (x, y, z).
+pub const SENSOR_DIRECTIONS: [[i8; 3]; 26] = {
+    let mut out = [[0i8; 3]; 26];
+    let mut k = 0;
+    let mut x = -1;
+    while x <= 1 {
+        let mut y = -1;
+        while y <= 1 {
+            let mut z = -1;
+            while z <= 1 {
+                if !(x == 0 && y == 0 && z == 0) {
+                    out[k] = [x as i8, y as i8, z as i8];
+                    k += 1;
+                }
+                z += 1;
+            }
+            y += 1;
+        }
+        x += 1;
+    }
+    out
+};
+
+/// One named field of the observation.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ObsField {
+    pub name: &'static str,
+    pub range: Range<usize>,
+    /// Units and scaling, for documentation and exported policies.
+    pub meaning: &'static str,
+}
+
+/// Field names (stable across versions as long as the field exists).
+pub mod field {
+    pub const POSITION: &str = "position";
+    pub const VELOCITY: &str = "velocity";
+    pub const GOAL_VECTOR: &str = "goal_vector";
+    pub const GOAL_DISTANCE: &str = "goal_distance";
+    pub const OBSTACLE_DISTANCE: &str = "obstacle_distance";
+    pub const OBSTACLE_DIRECTION: &str = "obstacle_direction";
+    pub const SENSOR_FAN: &str = "sensor_fan";
+    pub const SERVING_ONE_HOT: &str = "serving_one_hot";
+    pub const RSRP_ALL: &str = "rsrp_all";
+    pub const RSRP_SERVING: &str = "rsrp_serving";
+}
+
+/// The layout for a given observation configuration and number of sites M.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObsLayout {
+    fields: Vec<ObsField>,
+    len: usize,
+    n_sites: usize,
+}
+
+impl ObsLayout {
+    pub fn new(cfg: &ObservationConfig, n_sites: usize) -> ObsLayout {
+        use field::*;
+        let mut fields = Vec::new();
+        let mut at = 0usize;
+        let mut push = |name: &'static str, n: usize, meaning: &'static str| {
+            fields.push(ObsField {
+                name,
+                range: at..at + n,
+                meaning,
+            });
+            at += n;
+        };
+        push(
+            POSITION,
+            3,
+            "x, y: position / half the area extent about its centre; z: (z − band centre) / half band",
+        );
+        push(VELOCITY, 3, "last displacement / max_step_m per axis");
+        if cfg.goal {
+            push(GOAL_VECTOR, 3, "(destination − position) / goal_scale_m");
+            push(GOAL_DISTANCE, 1, "|destination − position| / goal_scale_m");
+        }
+        push(
+            OBSTACLE_DISTANCE,
+            1,
+            "c_t: nearest obstacle along the sensor fan / sensor_range_m (1 = none in range)",
+        );
+        push(
+            OBSTACLE_DIRECTION,
+            3,
+            "θ_t: unit direction of the nearest obstacle (zeros when none in range)",
+        );
+        if cfg.sensor_fan {
+            push(
+                SENSOR_FAN,
+                SENSOR_DIRECTIONS.len(),
+                "distance along each SENSOR_DIRECTIONS ray / sensor_range_m (1 = free)",
+            );
+        }
+        push(SERVING_ONE_HOT, n_sites, "one-hot of the serving GBS id");
+        if cfg.rsrp_all {
+            push(
+                RSRP_ALL,
+                n_sites,
+                "RSRP of every site, (dBm − rsrp_centre_dbm) / rsrp_scale_db",
+            );
+        }
+        if cfg.rsrp_serving {
+            push(
+                RSRP_SERVING,
+                1,
+                "serving RSRP, (dBm − rsrp_centre_dbm) / rsrp_scale_db",
+            );
+        }
+        ObsLayout {
+            fields,
+            len: at,
+            n_sites,
+        }
+    }
+
+    /// Length of the observation vector.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub fn n_sites(&self) -> usize {
+        self.n_sites
+    }
+
+    /// All fields in order.
+    pub fn fields(&self) -> &[ObsField] {
+        &self.fields
+    }
+
+    /// Index range of a field, `None` when it is switched off.
+    pub fn range(&self, name: &str) -> Option<Range<usize>> {
+        self.fields
+            .iter()
+            .find(|f| f.name == name)
+            .map(|f| f.range.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_layout_is_the_documented_one() {
+        let l = ObsLayout::new(&ObservationConfig::default(), 30);
+        // 3 + 3 + 3 + 1 + 1 + 3 + 26 + 30 + 30 + 1
+        assert_eq!(l.len(), 101);
+        assert_eq!(l.range(field::POSITION), Some(0..3));
+        assert_eq!(l.range(field::SENSOR_FAN), Some(14..40));
+        assert_eq!(l.range(field::SERVING_ONE_HOT), Some(40..70));
+        assert_eq!(l.range(field::RSRP_SERVING), Some(100..101));
+        // Fields tile the vector without gaps.
+        let mut at = 0;
+        for f in l.fields() {
+            assert_eq!(f.range.start, at);
+            at = f.range.end;
+        }
+        assert_eq!(at, l.len());
+    }
+
+    #[test]
+    fn ablations_remove_fields() {
+        let cfg = ObservationConfig {
+            goal: false,
+            sensor_fan: false,
+            rsrp_all: false,
+            rsrp_serving: false,
+            ..Default::default()
+        };
+        let l = ObsLayout::new(&cfg, 5);
+        assert_eq!(l.len(), 3 + 3 + 1 + 3 + 5);
+        assert_eq!(l.range(field::RSRP_ALL), None);
+    }
+
+    #[test]
+    fn sensor_directions_are_the_26_neighbours() {
+        let mut seen = std::collections::HashSet::new();
+        for d in SENSOR_DIRECTIONS {
+            assert_ne!(d, [0, 0, 0]);
+            assert!(seen.insert(d));
+        }
+        assert_eq!(seen.len(), 26);
+    }
+}
