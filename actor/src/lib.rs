@@ -3,4 +3,5 @@
 
 pub mod env;
 pub mod pairs;
+pub mod pilot;
 pub mod planner;

@@ -1,0 +1,74 @@
+//! A scripted pilot that flies a list of waypoints through [`Env::step`]: the bridge between the
+//! planners and the environment (a planned path flown with the same collisions, radio and
+//! association rule as a learned policy), and the check that they agree.
+
+use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
+use dupac_common::SiteId;
+
+/// A flown episode.
+#[derive(Debug, Clone)]
+pub struct Flight {
+    /// One record per step.
+    pub steps: Vec<StepInfo>,
+    /// How the episode ended.
+    pub outcome: Outcome,
+    /// Undiscounted sum of rewards.
+    pub episodic_return: f64,
+}
+
+impl Flight {
+    /// Distance flown (m).
+    pub fn distance_m(&self) -> f64 {
+        self.steps.last().map(|s| s.distance_flown_m).unwrap_or(0.0)
+    }
+}
+
+/// Flies `waypoints_m` (the first is normally the source) from `episode.source_m`, moving
+/// straight at full speed towards the next waypoint each step (a per-axis action scaled so the
+/// largest component is 1, hence exactly along the segment), until the episode ends.
+/// `site(env)` gives the site action (only used with `association = "learned"`).
+pub fn fly_waypoints(
+    env: &mut Env,
+    seed: u64,
+    episode: Episode,
+    waypoints_m: &[[f64; 3]],
+    mut site: impl FnMut(&Env) -> SiteId,
+) -> Result<Flight, EnvError> {
+    env.reset(seed, episode)?;
+    let max_step = env.config().max_step_m;
+    let mut next = 0usize;
+    let mut steps = Vec::new();
+    let mut episodic_return = 0.0;
+    loop {
+        let p = env.position_m();
+        // Skip waypoints already reached.
+        while next < waypoints_m.len() && dist(p, waypoints_m[next]) < 1e-6 {
+            next += 1;
+        }
+        let target = waypoints_m
+            .get(next)
+            .copied()
+            .unwrap_or(episode.destination_m);
+        let v = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
+        let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let scale = if largest > max_step { largest } else { max_step };
+        let action = Action {
+            move_: [v[0] / scale, v[1] / scale, v[2] / scale],
+            site: site(env),
+        };
+        let s = env.step(&action)?;
+        episodic_return += s.reward;
+        steps.push(s.info);
+        if let Some(outcome) = s.info.outcome {
+            return Ok(Flight {
+                steps,
+                outcome,
+                episodic_return,
+            });
+        }
+    }
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}

@@ -1,0 +1,78 @@
+//! Environment steps per second per core on the default Midtown scenario with the cached radio
+//! map and the full sensor fan (issue 3 target ≥ 50 k steps/s/core, goal ≥ 100 k).
+//!
+//! Run: `cargo bench --bench env` (from the repository root; builds `out/cache/rsrp.bin` once
+//! if it is missing, ≈ 30 s).
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use dupac_actor::env::{Action, Env, Episode};
+use dupac_common::{Config, SiteId};
+use dupac_radio::cache::RsrpCache;
+use dupac_radio::world::RadioWorld;
+use rand::{RngExt, SeedableRng};
+use std::hint::black_box;
+use std::sync::Arc;
+
+fn benches(c: &mut Criterion) {
+    let cfg = Config::load(None, &[]).expect("config");
+    let world = Arc::new(RadioWorld::build(&cfg).expect("world"));
+    let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|_| {}).expect("cache");
+    let cache = Arc::new(cache);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let a = world.city.area_m;
+    let mut free = || loop {
+        let p = [
+            rng.random_range(a[0] * 0.8..a[2] * 0.8),
+            rng.random_range(a[1] * 0.8..a[3] * 0.8),
+            rng.random_range(30.0..110.0),
+        ];
+        if !world.city.is_inside_building(p) && world.city.mesh.sphere_sweep(p, p, 5.0).is_none() {
+            return p;
+        }
+    };
+    let episodes: Vec<Episode> = (0..64)
+        .map(|_| {
+            let (s, d) = (free(), free());
+            Episode {
+                source_m: s,
+                destination_m: d,
+                shortest_m: 800.0,
+            }
+        })
+        .collect();
+
+    for (name, radio) in [("cache", true), ("exact", false)] {
+        let rsrp: Arc<dyn dupac_radio::cache::RsrpSource + Send + Sync> =
+            if radio { cache.clone() } else { world.clone() };
+        let mut env = Env::new(&cfg, world.clone(), rsrp).expect("env");
+        let mut k = 0usize;
+        env.reset(0, episodes[0]).expect("reset");
+        let mut g = c.benchmark_group("env");
+        g.throughput(Throughput::Elements(1));
+        if !radio {
+            g.sample_size(10);
+        }
+        g.bench_function(format!("step_{name}_full_fan"), |b| {
+            b.iter(|| {
+                let p = env.position_m();
+                let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
+                let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
+                let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
+                let a = Action {
+                    move_: [v[0] / n, v[1] / n, v[2] / n],
+                    site: SiteId((k % 30) as u16),
+                };
+                let s = env.step(&a).expect("step");
+                if s.terminated || s.truncated {
+                    k += 1;
+                    env.reset(k as u64, episodes[k % episodes.len()]).expect("reset");
+                }
+                black_box(env.observation());
+            })
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(env, benches);
+criterion_main!(env);
