@@ -65,7 +65,8 @@ fn benches(c: &mut Criterion) {
                 let s = env.step(&a).expect("step");
                 if s.terminated || s.truncated {
                     k += 1;
-                    env.reset(k as u64, episodes[k % episodes.len()]).expect("reset");
+                    env.reset(k as u64, episodes[k % episodes.len()])
+                        .expect("reset");
                 }
                 black_box(env.observation());
             })

@@ -2,6 +2,7 @@
 
 mod commands;
 mod io;
+mod plan_plot;
 mod plot;
 
 use anyhow::Result;
@@ -56,6 +57,10 @@ enum Command {
     /// The per-site 3D RSRP cache used by the environment.
     #[command(subcommand)]
     Cache(commands::cache::CacheCommand),
+    /// Held-out evaluation pairs binned by shortest flyable distance (JSON Lines).
+    Pairs(commands::pairs::PairsArgs),
+    /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
+    Plan(commands::plan::PlanArgs),
     /// Print the resolved configuration as TOML (defaults + file + --set).
     Config,
 }
@@ -67,6 +72,8 @@ fn main() -> ExitCode {
         Command::Map(a) => commands::map::run(&cli.global, a),
         Command::Radio(c) => commands::radio::run(&cli.global, c),
         Command::Cache(c) => commands::cache::run(&cli.global, c),
+        Command::Pairs(a) => commands::pairs::run(&cli.global, a),
+        Command::Plan(a) => commands::plan::run(&cli.global, a),
         Command::Config => cli.global.config().map(|c| {
             print!("{}", c.to_toml_string());
             ExitCode::SUCCESS

@@ -39,7 +39,7 @@ const SIDE_W: i32 = 270;
 const MARGIN: i32 = 14;
 const X_LABEL_AREA: i32 = 78;
 const Y_LABEL_AREA: i32 = 100;
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 const TITLE_PX: f64 = 32.0;
 /// Height of the title strip (px).
 const TITLE_H: i32 = 64;
@@ -95,7 +95,7 @@ fn rsrp_colour(rsrp_dbm: f64) -> RGBColor {
 
 /// Registers the bundled DejaVu Sans as `sans-serif` (the ab_glyph text backend has no system
 /// fonts); once per process.
-fn ensure_font() -> Result<()> {
+pub(crate) fn ensure_font() -> Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         plotters::style::register_font(
@@ -113,17 +113,17 @@ fn ensure_font() -> Result<()> {
 }
 
 /// Plotters' errors carry the backend type; flatten them into anyhow with a message.
-fn pe<E: std::fmt::Display>(e: E) -> anyhow::Error {
+pub(crate) fn pe<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow!("drawing failed: {e}")
 }
 
 /// Number with a typographic minus sign.
-fn fmt_num(v: f64) -> String {
+pub(crate) fn fmt_num(v: f64) -> String {
     format!("{v:.0}").replace('-', "\u{2212}")
 }
 
 /// Clips a polygon ring (open) to the rectangle `[x0, x1] × [y0, y1]` (Sutherland–Hodgman).
-fn clip_ring(ring: &[[f64; 2]], r: [f64; 4]) -> Vec<[f64; 2]> {
+pub(crate) fn clip_ring(ring: &[[f64; 2]], r: [f64; 4]) -> Vec<[f64; 2]> {
     // Each edge: (axis, bound, keep if coordinate ≥ bound when `lower`).
     let edges = [
         (0usize, r[0], true),
@@ -411,7 +411,7 @@ fn draw(
 }
 
 /// A site marker centred at pixel `c` on `area` (pixel coordinates).
-fn draw_site_marker(
+pub(crate) fn draw_site_marker(
     area: &DrawingArea<BitMapBackend, Shift>,
     c: (i32, i32),
     kind: SiteKind,
@@ -447,7 +447,7 @@ fn draw_site_marker(
 }
 
 /// Black text with a one-pixel white halo, so it reads on any colour.
-fn draw_halo_text(
+pub(crate) fn draw_halo_text(
     area: &DrawingArea<BitMapBackend, Shift>,
     text: &str,
     pos: (i32, i32),

@@ -286,3 +286,172 @@ fn broken_city_file_is_a_clear_error() {
         "{err}"
     );
 }
+
+/// A small procedural scenario with a coarse cache, so the planner commands run in seconds.
+fn small_world_args(dir: &std::path::Path) -> Vec<String> {
+    [
+        "--set",
+        "scenario.city=procedural",
+        "--set",
+        "scenario.procedural.size_m=500",
+        "--set",
+        "scenario.procedural.n_sites=8",
+        "--set",
+        "scenario.n_sites=8",
+        "--set",
+        "cache.horizontal_m=10",
+        "--set",
+        "cache.vertical_m=10",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .chain([
+        "--set".to_string(),
+        format!("cache.path=\"{}\"", dir.join("rsrp.bin").display()),
+    ])
+    .collect()
+}
+
+#[test]
+fn pairs_then_plan_writes_a_flown_comparison() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let pairs = dir.path().join("pairs.jsonl");
+    let mut args: Vec<String> = vec![
+        "pairs".into(),
+        "-q".into(),
+        "--out".into(),
+        pairs.display().to_string(),
+    ];
+    args.extend(small_world_args(dir.path()));
+    args.extend(
+        [
+            "--set",
+            "pairs.eval_bins_m=[200, 300]",
+            "--set",
+            "pairs.eval_per_bin=3",
+        ]
+        .map(String::from),
+    );
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = dupac(&a, None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&pairs)
+        .expect("pairs file")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json"))
+        .collect();
+    assert_eq!(lines.len(), 6);
+    for p in &lines {
+        let (bin, d) = (
+            p["bin_m"].as_f64().expect("bin"),
+            p["shortest_m"].as_f64().expect("d"),
+        );
+        assert!((d - bin).abs() <= 0.05 * bin + 1e-9, "{p}");
+        assert!(d >= p["straight_m"].as_f64().expect("straight") - 1e-9);
+    }
+    // The same seed gives the same file.
+    let again = dir.path().join("again.jsonl");
+    let mut args2 = args.clone();
+    args2[3] = again.display().to_string();
+    let a2: Vec<&str> = args2.iter().map(String::as_str).collect();
+    assert!(dupac(&a2, None).status.success());
+    assert_eq!(
+        std::fs::read(&pairs).expect("a"),
+        std::fs::read(&again).expect("b")
+    );
+
+    let plan_dir = dir.path().join("plan");
+    let mut args: Vec<String> = [
+        "plan",
+        "-q",
+        "--pairs",
+        &pairs.display().to_string(),
+        "--index",
+        "4",
+        "--lambda",
+        "0",
+        "--lambda",
+        "5",
+        "--out",
+        &plan_dir.display().to_string(),
+    ]
+    .map(String::from)
+    .to_vec();
+    args.extend(small_world_args(dir.path()));
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = dupac(&a, None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let table = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<&str> = table
+        .lines()
+        .filter(|l| l.starts_with("| shortest") || l.starts_with("| coverage"))
+        .collect();
+    assert_eq!(rows.len(), 3, "{table}");
+    for r in &rows {
+        assert!(
+            r.contains("| Goal |"),
+            "every planned path is flown to the goal: {r}"
+        );
+    }
+    // λ = 0 is the shortest path: same planned length.
+    let planned = |r: &str| {
+        r.split('|')
+            .nth(2)
+            .expect("col")
+            .trim()
+            .parse::<f64>()
+            .expect("num")
+    };
+    assert!(
+        (planned(rows[0]) - planned(rows[1])).abs() < 1e-6,
+        "{table}"
+    );
+    assert!(planned(rows[2]) >= planned(rows[0]) - 1e-6);
+    for f in [
+        "plan.png",
+        "summary.md",
+        "flight_shortest.csv",
+        "flight_coverage_aware_lambda_0.csv",
+    ] {
+        assert!(plan_dir.join(f).exists(), "{f} missing");
+    }
+    // A pair index past the end is a clear error.
+    let mut bad = args.clone();
+    bad[5] = "99".into();
+    let b: Vec<&str> = bad.iter().map(String::as_str).collect();
+    let out = dupac(&b, None);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--index 99"));
+}
+
+#[test]
+fn plan_rejects_an_endpoint_off_the_map() {
+    // Midtown spans x ∈ [−716, 716] m: a source 5 km east is refused before anything is built.
+    let out = dupac(
+        &[
+            "plan",
+            "-q",
+            "--from",
+            "5000,0,50",
+            "--to",
+            "0,0,50",
+            "--out",
+            "/tmp/dupac-never",
+        ],
+        None,
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.to_lowercase().contains("source") && !err.contains("panicked"),
+        "{err}"
+    );
+}

@@ -1,1 +1,753 @@
-//! (in progress)
+//! Source/destination pairs (spec/env.md "Episodes"): the held-out evaluation set (distance bins of
+//! the shortest flyable path), the training pool (shortest path ~ uniform in `[min_m, max_m]`),
+//! and their JSON-lines files.
+//!
+//! # Determinism
+//! Every candidate pair has its own ChaCha8 stream: key = (seed, domain) packed into the 32-byte
+//! ChaCha key (`seed` little-endian in bytes 0..8, a domain tag in bytes 8..16), stream id = the
+//! candidate's index (`bin_index << 32 | k` for evaluation, `k` for training). Candidates are
+//! evaluated in parallel in fixed batches of [`BATCH`] and accepted strictly in index order, so
+//! the result depends on the seed only, never on the number of threads.
+//!
+//! The evaluation set uses domain [`EVAL_DOMAIN`] with `pairs.eval_seed`, the training pool domain
+//! [`TRAIN_DOMAIN`] with its own seed: the two never share a ChaCha key, even for equal seeds, so
+//! a training pair never repeats an evaluation pair (their coordinates come from independent
+//! streams of continuous draws).
+//!
+//! # Sampling one candidate for a target length D (m)
+//! Up to [`TRIES_PER_CANDIDATE`] times: a source uniform in area × band, rejected until
+//! [`check_endpoint`] passes; a destination at straight distance r ~ U[D/1.5, D] from it, with an
+//! altitude uniform in the band and a uniform azimuth, rejected the same way; plan the shortest
+//! path; accept when |shortest − D| ≤ `bin_tolerance`·D. The target D is drawn once per candidate
+//! (training) so accepted lengths follow the target distribution, not the acceptance rate.
+//!
+//! # Files
+//! One JSON object per line ([`Pair`]); blank lines are skipped. User files may omit `id` (the
+//! pair's 0-based position in the file is used), `shortest_m` (computed with the planner) and
+//! `straight_m` (computed from the endpoints); when given, `straight_m` must match the endpoints
+//! and `shortest_m` must be ≥ `straight_m` and > 0. Every error names the file and line.
+
+use crate::planner::{Planner, dist};
+use dupac_common::config::{EnvConfig, PairsConfig};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+
+/// Domain tag of the evaluation set's random streams ("eval").
+pub const EVAL_DOMAIN: u64 = 0x6c61_7665;
+/// Domain tag of the training pool's random streams ("train").
+pub const TRAIN_DOMAIN: u64 = 0x6e_6961_7274;
+/// Candidates evaluated per parallel batch (fixed: the result must not depend on threads).
+pub const BATCH: usize = 64;
+/// Attempts (source, destination, plan) per candidate before it is given up.
+pub const TRIES_PER_CANDIDATE: usize = 100;
+/// Attempts to draw one free endpoint.
+const ENDPOINT_TRIES: usize = 1000;
+/// Attempts to draw a destination for one source.
+const DESTINATION_TRIES: usize = 32;
+
+/// One episode's endpoints (spec/env.md "Episodes"), local ENU metres.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pair {
+    /// Position in its set (evaluation: across bins in order; training: in the pool).
+    pub id: u64,
+    /// Source (m).
+    pub source_m: [f64; 3],
+    /// Destination (m).
+    pub destination_m: [f64; 3],
+    /// Length of the shortest flyable path within the band (m), [`Planner::shortest`].
+    pub shortest_m: f64,
+    /// Straight-line distance between the endpoints (m).
+    pub straight_m: f64,
+    /// Evaluation bin (m) the pair belongs to; absent for training pairs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bin_m: Option<f64>,
+}
+
+/// What a user's pairs file may contain: [`Pair`] with `id`, `shortest_m` and `straight_m`
+/// optional.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PairInput {
+    id: Option<u64>,
+    source_m: [f64; 3],
+    destination_m: [f64; 3],
+    shortest_m: Option<f64>,
+    straight_m: Option<f64>,
+    bin_m: Option<f64>,
+}
+
+/// Errors reading or writing pairs files; each names the file (and the line).
+#[derive(Debug, thiserror::Error)]
+pub enum PairsError {
+    #[error("cannot read pairs file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write pairs file {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A bad line: `FILE:LINE: message` (lines count from 1).
+    #[error("{}:{line}: {message}", path.display())]
+    Line {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error("{}: no pairs", path.display())]
+    Empty { path: PathBuf },
+}
+
+/// Checks an endpoint (also those of user files): finite, inside the flight area, inside
+/// `[env.z_min_m, env.z_max_m]` (the planner's band), not inside a building, and at least
+/// `clearance_m` (m; `pairs.endpoint_clearance_m`, spec/env.md: 5 m) from every building surface.
+/// The error says why, with the position.
+pub fn check_endpoint(planner: &Planner, p_m: [f64; 3], clearance_m: f64) -> Result<(), String> {
+    let fs = planner.free_space();
+    let city = planner.city();
+    if !p_m.iter().all(|v| v.is_finite()) {
+        return Err(format!("{p_m:?} is not a finite point"));
+    }
+    if !city.in_area(p_m[0], p_m[1]) {
+        return Err(format!(
+            "{p_m:?} is outside the flight area {:?}",
+            city.area_m
+        ));
+    }
+    let [z0, z1] = fs.band_m();
+    if !(p_m[2] >= z0 && p_m[2] <= z1) {
+        return Err(format!(
+            "{p_m:?} is outside the altitude band [{z0}, {z1}] m"
+        ));
+    }
+    if city.is_inside_building(p_m) {
+        return Err(format!("{p_m:?} is inside a building"));
+    }
+    let d = fs.mesh_distance_capped_m(p_m, clearance_m);
+    if d < clearance_m {
+        return Err(format!(
+            "{p_m:?} is {d:.2} m from a building, less than the endpoint clearance {clearance_m} m"
+        ));
+    }
+    Ok(())
+}
+
+/// Warns when `env`'s altitude band is not the one the planner was built with.
+fn warn_band(planner: &Planner, env: &EnvConfig) {
+    let band = planner.free_space().band_m();
+    if band != [env.z_min_m, env.z_max_m] {
+        tracing::warn!(
+            planner_band_m = ?band,
+            env_band_m = ?[env.z_min_m, env.z_max_m],
+            "pairs: the planner was built for another altitude band; using the planner's"
+        );
+    }
+}
+
+/// The random stream of one candidate (see the module documentation).
+fn stream(seed: u64, domain: u64, index: u64) -> ChaCha8Rng {
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&seed.to_le_bytes());
+    key[8..16].copy_from_slice(&domain.to_le_bytes());
+    let mut rng = ChaCha8Rng::from_seed(key);
+    rng.set_stream(index);
+    rng
+}
+
+/// A uniform point of area × band that passes [`check_endpoint`], or `None` after
+/// [`ENDPOINT_TRIES`] draws.
+fn free_endpoint(planner: &Planner, clearance_m: f64, rng: &mut ChaCha8Rng) -> Option<[f64; 3]> {
+    let a = planner.city().area_m;
+    let [z0, z1] = planner.free_space().band_m();
+    if !(a[0] < a[2] && a[1] < a[3] && z0 <= z1) {
+        return None;
+    }
+    for _ in 0..ENDPOINT_TRIES {
+        let p = [
+            rng.random_range(a[0]..=a[2]),
+            rng.random_range(a[1]..=a[3]),
+            rng.random_range(z0..=z1),
+        ];
+        if check_endpoint(planner, p, clearance_m).is_ok() {
+            return Some(p);
+        }
+    }
+    None
+}
+
+/// A destination at straight distance r ~ U[D/1.5, D] from `source`, altitude uniform in the band,
+/// uniform azimuth, passing [`check_endpoint`].
+fn destination_near(
+    planner: &Planner,
+    clearance_m: f64,
+    source: [f64; 3],
+    target_m: f64,
+    rng: &mut ChaCha8Rng,
+) -> Option<[f64; 3]> {
+    let [z0, z1] = planner.free_space().band_m();
+    for _ in 0..DESTINATION_TRIES {
+        let r = rng.random_range(target_m / 1.5..=target_m);
+        let z = rng.random_range(z0..=z1);
+        let dz = z - source[2];
+        if dz.abs() >= r {
+            continue;
+        }
+        let h = (r * r - dz * dz).sqrt();
+        let azimuth = rng.random_range(0.0..std::f64::consts::TAU);
+        let p = [
+            source[0] + h * azimuth.cos(),
+            source[1] + h * azimuth.sin(),
+            z,
+        ];
+        if check_endpoint(planner, p, clearance_m).is_ok() {
+            return Some(p);
+        }
+    }
+    None
+}
+
+/// One candidate: a pair whose shortest path is within `bin_tolerance` of `target_m`, or `None`
+/// after [`TRIES_PER_CANDIDATE`] attempts. The id is set by the caller.
+fn candidate(
+    planner: &Planner,
+    cfg: &PairsConfig,
+    target_m: f64,
+    bin_m: Option<f64>,
+    rng: &mut ChaCha8Rng,
+) -> Option<Pair> {
+    if !(target_m.is_finite() && target_m > 0.0) {
+        return None;
+    }
+    let clearance_m = cfg.endpoint_clearance_m;
+    let tolerance_m = cfg.bin_tolerance * target_m;
+    for _ in 0..TRIES_PER_CANDIDATE {
+        let source = free_endpoint(planner, clearance_m, rng)?;
+        let Some(destination) = destination_near(planner, clearance_m, source, target_m, rng)
+        else {
+            continue;
+        };
+        let Ok(path) = planner.shortest(source, destination) else {
+            continue;
+        };
+        if (path.length_m - target_m).abs() <= tolerance_m {
+            return Some(Pair {
+                id: 0,
+                source_m: source,
+                destination_m: destination,
+                shortest_m: path.length_m,
+                straight_m: dist(source, destination),
+                bin_m,
+            });
+        }
+    }
+    None
+}
+
+/// Takes candidates `0, 1, 2, …` (built by `make(k)`, in parallel batches of [`BATCH`]) in index
+/// order until `n` are accepted; stops early when a whole batch yields nothing. Calls
+/// `progress(accepted_in_batch)` after each batch.
+fn collect(
+    n: usize,
+    progress: &(dyn Fn(u64) + Sync),
+    make: impl Fn(u64) -> Option<Pair> + Sync,
+) -> Vec<Pair> {
+    let mut out = Vec::with_capacity(n);
+    let mut next = 0u64;
+    while out.len() < n {
+        let batch: Vec<Option<Pair>> = (next..next + BATCH as u64)
+            .into_par_iter()
+            .map(&make)
+            .collect();
+        next += BATCH as u64;
+        let before = out.len();
+        for p in batch.into_iter().flatten() {
+            if out.len() < n {
+                out.push(p);
+            }
+        }
+        let added = out.len() - before;
+        if added == 0 {
+            break;
+        }
+        progress(added as u64);
+    }
+    out
+}
+
+/// The held-out evaluation set (spec/env.md "Episodes"): for each bin D of `cfg.eval_bins_m`
+/// (m, in order), `cfg.eval_per_bin` pairs whose shortest flyable path is within
+/// `cfg.bin_tolerance`·D of D, drawn with `cfg.eval_seed` (domain [`EVAL_DOMAIN`]); ids count
+/// from 0 across bins. Deterministic for a seed regardless of the thread count. A bin that cannot
+/// be filled (the city is too small) is returned short, with a warning. `progress(n)` is called
+/// with the number of pairs newly accepted. `env` must be the configuration the planner was built
+/// with (its band is the planner's).
+pub fn eval_pairs(
+    planner: &Planner,
+    cfg: &PairsConfig,
+    env: &EnvConfig,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Pair> {
+    warn_band(planner, env);
+    let mut out = Vec::new();
+    for (b, &bin_m) in cfg.eval_bins_m.iter().enumerate() {
+        let got = collect(cfg.eval_per_bin, progress, |k| {
+            let mut rng = stream(cfg.eval_seed, EVAL_DOMAIN, ((b as u64) << 32) | k);
+            candidate(planner, cfg, bin_m, Some(bin_m), &mut rng)
+        });
+        if got.len() < cfg.eval_per_bin {
+            tracing::warn!(
+                bin_m,
+                got = got.len(),
+                wanted = cfg.eval_per_bin,
+                "evaluation bin could not be filled"
+            );
+        }
+        out.extend(got);
+    }
+    for (i, p) in out.iter_mut().enumerate() {
+        p.id = i as u64;
+    }
+    out
+}
+
+/// The training pool (spec/env.md "Episodes"): `n` pairs whose shortest flyable path is within
+/// `cfg.bin_tolerance`·D of a target D ~ U[`cfg.min_m`, `cfg.max_m`] (m) drawn per candidate,
+/// from `seed` (domain [`TRAIN_DOMAIN`], so never an evaluation pair); ids `0..n`, no bin.
+/// Deterministic for a seed regardless of the thread count; returned short (with a warning) when
+/// the city cannot hold such pairs. `progress(n)` is called with the number newly accepted.
+pub fn training_pool(
+    planner: &Planner,
+    cfg: &PairsConfig,
+    env: &EnvConfig,
+    n: usize,
+    seed: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Pair> {
+    warn_band(planner, env);
+    let (lo, hi) = (cfg.min_m.min(cfg.max_m), cfg.max_m.max(cfg.min_m));
+    let finite = lo.is_finite() && hi.is_finite();
+    let mut out = collect(n, progress, |k| {
+        let mut rng = stream(seed, TRAIN_DOMAIN, k);
+        let target_m = if !finite {
+            f64::NAN
+        } else if hi > lo {
+            rng.random_range(lo..=hi)
+        } else {
+            lo
+        };
+        candidate(planner, cfg, target_m, None, &mut rng)
+    });
+    if out.len() < n {
+        tracing::warn!(
+            got = out.len(),
+            wanted = n,
+            "training pool could not be filled"
+        );
+    }
+    for (i, p) in out.iter_mut().enumerate() {
+        p.id = i as u64;
+    }
+    out
+}
+
+/// Writes one JSON object per line, atomically: a temporary file in the same directory, synced,
+/// then renamed over `path` (parent directories are created).
+pub fn write_pairs_jsonl(path: &Path, pairs: &[Pair]) -> Result<(), PairsError> {
+    let err = |source: std::io::Error| PairsError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    if let Some(dir) = dir {
+        std::fs::create_dir_all(dir).map_err(err)?;
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "pairs.jsonl".into());
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| -> std::io::Result<()> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        for p in pairs {
+            let line = serde_json::to_string(p).map_err(std::io::Error::other)?;
+            w.write_all(line.as_bytes())?;
+            w.write_all(b"\n")?;
+        }
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(err)
+}
+
+/// Reads and validates a pairs file (ours or a user's; see the module documentation for the
+/// optional fields). Each line must be a JSON object with finite numbers; both endpoints must pass
+/// [`check_endpoint`] with `cfg.endpoint_clearance_m`; `shortest_m` > 0 (computed with `planner`
+/// when absent, which also proves the pair flyable); ids must be unique. Errors are
+/// `FILE:LINE: message`.
+pub fn read_pairs_jsonl(
+    path: &Path,
+    planner: &Planner,
+    cfg: &PairsConfig,
+) -> Result<Vec<Pair>, PairsError> {
+    let file = std::fs::File::open(path).map_err(|source| PairsError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let reader = std::io::BufReader::new(file);
+    let mut out: Vec<Pair> = Vec::new();
+    let mut seen: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    for (i, line) in reader.lines().enumerate() {
+        let line_no = i + 1;
+        let bad = |message: String| PairsError::Line {
+            path: path.to_path_buf(),
+            line: line_no,
+            message,
+        };
+        let line = line.map_err(|e| bad(format!("cannot read: {e}")))?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let input: PairInput =
+            serde_json::from_str(&line).map_err(|e| bad(format!("invalid pair: {e}")))?;
+        let pair = validate(input, out.len() as u64, planner, cfg).map_err(bad)?;
+        if let Some(first) = seen.insert(pair.id, line_no) {
+            return Err(bad(format!(
+                "duplicate id {} (first on line {first})",
+                pair.id
+            )));
+        }
+        out.push(pair);
+    }
+    if out.is_empty() {
+        return Err(PairsError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(out)
+}
+
+/// Validates one input line and fills in what it left out.
+fn validate(
+    input: PairInput,
+    default_id: u64,
+    planner: &Planner,
+    cfg: &PairsConfig,
+) -> Result<Pair, String> {
+    let clearance_m = cfg.endpoint_clearance_m;
+    check_endpoint(planner, input.source_m, clearance_m).map_err(|e| format!("source {e}"))?;
+    check_endpoint(planner, input.destination_m, clearance_m)
+        .map_err(|e| format!("destination {e}"))?;
+    let straight = dist(input.source_m, input.destination_m);
+    if let Some(s) = input.straight_m
+        && !(s.is_finite() && (s - straight).abs() <= 1e-6 * straight.max(1.0))
+    {
+        return Err(format!(
+            "straight_m {s} does not match the endpoints' distance {straight} m"
+        ));
+    }
+    let shortest_m = match input.shortest_m {
+        Some(v) => {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("shortest_m must be a finite number > 0, got {v}"));
+            }
+            if v < straight - 1e-6 * straight.max(1.0) {
+                return Err(format!(
+                    "shortest_m {v} is shorter than the straight line {straight} m"
+                ));
+            }
+            v
+        }
+        None => {
+            let path = planner
+                .shortest(input.source_m, input.destination_m)
+                .map_err(|e| format!("cannot compute shortest_m: {e}"))?;
+            if path.length_m <= 0.0 {
+                return Err("source and destination coincide".into());
+            }
+            path.length_m
+        }
+    };
+    if let Some(b) = input.bin_m
+        && !(b.is_finite() && b > 0.0)
+    {
+        return Err(format!("bin_m must be a finite number > 0, got {b}"));
+    }
+    Ok(Pair {
+        id: input.id.unwrap_or(default_id),
+        source_m: input.source_m,
+        destination_m: input.destination_m,
+        shortest_m,
+        straight_m: input.straight_m.unwrap_or(straight),
+        bin_m: input.bin_m,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::Planner;
+    use dupac_common::Config;
+    use dupac_common::config::{CityKind, ScenarioConfig};
+    use dupac_radio::city::City;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    fn procedural(size_m: f64) -> City {
+        let mut sc = ScenarioConfig {
+            city: CityKind::Procedural,
+            name: "procedural".into(),
+            ..ScenarioConfig::default()
+        };
+        sc.procedural.size_m = size_m;
+        City::load(&sc).expect("procedural city")
+    }
+
+    /// Small bins that fit a 400 m city.
+    fn small_cfg() -> PairsConfig {
+        PairsConfig {
+            eval_bins_m: vec![100.0, 200.0],
+            eval_per_bin: 6,
+            min_m: 80.0,
+            max_m: 250.0,
+            ..PairsConfig::default()
+        }
+    }
+
+    fn assert_valid(planner: &Planner, cfg: &PairsConfig, pairs: &[Pair]) {
+        for p in pairs {
+            for e in [p.source_m, p.destination_m] {
+                check_endpoint(planner, e, cfg.endpoint_clearance_m).expect("valid endpoint");
+            }
+            assert!((p.straight_m - dist(p.source_m, p.destination_m)).abs() < 1e-9);
+            assert!(p.shortest_m >= p.straight_m - 1e-9);
+        }
+    }
+
+    #[test]
+    fn eval_pairs_are_deterministic_and_binned() {
+        let city = procedural(400.0);
+        let c = Config::default();
+        let planner = Planner::new(&city, &c.env, &c.planner);
+        let cfg = small_cfg();
+        let count = AtomicU64::new(0);
+        let a = eval_pairs(&planner, &cfg, &c.env, &|n| {
+            count.fetch_add(n, Ordering::Relaxed);
+        });
+        assert_eq!(a.len(), 12);
+        assert_eq!(count.load(Ordering::Relaxed), 12);
+        assert_valid(&planner, &cfg, &a);
+        for (i, p) in a.iter().enumerate() {
+            assert_eq!(p.id, i as u64);
+            let bin = p.bin_m.expect("bin");
+            assert_eq!(bin, cfg.eval_bins_m[i / 6]);
+            assert!((p.shortest_m - bin).abs() <= cfg.bin_tolerance * bin + 1e-9);
+        }
+        // Same seed on a one-thread pool: identical. Other seed: different.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let b = pool.install(|| eval_pairs(&planner, &cfg, &c.env, &|_| {}));
+        assert_eq!(a, b);
+        let other = PairsConfig {
+            eval_seed: cfg.eval_seed + 1,
+            ..cfg.clone()
+        };
+        let d = eval_pairs(&planner, &other, &c.env, &|_| {});
+        assert_eq!(d.len(), a.len());
+        assert_ne!(a, d);
+    }
+
+    #[test]
+    fn training_pool_is_deterministic_uniformish_and_disjoint_from_eval() {
+        let city = procedural(400.0);
+        let c = Config::default();
+        let planner = Planner::new(&city, &c.env, &c.planner);
+        let cfg = small_cfg();
+        let a = training_pool(&planner, &cfg, &c.env, 20, 7, &|_| {});
+        assert_eq!(a.len(), 20);
+        assert_valid(&planner, &cfg, &a);
+        for (i, p) in a.iter().enumerate() {
+            assert_eq!(p.id, i as u64);
+            assert_eq!(p.bin_m, None);
+            let tol = 1.0 + cfg.bin_tolerance;
+            assert!(p.shortest_m >= cfg.min_m / tol && p.shortest_m <= cfg.max_m * tol);
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .expect("pool");
+        let b = pool.install(|| training_pool(&planner, &cfg, &c.env, 20, 7, &|_| {}));
+        assert_eq!(a, b);
+        let d = training_pool(&planner, &cfg, &c.env, 20, 8, &|_| {});
+        assert_ne!(a, d);
+        // Same numeric seed as the evaluation set: still other pairs (other domain).
+        let e = eval_pairs(&planner, &cfg, &c.env, &|_| {});
+        let t = training_pool(&planner, &cfg, &c.env, 20, cfg.eval_seed, &|_| {});
+        for p in &t {
+            assert!(
+                e.iter()
+                    .all(|q| q.source_m != p.source_m && q.destination_m != p.destination_m)
+            );
+        }
+    }
+
+    #[test]
+    fn impossible_bins_come_back_short() {
+        let city = procedural(400.0);
+        let c = Config::default();
+        let planner = Planner::new(&city, &c.env, &c.planner);
+        let cfg = PairsConfig {
+            eval_bins_m: vec![5000.0],
+            eval_per_bin: 2,
+            ..PairsConfig::default()
+        };
+        assert!(eval_pairs(&planner, &cfg, &c.env, &|_| {}).is_empty());
+    }
+
+    #[test]
+    fn jsonl_round_trip_and_user_files() {
+        let city = procedural(400.0);
+        let c = Config::default();
+        let planner = Planner::new(&city, &c.env, &c.planner);
+        let cfg = small_cfg();
+        let pairs = training_pool(&planner, &cfg, &c.env, 5, 1, &|_| {});
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("sub/pairs.jsonl");
+        write_pairs_jsonl(&path, &pairs).expect("write");
+        let back = read_pairs_jsonl(&path, &planner, &cfg).expect("read");
+        assert_eq!(back.len(), pairs.len());
+        for (a, b) in pairs.iter().zip(&back) {
+            assert_eq!(a.id, b.id);
+            assert_eq!(a.bin_m, b.bin_m);
+            for k in 0..3 {
+                assert!(
+                    (a.source_m[k] - b.source_m[k]).abs() <= 1e-12 * a.source_m[k].abs().max(1.0)
+                );
+                assert!(
+                    (a.destination_m[k] - b.destination_m[k]).abs()
+                        <= 1e-12 * a.destination_m[k].abs().max(1.0)
+                );
+            }
+            assert!((a.shortest_m - b.shortest_m).abs() <= 1e-9);
+        }
+        // No temporary file is left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path().join("sub"))
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        assert_eq!(names.len(), 1);
+
+        // A user file with only the endpoints: shortest and straight are computed.
+        let (s, t) = (pairs[0].source_m, pairs[0].destination_m);
+        let user = dir.path().join("user.jsonl");
+        std::fs::write(
+            &user,
+            format!(
+                "{}\n\n{}\n",
+                serde_json::json!({"source_m": s, "destination_m": t}),
+                serde_json::json!({"id": 9, "source_m": t, "destination_m": s, "bin_m": 100.0})
+            ),
+        )
+        .expect("write user file");
+        let got = read_pairs_jsonl(&user, &planner, &cfg).expect("user file");
+        assert_eq!(got.len(), 2);
+        assert_eq!(got[0].id, 0);
+        assert_eq!(got[1].id, 9);
+        assert!((got[0].shortest_m - pairs[0].shortest_m).abs() < 1e-6);
+        assert!((got[0].straight_m - pairs[0].straight_m).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bad_lines_name_file_and_line() {
+        let city = procedural(400.0);
+        let c = Config::default();
+        let planner = Planner::new(&city, &c.env, &c.planner);
+        let cfg = small_cfg();
+        let good = training_pool(&planner, &cfg, &c.env, 1, 3, &|_| {})
+            .pop()
+            .expect("one pair");
+        let good_line = serde_json::to_string(&good).expect("json");
+        // A point inside a building of the procedural city.
+        let inside = city
+            .buildings
+            .iter()
+            .find(|b| {
+                b.z_max_m > 40.0 && city.in_area(b.vertex_centroid_m()[0], b.vertex_centroid_m()[1])
+            })
+            .map(|b| {
+                let c = b.vertex_centroid_m();
+                [c[0], c[1], 30.0]
+            })
+            .expect("a tall building");
+        assert!(city.is_inside_building(inside));
+        let s = good.source_m;
+        let cases: Vec<(String, &str)> = vec![
+            ("{not json".into(), "invalid pair"),
+            (
+                good_line.replacen("\"shortest_m\":", "\"shortest_m\":NaN,\"x\":", 1),
+                "invalid pair",
+            ),
+            (
+                serde_json::json!({"source_m": inside, "destination_m": s}).to_string(),
+                "source",
+            ),
+            (
+                serde_json::json!({"source_m": s, "destination_m": [1.0e4, 0.0, 50.0]})
+                    .to_string(),
+                "outside the flight area",
+            ),
+            (
+                serde_json::json!({"source_m": s, "destination_m": [s[0], s[1], 5.0]})
+                    .to_string(),
+                "outside the altitude band",
+            ),
+            (
+                good_line.replacen("\"shortest_m\":", "\"shortest_m\":-1,\"y\":", 1),
+                "invalid pair",
+            ),
+            (
+                serde_json::json!({"source_m": s, "destination_m": good.destination_m, "shortest_m": 0.0})
+                    .to_string(),
+                "shortest_m must be",
+            ),
+            (
+                serde_json::json!({"source_m": s, "destination_m": good.destination_m, "extra": 1})
+                    .to_string(),
+                "unknown field",
+            ),
+            (good_line.clone(), "duplicate id"),
+        ];
+        let dir = tempfile::tempdir().expect("tempdir");
+        for (k, (bad, reason)) in cases.iter().enumerate() {
+            let path = dir.path().join(format!("bad{k}.jsonl"));
+            std::fs::write(&path, format!("{good_line}\n\n{bad}\n")).expect("write");
+            let err = read_pairs_jsonl(&path, &planner, &cfg).expect_err(reason);
+            let msg = err.to_string();
+            let want = format!("{}:3: ", path.display());
+            assert!(msg.starts_with(&want), "{msg}");
+            assert!(msg.contains(reason), "{msg} (wanted {reason})");
+        }
+        let empty = dir.path().join("empty.jsonl");
+        std::fs::write(&empty, "\n").expect("write");
+        assert!(matches!(
+            read_pairs_jsonl(&empty, &planner, &cfg),
+            Err(PairsError::Empty { .. })
+        ));
+        assert!(matches!(
+            read_pairs_jsonl(&dir.path().join("missing.jsonl"), &planner, &cfg),
+            Err(PairsError::Read { .. })
+        ));
+    }
+}

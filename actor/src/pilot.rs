@@ -51,7 +51,11 @@ pub fn fly_waypoints(
             .unwrap_or(episode.destination_m);
         let v = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
         let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let scale = if largest > max_step { largest } else { max_step };
+        let scale = if largest > max_step {
+            largest
+        } else {
+            max_step
+        };
         let action = Action {
             move_: [v[0] / scale, v[1] / scale, v[2] / scale],
             site: site(env),

@@ -394,7 +394,9 @@ fn observation_layout_holds_what_it_documents() {
     assert!((c - (10.0 * 2f32.sqrt() / 50.0)).abs() < 1e-3, "c_t = {c}");
     let d = get(field::OBSTACLE_DIRECTION);
     assert!(
-        (d[0] - 0.7071).abs() < 1e-3 && d[1].abs() < 1e-6 && (d[2] + 0.7071).abs() < 1e-3,
+        (d[0] - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-3
+            && d[1].abs() < 1e-6
+            && (d[2] + std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-3,
         "{d:?}"
     );
     let s = e.step(&mv(0.0, 0.5, 0.0, 1)).expect("step");

@@ -2,6 +2,8 @@
 
 pub mod cache;
 pub mod map;
+pub mod pairs;
+pub mod plan;
 pub mod radio;
 
 use indicatif::{ProgressBar, ProgressStyle};

@@ -138,9 +138,8 @@ impl CityMesh {
             a.min(b) - Vec3::splat(r),
             a.max(b) + Vec3::splat(r),
         );
-        if self.trimesh.bvh().intersect_aabb(&swept).next().is_none() {
-            return None;
-        }
+        // Broad phase: no triangle box near the swept box, no contact.
+        self.trimesh.bvh().intersect_aabb(&swept).next()?;
         let ball = parry3d::shape::Ball::new(r);
         let options = parry3d::query::ShapeCastOptions {
             max_time_of_impact: 1.0,

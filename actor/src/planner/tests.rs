@@ -1,0 +1,472 @@
+use super::*;
+use dupac_common::Config;
+use dupac_common::config::{CityKind, ScenarioConfig};
+use dupac_radio::city::Building;
+
+/// A box building `[x0, x1] × [y0, y1] × [z0, z1]` (CCW ring).
+pub(crate) fn boxb(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, z0: f64, z1: f64) -> Building {
+    Building {
+        id: id.into(),
+        outer_m: vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1]],
+        holes_m: vec![],
+        z_min_m: z0,
+        z_max_m: z1,
+    }
+}
+
+/// A 200 m × 200 m city (area centred on the origin) with the given buildings.
+pub(crate) fn city(buildings: Vec<Building>) -> City {
+    City::from_buildings("test", [-100.0, -100.0, 100.0, 100.0], buildings, None)
+        .expect("test city")
+}
+
+/// A small building in a corner, out of the way (the mesh must not be empty).
+fn corner() -> Building {
+    boxb("corner", 80.0, 80.0, 90.0, 90.0, 0.0, 30.0)
+}
+
+fn planner(city: &City) -> Planner<'_> {
+    let cfg = Config::default();
+    Planner::new(city, &cfg.env, &cfg.planner)
+}
+
+/// Procedural city of `size_m` (seeded Manhattan grid).
+pub(crate) fn procedural(size_m: f64) -> City {
+    let mut sc = ScenarioConfig {
+        city: CityKind::Procedural,
+        name: "procedural".into(),
+        ..ScenarioConfig::default()
+    };
+    sc.procedural.size_m = size_m;
+    City::load(&sc).expect("procedural city")
+}
+
+/// Checks the invariants every planned path must satisfy and returns it.
+fn check_path(p: &Planner, path: &Path, s: [f64; 3], t: [f64; 3]) {
+    let fs = p.free_space();
+    assert_eq!(path.waypoints_m.first(), Some(&s));
+    assert_eq!(path.waypoints_m.last(), Some(&t));
+    let mut len = 0.0;
+    for w in path.waypoints_m.windows(2) {
+        assert!(
+            fs.segment_clear(w[0], w[1]),
+            "segment {:?} -> {:?} not clear",
+            w[0],
+            w[1]
+        );
+        len += dist(w[0], w[1]);
+    }
+    assert!((len - path.length_m).abs() < 1e-9);
+    let [z0, z1] = fs.band_m();
+    for w in &path.waypoints_m {
+        assert!(w[2] >= z0 && w[2] <= z1, "waypoint {w:?} leaves the band");
+        assert!(
+            p.city().in_area(w[0], w[1]),
+            "waypoint {w:?} leaves the area"
+        );
+    }
+    assert!(path.length_m >= dist(s, t) - 1e-9);
+}
+
+/// Flies the path the way the environment does (moves of at most 1 m, a 0.5 m sphere swept
+/// along each) and asserts no collision.
+fn fly_like_env(city: &City, path: &Path) {
+    let radius = Config::default().env.uav_radius_m;
+    for w in path.waypoints_m.windows(2) {
+        let n = dist(w[0], w[1]).ceil().max(1.0) as usize;
+        let mut prev = w[0];
+        for k in 1..=n {
+            let f = k as f64 / n as f64;
+            let p = [0, 1, 2].map(|i| w[0][i] + f * (w[1][i] - w[0][i]));
+            assert!(
+                city.mesh.sphere_sweep(prev, p, radius).is_none(),
+                "collision between {prev:?} and {p:?}"
+            );
+            prev = p;
+        }
+    }
+}
+
+#[test]
+fn lattice_matches_area_and_band() {
+    let c = city(vec![corner()]);
+    let p = planner(&c);
+    let fs = p.free_space();
+    assert_eq!(fs.dims(), [41, 41, 21]);
+    let f = fs.free_voxel_fraction();
+    assert!(f > 0.95 && f < 1.0, "free fraction {f}");
+    assert!(fs.is_free_point([0.0, 0.0, 50.0]));
+    assert!(!fs.is_free_point([85.0, 85.0, 25.0]), "inside the building");
+    assert!(!fs.is_free_point([85.0, 91.0, 25.0]), "1 m from a wall");
+    assert!(fs.is_free_point([85.0, 85.0, 32.0]), "2 m above the roof");
+    assert!(!fs.is_free_point([0.0, 0.0, 10.0]), "below the band");
+    assert!(!fs.is_free_point([0.0, 0.0, f64::NAN]));
+}
+
+#[test]
+fn straight_free_line_is_one_segment() {
+    let c = city(vec![corner()]);
+    let p = planner(&c);
+    let s = [-50.0, -50.0, 50.0];
+    let t = [50.0, 40.0, 60.0];
+    let path = p.shortest(s, t).expect("path");
+    assert_eq!(path.waypoints_m, vec![s, t]);
+    assert_eq!(path.length_m, dist(s, t));
+}
+
+#[test]
+fn low_wall_goes_over() {
+    // A 70 m wall across the straight line; flying over (≈ 102.7 m) beats going around (≈ 149 m).
+    let c = city(vec![boxb("wall", -2.0, -60.0, 2.0, 60.0, 0.0, 70.0)]);
+    let p = planner(&c);
+    let s = [-40.0, 0.0, 40.0];
+    let t = [40.0, 0.0, 40.0];
+    assert!(!p.free_space().segment_clear(s, t));
+    let path = p.shortest(s, t).expect("path");
+    check_path(&p, &path, s, t);
+    fly_like_env(&c, &path);
+    let over = 2.0 * (38f64.powi(2) + 31.5f64.powi(2)).sqrt() + 4.0;
+    assert!(path.length_m > 80.0);
+    assert!(
+        path.length_m >= over - 0.5 && path.length_m <= over * 1.02,
+        "length {} vs over-the-wall optimum {over}",
+        path.length_m
+    );
+    assert!(path.waypoints_m.iter().any(|w| w[2] >= 71.0));
+}
+
+#[test]
+fn full_height_wall_goes_through_the_gap() {
+    // A wall above the band from the south edge to y = 60; the only way is the gap 60 < y ≤ 100.
+    let c = city(vec![boxb("wall", -2.0, -120.0, 2.0, 60.0, 0.0, 200.0)]);
+    let p = planner(&c);
+    let s = [-40.0, 0.0, 50.0];
+    let t = [40.0, 0.0, 50.0];
+    let path = p.shortest(s, t).expect("path");
+    check_path(&p, &path, s, t);
+    fly_like_env(&c, &path);
+    let around = 2.0 * (38f64.powi(2) + 61.5f64.powi(2)).sqrt() + 4.0;
+    assert!(
+        path.length_m >= around - 0.5 && path.length_m <= around * 1.02,
+        "length {} vs optimum {around}",
+        path.length_m
+    );
+    assert!(path.waypoints_m.iter().any(|w| w[1] > 61.0));
+}
+
+#[test]
+fn enclosed_destination_is_an_error() {
+    // A courtyard walled in above the band: the destination inside cannot be reached.
+    let mut tower = boxb("court", -20.0, -20.0, 20.0, 20.0, 0.0, 200.0);
+    tower.holes_m = vec![vec![
+        [-10.0, -10.0],
+        [-10.0, 10.0],
+        [10.0, 10.0],
+        [10.0, -10.0],
+    ]];
+    let c = city(vec![tower]);
+    let p = planner(&c);
+    let t = [0.0, 0.0, 60.0];
+    assert!(p.free_space().is_free_point(t));
+    let err = p.shortest([-60.0, -60.0, 60.0], t).expect_err("enclosed");
+    assert!(matches!(err, PlanError::NoPath { .. }), "{err}");
+    assert!(err.to_string().contains("destination"));
+}
+
+#[test]
+fn bad_endpoints_are_named() {
+    let c = city(vec![boxb("b", -10.0, -10.0, 10.0, 10.0, 0.0, 80.0)]);
+    let p = planner(&c);
+    let ok = [-60.0, -60.0, 50.0];
+    let cases: [([f64; 3], bool, &str); 6] = [
+        ([0.0, 0.0, 50.0], true, "inside a building"),
+        ([f64::NAN, 0.0, 50.0], false, "not a finite point"),
+        ([150.0, 0.0, 50.0], true, "outside the flight area"),
+        ([-60.0, 0.0, 5.0], false, "outside the altitude band"),
+        ([11.0, 0.0, 50.0], true, "from a building"),
+        ([0.0, f64::INFINITY, 50.0], true, "not a finite point"),
+    ];
+    for (bad, as_source, reason) in cases {
+        let (s, t, which) = if as_source {
+            (bad, ok, "source")
+        } else {
+            (ok, bad, "destination")
+        };
+        let err = p.shortest(s, t).expect_err("bad endpoint");
+        let msg = err.to_string();
+        assert!(msg.starts_with(which), "{msg}");
+        assert!(msg.contains(reason), "{msg}");
+    }
+}
+
+/// RSRP: poor (−110 dBm) in the box |x| < 20, y < 30 (all altitudes), excellent (−70) elsewhere.
+struct PoorPatch;
+
+impl PoorPatch {
+    fn poor(p: [f64; 3]) -> bool {
+        p[0].abs() < 20.0 && p[1] < 30.0
+    }
+}
+
+impl RsrpSource for PoorPatch {
+    fn num_sites(&self) -> usize {
+        2
+    }
+    fn rsrp_all_dbm(&self, p_m: [f64; 3], out: &mut [f64]) {
+        let v = if Self::poor(p_m) { -110.0 } else { -70.0 };
+        out[0] = v;
+        out[1] = v - 5.0;
+    }
+}
+
+#[test]
+fn coverage_aware_avoids_poor_region() {
+    let c = city(vec![corner()]);
+    let mut p = planner(&c);
+    let s = [-80.0, 0.0, 50.0];
+    let t = [80.0, 0.0, 50.0];
+    assert_eq!(
+        p.coverage_aware(s, t, 1.0).expect_err("no coverage yet"),
+        PlanError::NoCoverage
+    );
+    p.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let fr = p.coverage_class_fractions().expect("fractions");
+    assert!(fr[2] > 0.05 && fr[1] == 0.0, "{fr:?}");
+    let shortest = p.shortest(s, t).expect("shortest");
+    assert_eq!(shortest.waypoints_m, vec![s, t]);
+    assert_eq!(p.coverage_aware(s, t, 0.0).expect("λ = 0"), shortest);
+    assert!(matches!(
+        p.coverage_aware(s, t, f64::NAN),
+        Err(PlanError::BadLambda(_))
+    ));
+    let aware = p.coverage_aware(s, t, 10.0).expect("coverage-aware");
+    check_path(&p, &aware, s, t);
+    assert!(aware.length_m > shortest.length_m + 10.0, "{aware:?}");
+    // No part of the path lies in the poor patch (one lattice step of slack for the classes
+    // being those of the nearest lattice point).
+    for w in aware.waypoints_m.windows(2) {
+        let n = (dist(w[0], w[1]) / 0.5).ceil() as usize;
+        for k in 0..=n {
+            let f = k as f64 / n.max(1) as f64;
+            let q = [0, 1, 2].map(|i| w[0][i] + f * (w[1][i] - w[0][i]));
+            assert!(
+                !(q[0].abs() < 15.0 && q[1] < 25.0),
+                "point {q:?} of the coverage-aware path is in the poor patch"
+            );
+        }
+    }
+}
+
+#[test]
+fn coverage_aware_lambda_zero_equals_shortest_around_obstacles() {
+    let c = city(vec![boxb("wall", -2.0, -60.0, 2.0, 60.0, 0.0, 70.0)]);
+    let mut p = planner(&c);
+    p.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let s = [-40.0, 0.0, 40.0];
+    let t = [40.0, 10.0, 45.0];
+    assert_eq!(
+        p.coverage_aware(s, t, 0.0).expect("λ = 0"),
+        p.shortest(s, t).expect("shortest")
+    );
+}
+
+#[test]
+fn coverage_aware_never_costs_more_than_shortest() {
+    // A low wall across the line and the poor patch in front of it: whatever the weight, the
+    // coverage-aware path's own cost is at most that of the shortest path.
+    let c = city(vec![
+        boxb("wall", 30.0, -60.0, 34.0, 60.0, 0.0, 70.0),
+        corner(),
+    ]);
+    let mut p = planner(&c);
+    p.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let (s, t) = ([-80.0, -5.0, 40.0], [80.0, 5.0, 45.0]);
+    let shortest = p.shortest(s, t).expect("shortest");
+    for lambda in [0.1, 1.0, 5.0] {
+        let aware = p.coverage_aware(s, t, lambda).expect("coverage-aware");
+        check_path(&p, &aware, s, t);
+        fly_like_env(&c, &aware);
+        let classes = p.classes.as_deref().expect("classes");
+        let field = CostField::new(
+            p.free_space(),
+            Some((classes, p.penalties.map(|q| 1.0 + lambda * q))),
+        );
+        let cost = |path: &Path| -> f64 {
+            path.waypoints_m
+                .windows(2)
+                .map(|w| field.segment(w[0], w[1]).0)
+                .sum()
+        };
+        assert!(
+            cost(&aware) <= cost(&shortest) + 1e-9,
+            "λ = {lambda}: {} > {}",
+            cost(&aware),
+            cost(&shortest)
+        );
+    }
+}
+
+#[test]
+fn procedural_city_paths_are_flyable() {
+    use rand::{RngExt, SeedableRng};
+    let c = procedural(400.0);
+    let p = planner(&c);
+    let fs = p.free_space();
+    let a = c.area_m;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut free = || loop {
+        let q = [
+            rng.random_range(a[0]..a[2]),
+            rng.random_range(a[1]..a[3]),
+            rng.random_range(20.0..120.0),
+        ];
+        if fs.is_free_point(q) {
+            return q;
+        }
+    };
+    let mut planned = 0;
+    for _ in 0..12 {
+        let (s, t) = (free(), free());
+        match p.shortest(s, t) {
+            Ok(path) => {
+                check_path(&p, &path, s, t);
+                fly_like_env(&c, &path);
+                planned += 1;
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert_eq!(planned, 12);
+}
+
+/// One-off timing on the real Midtown city (run with
+/// `cargo test --release -p dupac-actor --lib midtown_timing -- --ignored --nocapture`):
+/// free-space build, 10 pairs of ≈ 790 m (cold, then warm edge cache) with a 2.5 m lattice as a
+/// reference for the length, and a coverage-aware plan with a synthetic RSRP field.
+#[test]
+#[ignore]
+fn midtown_timing() {
+    use rand::{RngExt, SeedableRng};
+    use std::time::Instant;
+    let mut cfg = Config::default();
+    cfg.scenario.buildings_file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../data/nyc_midtown_buildings.geojson"
+    )
+    .into();
+    let t0 = Instant::now();
+    let c = City::load(&cfg.scenario).expect("midtown");
+    println!(
+        "city: {} buildings, {} triangles, {:.2} s",
+        c.buildings.len(),
+        c.mesh.num_triangles(),
+        t0.elapsed().as_secs_f64()
+    );
+    let t0 = Instant::now();
+    let mut p = Planner::new(&c, &cfg.env, &cfg.planner);
+    println!(
+        "free space {:?}: {:.2} s, free fraction {:.3}, {} threads",
+        p.free_space().dims(),
+        t0.elapsed().as_secs_f64(),
+        p.free_space().free_voxel_fraction(),
+        rayon::current_num_threads()
+    );
+    let fine_cfg = PlannerConfig {
+        voxel_m: 2.5,
+        ..cfg.planner.clone()
+    };
+    let t0 = Instant::now();
+    let fine = Planner::new(&c, &cfg.env, &fine_cfg);
+    println!(
+        "reference free space {:?}: {:.2} s",
+        fine.free_space().dims(),
+        t0.elapsed().as_secs_f64()
+    );
+    let a = c.area_m;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let mut pairs = Vec::new();
+    while pairs.len() < 10 {
+        let s = [
+            rng.random_range(a[0]..a[2]),
+            rng.random_range(a[1]..a[3]),
+            rng.random_range(20.0..120.0),
+        ];
+        let ang: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+        let t = [
+            s[0] + 790.0 * ang.cos(),
+            s[1] + 790.0 * ang.sin(),
+            rng.random_range(20.0..120.0),
+        ];
+        if p.free_space().is_free_point(s) && p.free_space().is_free_point(t) {
+            pairs.push((s, t));
+        }
+    }
+    for &(s, t) in &pairs {
+        let t0 = Instant::now();
+        let path = p.shortest(s, t).expect("path");
+        let cold = t0.elapsed().as_secs_f64() * 1e3;
+        let t0 = Instant::now();
+        let again = p.shortest(s, t).expect("path");
+        let warm = t0.elapsed().as_secs_f64() * 1e3;
+        assert_eq!(again, path);
+        check_path(&p, &path, s, t);
+        let reference = fine.shortest(s, t).map(|p| p.length_m).unwrap_or(f64::NAN);
+        println!(
+            "straight {:6.1} m  shortest {:6.1} m ({:2} waypoints)  2.5 m lattice {:6.1} m  \
+             {:6.1} ms cold {:6.1} ms warm",
+            dist(s, t),
+            path.length_m,
+            path.waypoints_m.len(),
+            reference,
+            cold,
+            warm
+        );
+    }
+    // Coverage from the real RSRP cache when one matching this world is on disk.
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    cfg.scenario.cells_file = format!("{root}/data/nyc_midtown_cells.csv").into();
+    let world = dupac_radio::world::RadioWorld::build(&cfg).expect("radio world");
+    let grid = dupac_radio::cache::GridSpec::covering(world.city.area_m, &cfg.cache);
+    let expected = dupac_radio::cache::RsrpCache::expected_header(&world, grid);
+    let cache_path = std::path::PathBuf::from(format!("{root}/out/cache/rsrp.bin"));
+    match dupac_radio::cache::RsrpCache::open(&cache_path, &expected) {
+        Ok(dupac_radio::cache::Opened::Valid(cache)) => {
+            let t0 = Instant::now();
+            p.with_coverage(&cache, RsrpThresholds::from_config(&cfg.radio));
+            println!(
+                "with_coverage (RSRP cache): {:.2} s, free voxels by class {:?}",
+                t0.elapsed().as_secs_f64(),
+                p.coverage_class_fractions()
+            );
+        }
+        _ => {
+            println!(
+                "no matching RSRP cache at {}; synthetic coverage",
+                cache_path.display()
+            );
+            p.with_coverage(&PoorPatch, RsrpThresholds::default());
+        }
+    }
+    for &(s, t) in pairs.iter().take(5) {
+        let shortest = p.shortest(s, t).expect("path").length_m;
+        let t0 = Instant::now();
+        let r = p.coverage_aware(s, t, cfg.planner.lambda);
+        println!(
+            "coverage-aware λ={}: {:.1} m (shortest {shortest:.1} m), {:.1} ms",
+            cfg.planner.lambda,
+            r.map(|p| p.length_m).unwrap_or(f64::NAN),
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+    }
+    let pcfg = dupac_common::config::PairsConfig {
+        eval_per_bin: 10,
+        ..cfg.pairs.clone()
+    };
+    let t0 = Instant::now();
+    let eval = crate::pairs::eval_pairs(&p, &pcfg, &cfg.env, &|_| {});
+    println!(
+        "eval_pairs, 7 bins x 10: {} pairs in {:.2} s",
+        eval.len(),
+        t0.elapsed().as_secs_f64()
+    );
+}

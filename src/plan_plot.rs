@@ -1,0 +1,1391 @@
+//! Planned or flown UAV paths as PNG: a top view of the paths over the buildings, each path
+//! coloured by the RSRP class along it (spec/radio.md §3), next to the altitude profile and the
+//! serving RSRP against the distance flown.
+//!
+//! Layout (1600 × 1100 px): title strip; left, the top view (x east / y north in m, equal aspect)
+//! zoomed to the paths plus [`VIEW_MARGIN_M`] and a legend below it; right, the altitude profile
+//! above the serving-RSRP profile, sharing the distance axis. Each trace keeps one identity colour
+//! throughout: the outline of its path on the map and its line in both profiles.
+
+use crate::plot::{
+    FONT, RSRP_EXCELLENT_DBM, RSRP_POOR_DBM, clip_ring, draw_halo_text, draw_site_marker,
+    ensure_font, fmt_num, pe,
+};
+use anyhow::{Context, Result, bail};
+use dupac_radio::city::Building;
+use dupac_radio::class::RsrpClass;
+use dupac_radio::sites::{Site, SiteKind};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// One flown or planned path with the radio along it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightTrace {
+    /// Legend label, e.g. `"shortest (A3)"`, `"coverage-aware λ=1 (A3)"`.
+    pub label: String,
+    /// Positions along the path `[x_m, y_m, z_m]`; the first is the source, the last the
+    /// destination.
+    pub points_m: Vec<[f64; 3]>,
+    /// Serving-cell RSRP at each position (dBm); same length as `points_m`.
+    pub serving_rsrp_dbm: Vec<f64>,
+    /// RSRP class at each position; same length as `points_m`.
+    pub class: Vec<RsrpClass>,
+}
+
+/// Image size (px).
+const WIDTH: u32 = 1600;
+const HEIGHT: u32 = 1100;
+/// Height of the title strip (px).
+const TITLE_H: i32 = 58;
+/// Width of the left column holding the top view and its legend (px).
+const LEFT_W: i32 = 900;
+/// Space around the traces' bounding box in the top view (m).
+pub const VIEW_MARGIN_M: f64 = 80.0;
+/// Smallest extent of the top view (m), for paths that barely move horizontally.
+const MIN_VIEW_M: f64 = 200.0;
+/// Chart margin and label areas (px).
+const MARGIN: i32 = 12;
+const MAP_X_LABEL: i32 = 66;
+const MAP_Y_LABEL: i32 = 90;
+/// Height of a panel caption (px).
+const CAPTION_H: i32 = 34;
+/// Legend row height (px).
+const ROW_H: i32 = 30;
+
+const TITLE_PX: f64 = 30.0;
+const CAPTION_PX: f64 = 23.0;
+const LABEL_PX: f64 = 18.0;
+const DESC_PX: f64 = 21.0;
+const LEGEND_PX: f64 = 18.0;
+
+/// RSRP class colours (ColorBrewer-like green / orange / red).
+const EXCELLENT: RGBColor = RGBColor(26, 152, 80);
+const MEDIOCRE: RGBColor = RGBColor(240, 140, 20);
+const POOR: RGBColor = RGBColor(215, 25, 35);
+/// Trace identity colours, chosen away from the class colours.
+const TRACE_COLOURS: [RGBColor; 6] = [
+    RGBColor(30, 80, 190),
+    RGBColor(150, 45, 170),
+    RGBColor(25, 25, 25),
+    RGBColor(0, 165, 205),
+    RGBColor(135, 85, 50),
+    RGBColor(120, 120, 120),
+];
+/// Map background (streets) and building outline.
+const GROUND: RGBColor = RGBColor(252, 252, 250);
+const OUTLINE: RGBColor = RGBColor(70, 70, 70);
+/// Building fill grey for the lowest and the tallest building in view.
+const GREY_LOW: f64 = 222.0;
+const GREY_HIGH: f64 = 100.0;
+
+fn class_colour(c: RsrpClass) -> RGBColor {
+    match c {
+        RsrpClass::Excellent => EXCELLENT,
+        RsrpClass::Mediocre => MEDIOCRE,
+        RsrpClass::Poor => POOR,
+    }
+}
+
+fn trace_colour(i: usize) -> RGBColor {
+    TRACE_COLOURS[i % TRACE_COLOURS.len()]
+}
+
+/// Map stroke widths (px) of trace `i`: outline (identity colour) and class-coloured core.
+/// Earlier traces are wider, so a later one drawn on top of a shared stretch leaves the
+/// earlier one's colours visible along both sides.
+fn map_widths(i: usize) -> (u32, u32) {
+    [(15, 9), (10, 5), (8, 3)][i.min(2)]
+}
+
+/// Profile line width (px) of trace `i` (wider first, for the same reason).
+fn profile_width(i: usize) -> u32 {
+    [5, 3, 2][i.min(2)]
+}
+
+/// Building fill of height `z` relative to the tallest building in view `z_top`.
+fn building_grey(z: f64, z_top: f64) -> RGBColor {
+    let t = if z_top > 0.0 {
+        (z / z_top).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let g = (GREY_LOW + t * (GREY_HIGH - GREY_LOW)).round() as u8;
+    RGBColor(g, g, g)
+}
+
+/// Per-trace quantities derived once.
+struct Derived {
+    /// Distance flown from the source to each point (m), 3D.
+    dist_m: Vec<f64>,
+    /// Share of the flown distance in each class (excellent, mediocre, poor); each segment is
+    /// split half-and-half between the classes of its two ends.
+    share: [f64; 3],
+}
+
+fn derive(t: &FlightTrace) -> Derived {
+    let mut dist_m = Vec::with_capacity(t.points_m.len());
+    let mut share = [0.0; 3];
+    let idx = |c: RsrpClass| match c {
+        RsrpClass::Excellent => 0,
+        RsrpClass::Mediocre => 1,
+        RsrpClass::Poor => 2,
+    };
+    let mut d = 0.0;
+    for (k, p) in t.points_m.iter().enumerate() {
+        if k > 0 {
+            let q = t.points_m[k - 1];
+            let l = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+            d += l;
+            share[idx(t.class[k - 1])] += 0.5 * l;
+            share[idx(t.class[k])] += 0.5 * l;
+        }
+        dist_m.push(d);
+    }
+    if d > 0.0 {
+        for s in &mut share {
+            *s /= d;
+        }
+    }
+    Derived { dist_m, share }
+}
+
+/// Checks the inputs; the error names the output path and, where one is at fault, the trace.
+fn validate(area_m: [f64; 4], traces: &[FlightTrace], path: &Path) -> Result<()> {
+    let [x_min, y_min, x_max, y_max] = area_m;
+    if !(area_m.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
+        bail!(
+            "cannot plot {}: flight area {area_m:?} is empty or not finite",
+            path.display()
+        );
+    }
+    for t in traces {
+        let n = t.points_m.len();
+        if t.serving_rsrp_dbm.len() != n || t.class.len() != n {
+            bail!(
+                "cannot plot {}: trace '{}' has {} points, {} RSRP values and {} classes",
+                path.display(),
+                t.label,
+                n,
+                t.serving_rsrp_dbm.len(),
+                t.class.len()
+            );
+        }
+        if let Some(k) = t
+            .points_m
+            .iter()
+            .position(|p| !p.iter().all(|v| v.is_finite()))
+        {
+            bail!(
+                "cannot plot {}: trace '{}' has a non-finite position {:?} at point {k}",
+                path.display(),
+                t.label,
+                t.points_m[k]
+            );
+        }
+        if let Some(k) = t.serving_rsrp_dbm.iter().position(|v| !v.is_finite()) {
+            bail!(
+                "cannot plot {}: trace '{}' has a non-finite RSRP {} at point {k}",
+                path.display(),
+                t.label,
+                t.serving_rsrp_dbm[k]
+            );
+        }
+    }
+    if !traces.iter().any(|t| t.points_m.len() >= 2) {
+        let labels: Vec<&str> = traces.iter().map(|t| t.label.as_str()).collect();
+        bail!(
+            "cannot plot {}: no trace has two or more points (traces: {labels:?})",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Renders the traces to a 1600 × 1100 px PNG at `path` (written to a temporary file in the same
+/// directory, then renamed).
+///
+/// * `buildings` — footprints in the top view, filled grey, darker for taller ones.
+/// * `sites` — those inside the view, as in the coverage maps (triangle macro, circle micro).
+/// * `area_m` — `[x_min, y_min, x_max, y_max]` of the flight area (m); the top view is the
+///   traces' bounding box plus [`VIEW_MARGIN_M`], widened to fill the panel, within this area.
+/// * `traces` — at least one with two or more points; each vector of a trace has one entry per
+///   point and every value is finite.
+/// * `title` — drawn at the top.
+pub fn render_plan_png(
+    buildings: &[Building],
+    sites: &[Site],
+    area_m: [f64; 4],
+    traces: &[FlightTrace],
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    validate(area_m, traces, path)?;
+    ensure_font()?;
+
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("cannot create directory {} for the plot", dir.display()))?;
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let file_name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "plan".into());
+    // The bitmap encoder picks the format from the extension, so the temporary name ends in .png.
+    let tmp = dir.join(format!(
+        ".{file_name}.{}.{}.tmp.png",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let drawn = draw(buildings, sites, area_m, traces, title, &tmp);
+    let result = drawn.and_then(|()| {
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("cannot write path plot {}", path.display()))
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+fn draw(
+    buildings: &[Building],
+    sites: &[Site],
+    area_m: [f64; 4],
+    traces: &[FlightTrace],
+    title: &str,
+    file: &Path,
+) -> Result<()> {
+    let derived: Vec<Derived> = traces.iter().map(derive).collect();
+    let root = BitMapBackend::new(file, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE).map_err(pe)?;
+
+    // Title, shrunk until it fits the width.
+    let mut size = TITLE_PX;
+    while size > 14.0 {
+        let (w, _) = root
+            .estimate_text_size(title, &(FONT, size).into_text_style(&root))
+            .map_err(pe)?;
+        if w + 40 <= WIDTH {
+            break;
+        }
+        size -= 2.0;
+    }
+    let title_style = (FONT, size)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Center, VPos::Center));
+    root.draw_text(title, &title_style, (WIDTH as i32 / 2, TITLE_H / 2 + 2))
+        .map_err(pe)?;
+
+    draw_top_view(&root, buildings, sites, area_m, traces, &derived)?;
+    draw_profiles(&root, traces, &derived)?;
+    root.present().map_err(pe)?;
+    Ok(())
+}
+
+/// Top view bounds `[x0, y0, x1, y1]` (m): the traces' bounding box plus the margin, at least
+/// [`MIN_VIEW_M`] wide and high, widened to the panel aspect `aspect` (width / height) and kept
+/// inside the flight area where possible.
+fn view_bounds(traces: &[FlightTrace], area: [f64; 4], aspect: f64) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for p in traces.iter().flat_map(|t| &t.points_m) {
+        b = [
+            b[0].min(p[0]),
+            b[1].min(p[1]),
+            b[2].max(p[0]),
+            b[3].max(p[1]),
+        ];
+    }
+    let m = VIEW_MARGIN_M;
+    let padded = [b[0] - m, b[1] - m, b[2] + m, b[3] + m];
+    let clipped = [
+        padded[0].max(area[0]),
+        padded[1].max(area[1]),
+        padded[2].min(area[2]),
+        padded[3].min(area[3]),
+    ];
+    // Traces entirely outside the area: show them anyway rather than an empty map.
+    let (mut v, bound) = if clipped[2] > clipped[0] && clipped[3] > clipped[1] {
+        (clipped, area)
+    } else {
+        (padded, padded)
+    };
+    // One axis at a time: grow `[lo, hi]` to `len` around its centre, then slide it into
+    // `[blo, bhi]` and clip.
+    let grow = |lo: f64, hi: f64, len: f64, blo: f64, bhi: f64| -> (f64, f64) {
+        if hi - lo >= len {
+            return (lo, hi);
+        }
+        let c = 0.5 * (lo + hi);
+        let (mut a, mut z) = (c - 0.5 * len, c + 0.5 * len);
+        if a < blo {
+            z += blo - a;
+            a = blo;
+        }
+        if z > bhi {
+            a -= z - bhi;
+            z = bhi;
+        }
+        (a.max(blo), z)
+    };
+    let big = [f64::NEG_INFINITY, f64::INFINITY];
+    // The minimum extent may leave the area (a tiny area is still drawn at a legible scale).
+    (v[0], v[2]) = grow(v[0], v[2], MIN_VIEW_M, big[0], big[1]);
+    (v[1], v[3]) = grow(v[1], v[3], MIN_VIEW_M, big[0], big[1]);
+    let (w, h) = (v[2] - v[0], v[3] - v[1]);
+    if w / h < aspect {
+        (v[0], v[2]) = grow(
+            v[0],
+            v[2],
+            h * aspect,
+            bound[0].min(v[0]),
+            bound[2].max(v[2]),
+        );
+    } else {
+        (v[1], v[3]) = grow(
+            v[1],
+            v[3],
+            w / aspect,
+            bound[1].min(v[1]),
+            bound[3].max(v[3]),
+        );
+    }
+    v
+}
+
+/// Clips a polyline to the rectangle `r = [x0, y0, x1, y1]` (Liang–Barsky per segment); the
+/// visible pieces, each with two or more points.
+fn clip_polyline(pts: &[(f64, f64)], r: [f64; 4]) -> Vec<Vec<(f64, f64)>> {
+    let mut pieces: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    for w in pts.windows(2) {
+        let (p, q) = (w[0], w[1]);
+        let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+        let mut visible = true;
+        for (pk, qk) in [
+            (-dx, p.0 - r[0]),
+            (dx, r[2] - p.0),
+            (-dy, p.1 - r[1]),
+            (dy, r[3] - p.1),
+        ] {
+            if pk == 0.0 {
+                if qk < 0.0 {
+                    visible = false;
+                    break;
+                }
+            } else {
+                let t = qk / pk;
+                if pk < 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        if !visible || t0 > t1 {
+            if cur.len() >= 2 {
+                pieces.push(std::mem::take(&mut cur));
+            }
+            cur.clear();
+            continue;
+        }
+        let a = (p.0 + t0 * dx, p.1 + t0 * dy);
+        let b = (p.0 + t1 * dx, p.1 + t1 * dy);
+        if t0 > 0.0 || cur.is_empty() {
+            if cur.len() >= 2 {
+                pieces.push(std::mem::take(&mut cur));
+            }
+            cur = vec![a];
+        }
+        cur.push(b);
+        if t1 < 1.0 {
+            pieces.push(std::mem::take(&mut cur));
+        }
+    }
+    if cur.len() >= 2 {
+        pieces.push(cur);
+    }
+    pieces
+}
+
+/// Douglas–Peucker simplification with tolerance `tol` (same units as the points): drops
+/// points that lie within `tol` of the line through their kept neighbours, so that densely
+/// sampled straight stretches are drawn as one clean thick segment.
+fn simplify(pts: &[(f64, f64)], tol: f64) -> Vec<(f64, f64)> {
+    if pts.len() <= 2 {
+        return pts.to_vec();
+    }
+    let mut keep = vec![false; pts.len()];
+    keep[0] = true;
+    keep[pts.len() - 1] = true;
+    let mut stack = vec![(0, pts.len() - 1)];
+    while let Some((a, b)) = stack.pop() {
+        let (p, q) = (pts[a], pts[b]);
+        let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+        let len = (dx * dx + dy * dy).sqrt();
+        let mut worst = (0.0, a);
+        for (k, r) in pts.iter().enumerate().take(b).skip(a + 1) {
+            let d = if len > 0.0 {
+                ((r.0 - p.0) * dy - (r.1 - p.1) * dx).abs() / len
+            } else {
+                ((r.0 - p.0).powi(2) + (r.1 - p.1).powi(2)).sqrt()
+            };
+            if d > worst.0 {
+                worst = (d, k);
+            }
+        }
+        if worst.0 > tol {
+            keep[worst.1] = true;
+            stack.push((a, worst.1));
+            stack.push((worst.1, b));
+        }
+    }
+    pts.iter()
+        .zip(keep)
+        .filter_map(|(p, k)| k.then_some(*p))
+        .collect()
+}
+
+/// `text` cut with an ellipsis until it is at most `max_w` px wide in `style`.
+fn fit_text(area: &Area, text: &str, style: &TextStyle, max_w: i32) -> Result<String> {
+    let mut chars: Vec<char> = text.chars().collect();
+    let mut out = text.to_string();
+    loop {
+        let (w, _) = area.estimate_text_size(&out, style).map_err(pe)?;
+        if w as i32 <= max_w || chars.len() <= 1 {
+            return Ok(out);
+        }
+        chars.pop();
+        out = chars.iter().collect::<String>() + "…";
+    }
+}
+
+/// Maximal runs of equal class along a trace, as `(class, polyline)`: each point owns the
+/// halves of its two adjacent segments.
+fn class_runs(t: &FlightTrace) -> Vec<(RsrpClass, Vec<(f64, f64)>)> {
+    let p: Vec<(f64, f64)> = t.points_m.iter().map(|p| (p[0], p[1])).collect();
+    let n = p.len();
+    let mid = |a: usize, b: usize| (0.5 * (p[a].0 + p[b].0), 0.5 * (p[a].1 + p[b].1));
+    let mut runs = Vec::new();
+    let mut a = 0;
+    while a < n {
+        let mut b = a;
+        while b + 1 < n && t.class[b + 1] == t.class[a] {
+            b += 1;
+        }
+        let mut line = Vec::with_capacity(b - a + 3);
+        if a > 0 {
+            line.push(mid(a - 1, a));
+        }
+        line.extend_from_slice(&p[a..=b]);
+        if b + 1 < n {
+            line.push(mid(b, b + 1));
+        }
+        if line.len() >= 2 {
+            runs.push((t.class[a], line));
+        }
+        a = b + 1;
+    }
+    runs
+}
+
+/// One entry of the top view's legend.
+enum Icon {
+    Class(RsrpClass),
+    Trace(usize),
+    Source,
+    Destination,
+    Site(SiteKind),
+    Heights,
+}
+
+/// Width of an icon in the legend (px).
+fn icon_w(icon: &Icon) -> i32 {
+    match icon {
+        Icon::Class(_) => 34,
+        Icon::Trace(_) => 62,
+        Icon::Heights => 74,
+        _ => 24,
+    }
+}
+
+fn draw_star(area: &Area, c: (i32, i32), r: f64, fill: RGBColor) -> Result<()> {
+    let pts: Vec<(i32, i32)> = (0..10)
+        .map(|k| {
+            let rr = if k % 2 == 0 { r } else { 0.45 * r };
+            let a = (90.0 + 36.0 * f64::from(k)).to_radians();
+            (
+                c.0 + (rr * a.cos()).round() as i32,
+                c.1 - (rr * a.sin()).round() as i32,
+            )
+        })
+        .collect();
+    area.draw(&Polygon::new(pts.clone(), fill.filled()))
+        .map_err(pe)?;
+    let mut closed = pts;
+    closed.push(closed[0]);
+    area.draw(&PathElement::new(closed, WHITE.stroke_width(2)))
+        .map_err(pe)?;
+    Ok(())
+}
+
+fn draw_source(area: &Area, c: (i32, i32)) -> Result<()> {
+    area.draw(&Circle::new(c, 13, WHITE.filled())).map_err(pe)?;
+    area.draw(&Circle::new(c, 11, BLACK.filled())).map_err(pe)?;
+    let s = (FONT, 17.0)
+        .into_font()
+        .color(&WHITE)
+        .pos(Pos::new(HPos::Center, VPos::Center));
+    area.draw_text("S", &s, (c.0, c.1 + 1)).map_err(pe)?;
+    Ok(())
+}
+
+fn draw_icon(area: &Area, icon: &Icon, x: i32, y: i32, heights: (f64, f64)) -> Result<()> {
+    let w = icon_w(icon);
+    match *icon {
+        Icon::Class(c) => {
+            area.draw(&PathElement::new(
+                vec![(x, y), (x + w, y)],
+                class_colour(c).stroke_width(8),
+            ))
+            .map_err(pe)?;
+        }
+        Icon::Trace(i) => {
+            let (outer, inner) = map_widths(i);
+            area.draw(&PathElement::new(
+                vec![(x, y), (x + w, y)],
+                trace_colour(i).stroke_width(outer),
+            ))
+            .map_err(pe)?;
+            let third = w / 3;
+            for (k, c) in [EXCELLENT, MEDIOCRE, POOR].into_iter().enumerate() {
+                let k = k as i32;
+                area.draw(&PathElement::new(
+                    vec![(x + k * third, y), (x + (k + 1) * third, y)],
+                    c.stroke_width(inner),
+                ))
+                .map_err(pe)?;
+            }
+        }
+        Icon::Source => draw_source(area, (x + w / 2, y))?,
+        Icon::Destination => draw_star(area, (x + w / 2, y), 13.0, BLACK)?,
+        Icon::Site(kind) => draw_site_marker(area, (x + w / 2, y), kind)?,
+        Icon::Heights => {
+            for px in 0..w {
+                let z = heights.0 + (heights.1 - heights.0) * f64::from(px) / f64::from(w - 1);
+                area.draw(&Rectangle::new(
+                    [(x + px, y - 9), (x + px + 1, y + 9)],
+                    building_grey(z, heights.1).filled(),
+                ))
+                .map_err(pe)?;
+            }
+            area.draw(&Rectangle::new(
+                [(x, y - 9), (x + w, y + 9)],
+                OUTLINE.stroke_width(1),
+            ))
+            .map_err(pe)?;
+        }
+    }
+    Ok(())
+}
+
+/// A legend item placed by [`layout_legend`]: item index, x offset (px), row, text as drawn.
+type Placed = (usize, i32, i32, String);
+
+/// Lays out legend items left to right, wrapping at `width`; `None` forces a new row.
+/// Texts too wide for a row are cut. Returns `(item index, x, row, text)` and the number of rows.
+fn layout_legend(
+    area: &Area,
+    items: &[Option<(Icon, String)>],
+    width: i32,
+) -> Result<(Vec<Placed>, i32)> {
+    let font = (FONT, LEGEND_PX).into_text_style(area);
+    let (mut x, mut row) = (0, 0);
+    let mut placed = Vec::new();
+    for (k, item) in items.iter().enumerate() {
+        let Some((icon, text)) = item else {
+            if x > 0 {
+                x = 0;
+                row += 1;
+            }
+            continue;
+        };
+        let text = fit_text(area, text, &font, width - icon_w(icon) - 8)?;
+        let (tw, _) = area.estimate_text_size(&text, &font).map_err(pe)?;
+        let w = icon_w(icon) + 8 + tw as i32;
+        if x > 0 && x + w > width {
+            x = 0;
+            row += 1;
+        }
+        placed.push((k, x, row, text));
+        x += w + 28;
+    }
+    Ok((placed, row + 1))
+}
+
+fn draw_top_view(
+    root: &Area,
+    buildings: &[Building],
+    sites: &[Site],
+    area_m: [f64; 4],
+    traces: &[FlightTrace],
+    derived: &[Derived],
+) -> Result<()> {
+    // Legend content first: its height decides the map's.
+    let mut items: Vec<Option<(Icon, String)>> = vec![
+        Some((
+            Icon::Class(RsrpClass::Excellent),
+            format!("excellent (≥ {} dBm)", fmt_num(RSRP_EXCELLENT_DBM)),
+        )),
+        Some((Icon::Class(RsrpClass::Mediocre), "mediocre".into())),
+        Some((
+            Icon::Class(RsrpClass::Poor),
+            format!("poor (< {} dBm)", fmt_num(RSRP_POOR_DBM)),
+        )),
+        None,
+    ];
+    let legend_w = LEFT_W - 2 * MARGIN - 20;
+    let legend_style = (FONT, LEGEND_PX).into_text_style(root);
+    for (i, (t, d)) in traces.iter().zip(derived).enumerate() {
+        let len = d.dist_m.last().copied().unwrap_or(0.0);
+        let stats = if t.points_m.len() >= 2 {
+            format!(
+                ": {} m flown, {:.0} % excellent, {:.0} % poor",
+                fmt_num(len),
+                100.0 * d.share[0],
+                100.0 * d.share[2]
+            )
+        } else {
+            ": fewer than two points".into()
+        };
+        // A long label is cut so that the statistics stay readable.
+        let (stats_w, _) = root.estimate_text_size(&stats, &legend_style).map_err(pe)?;
+        let label_w = legend_w - icon_w(&Icon::Trace(i)) - 8 - stats_w as i32;
+        let label = fit_text(root, &t.label, &legend_style, label_w.max(60))?;
+        items.push(Some((Icon::Trace(i), label + &stats)));
+        items.push(None);
+    }
+    items.push(Some((Icon::Source, "source".into())));
+    items.push(Some((Icon::Destination, "destination".into())));
+    items.push(Some((
+        Icon::Site(SiteKind::Macro),
+        "macro site (id)".into(),
+    )));
+    items.push(Some((
+        Icon::Site(SiteKind::Micro),
+        "micro site (id)".into(),
+    )));
+
+    // Layout: caption, map (equal aspect, as large as fits), legend below it.
+    let panel_x = 0;
+    // Building heights item text depends on the view, so measure with a placeholder.
+    items.push(Some((Icon::Heights, "building height 000 … 000 m".into())));
+    let (_, rows) = layout_legend(root, &items, legend_w)?;
+    let legend_h = rows * ROW_H + 14;
+    let region_top = TITLE_H + CAPTION_H;
+    let region_h = HEIGHT as i32 - region_top - legend_h - 8;
+    let pw_max = LEFT_W - MAP_Y_LABEL - 2 * MARGIN - 14;
+    let ph_max = region_h - MAP_X_LABEL - 2 * MARGIN;
+    let view = view_bounds(traces, area_m, f64::from(pw_max) / f64::from(ph_max));
+    let [vx0, vy0, vx1, vy1] = view;
+    let aspect = (vx1 - vx0) / (vy1 - vy0);
+    let (pw, ph) = if f64::from(pw_max) / f64::from(ph_max) > aspect {
+        (((f64::from(ph_max) * aspect).round() as i32).max(1), ph_max)
+    } else {
+        (pw_max, ((f64::from(pw_max) / aspect).round() as i32).max(1))
+    };
+    let map_w = pw + MAP_Y_LABEL + 2 * MARGIN;
+    let map_h = ph + MAP_X_LABEL + 2 * MARGIN;
+    let map_left = panel_x + ((LEFT_W - map_w) / 2).max(0);
+    let map_area = root.clone().shrink((map_left, region_top), (map_w, map_h));
+
+    let mut chart = ChartBuilder::on(&map_area)
+        .margin(MARGIN)
+        .x_label_area_size(MAP_X_LABEL)
+        .y_label_area_size(MAP_Y_LABEL)
+        .build_cartesian_2d(vx0..vx1, vy0..vy1)
+        .map_err(pe)?;
+    let plot = chart.plotting_area().clone();
+    let (ppw, pph) = plot.dim_in_pixel();
+    let (base_x, base_y) = plot.get_base_pixel();
+    root.draw(&Rectangle::new(
+        [(base_x, base_y), (base_x + ppw as i32, base_y + pph as i32)],
+        GROUND.filled(),
+    ))
+    .map_err(pe)?;
+
+    // Caption centred over the plot.
+    let cap = (FONT, CAPTION_PX)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Center, VPos::Bottom));
+    root.draw_text(
+        "Top view, paths coloured by RSRP class",
+        &cap,
+        (base_x + ppw as i32 / 2, region_top + MARGIN - 6),
+    )
+    .map_err(pe)?;
+
+    // Buildings in view, lowest first so taller ones stay on top.
+    let mut visible: Vec<&Building> = buildings
+        .iter()
+        .filter(|b| {
+            let bb = b.bounds_m();
+            !(bb[2] < vx0 || bb[0] > vx1 || bb[3] < vy0 || bb[1] > vy1)
+        })
+        .collect();
+    visible.sort_by(|a, b| a.z_max_m.total_cmp(&b.z_max_m));
+    let z_top = visible
+        .iter()
+        .map(|b| b.z_max_m)
+        .fold(0.0_f64, f64::max)
+        .max(1.0);
+    let outline = OUTLINE.stroke_width(1);
+    for b in &visible {
+        let outer = clip_ring(&b.outer_m, view);
+        if outer.len() < 3 {
+            continue;
+        }
+        let pts: Vec<(f64, f64)> = outer.iter().map(|p| (p[0], p[1])).collect();
+        plot.draw(&Polygon::new(
+            pts.clone(),
+            building_grey(b.z_max_m, z_top).filled(),
+        ))
+        .map_err(pe)?;
+        let mut rings = vec![pts];
+        for h in &b.holes_m {
+            let hole = clip_ring(h, view);
+            if hole.len() >= 3 {
+                let hp: Vec<(f64, f64)> = hole.iter().map(|p| (p[0], p[1])).collect();
+                plot.draw(&Polygon::new(hp.clone(), GROUND.filled()))
+                    .map_err(pe)?;
+                rings.push(hp);
+            }
+        }
+        for mut ring in rings {
+            ring.push(ring[0]);
+            plot.draw(&PathElement::new(ring, outline)).map_err(pe)?;
+        }
+    }
+
+    // Traces: the identity-coloured outline, then the class-coloured core, trace by trace.
+    let m_per_px = (vx1 - vx0) / f64::from(ppw.max(1));
+    let to_px = |line: &[(f64, f64)]| -> Vec<Vec<(i32, i32)>> {
+        clip_polyline(line, view)
+            .into_iter()
+            .map(|piece| {
+                simplify(&piece, 0.4 * m_per_px)
+                    .iter()
+                    .map(|p| plot.map_coordinate(p))
+                    .collect()
+            })
+            .collect()
+    };
+    for (i, t) in traces.iter().enumerate() {
+        if t.points_m.len() < 2 {
+            continue;
+        }
+        let (outer, inner) = map_widths(i);
+        let all: Vec<(f64, f64)> = t.points_m.iter().map(|p| (p[0], p[1])).collect();
+        for piece in to_px(&all) {
+            root.draw(&PathElement::new(
+                piece,
+                trace_colour(i).stroke_width(outer),
+            ))
+            .map_err(pe)?;
+        }
+        for (class, line) in class_runs(t) {
+            for piece in to_px(&line) {
+                root.draw(&PathElement::new(
+                    piece,
+                    class_colour(class).stroke_width(inner),
+                ))
+                .map_err(pe)?;
+            }
+        }
+    }
+
+    // Sites in view, above the traces.
+    let label_font = (FONT, LEGEND_PX).into_font();
+    for s in sites {
+        let (x, y) = (s.position_m[0], s.position_m[1]);
+        if !(x >= vx0 && x <= vx1 && y >= vy0 && y <= vy1) {
+            continue;
+        }
+        let c = plot.map_coordinate(&(x, y));
+        draw_site_marker(root, c, s.kind)?;
+        draw_halo_text(
+            root,
+            &s.id.0.to_string(),
+            (c.0 + 10, c.1 - 10),
+            &label_font,
+            HPos::Left,
+            VPos::Bottom,
+        )?;
+    }
+
+    // Sources and destinations, each place once.
+    let inside = |p: &[f64; 3]| p[0] >= vx0 && p[0] <= vx1 && p[1] >= vy0 && p[1] <= vy1;
+    let mut drawn: Vec<(i32, i32)> = Vec::new();
+    let near = |drawn: &[(i32, i32)], c: (i32, i32)| {
+        drawn
+            .iter()
+            .any(|d| (d.0 - c.0).abs() <= 4 && (d.1 - c.1).abs() <= 4)
+    };
+    for t in traces {
+        if let Some(p) = t
+            .points_m
+            .last()
+            .filter(|p| inside(p) && t.points_m.len() >= 2)
+        {
+            let c = plot.map_coordinate(&(p[0], p[1]));
+            if !near(&drawn, c) {
+                draw_star(root, c, 15.0, BLACK)?;
+                // "D" right of the star, or left of it at the right edge of the map.
+                let (x, h) = if c.0 + 40 < base_x + ppw as i32 {
+                    (c.0 + 16, HPos::Left)
+                } else {
+                    (c.0 - 16, HPos::Right)
+                };
+                draw_halo_text(
+                    root,
+                    "D",
+                    (x, c.1),
+                    &(FONT, 22.0).into_font(),
+                    h,
+                    VPos::Center,
+                )?;
+                drawn.push(c);
+            }
+        }
+    }
+    let mut drawn_s: Vec<(i32, i32)> = Vec::new();
+    for t in traces {
+        if let Some(p) = t.points_m.first().filter(|p| inside(p)) {
+            let c = plot.map_coordinate(&(p[0], p[1]));
+            if !near(&drawn_s, c) {
+                draw_source(root, c)?;
+                drawn_s.push(c);
+            }
+        }
+    }
+
+    root.draw(&Rectangle::new(
+        [
+            (base_x - 1, base_y - 1),
+            (base_x + ppw as i32, base_y + pph as i32),
+        ],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(pe)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x east (m)")
+        .y_desc("y north (m)")
+        .x_labels(7)
+        .y_labels(7)
+        .x_label_formatter(&|v| fmt_num(*v))
+        .y_label_formatter(&|v| fmt_num(*v))
+        .label_style((FONT, LABEL_PX))
+        .axis_desc_style((FONT, DESC_PX))
+        .axis_style(BLACK.stroke_width(1))
+        .draw()
+        .map_err(pe)?;
+
+    // Legend below the map, aligned with the plot's left edge where there is room.
+    let z_low = visible
+        .iter()
+        .map(|b| b.z_max_m)
+        .fold(f64::INFINITY, f64::min);
+    let z_low = if z_low.is_finite() { z_low } else { 0.0 };
+    if let Some(Some((_, text))) = items.last_mut() {
+        *text = format!("building height {} … {} m", fmt_num(z_low), fmt_num(z_top));
+    }
+    let (placed, _) = layout_legend(root, &items, legend_w)?;
+    let legend_left = (base_x - 40).max(MARGIN + 10);
+    let legend_top = region_top + map_h + 4;
+    let text = (FONT, LEGEND_PX)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (k, x, row, label) in placed {
+        let Some((icon, _)) = &items[k] else {
+            continue;
+        };
+        let (x, y) = (legend_left + x, legend_top + row * ROW_H + ROW_H / 2);
+        draw_icon(root, icon, x, y, (z_low, z_top))?;
+        root.draw_text(&label, &text, (x + icon_w(icon) + 8, y))
+            .map_err(pe)?;
+    }
+    Ok(())
+}
+
+/// `hi` raised so that the top `frac` of the axis `[lo, new hi]` lies above the data (room for
+/// the legend).
+fn with_headroom(lo: f64, hi: f64, frac: f64) -> f64 {
+    hi + (hi - lo) * frac / (1.0 - frac)
+}
+
+fn draw_profiles(root: &Area, traces: &[FlightTrace], derived: &[Derived]) -> Result<()> {
+    let right = root.clone().shrink(
+        (LEFT_W, TITLE_H),
+        (WIDTH as i32 - LEFT_W, HEIGHT as i32 - TITLE_H),
+    );
+    let (top, bottom) = right.split_vertically((HEIGHT as i32 - TITLE_H) / 2);
+    let d_max = derived
+        .iter()
+        .filter_map(|d| d.dist_m.last().copied())
+        .fold(0.0_f64, f64::max)
+        .max(1.0);
+    let drawable: Vec<usize> = (0..traces.len())
+        .filter(|&i| !traces[i].points_m.is_empty())
+        .collect();
+    // Legend labels cut to the plot width (about 720 px less label areas and the legend's
+    // line sample).
+    let label_style = (FONT, LEGEND_PX).into_text_style(root);
+    let labels = traces
+        .iter()
+        .map(|t| fit_text(root, &t.label, &label_style, 430))
+        .collect::<Result<Vec<String>>>()?;
+    // Legend rows above the data: its height as a share of the plot height (estimate).
+    let plot_h_est = f64::from((HEIGHT as i32 - TITLE_H) / 2 - CAPTION_H - 60 - 2 * MARGIN);
+    let legend_frac =
+        ((drawable.len() as f64 * (LEGEND_PX + 8.0) + 28.0) / plot_h_est).clamp(0.1, 0.6);
+
+    // Altitude profile.
+    let z_max = traces
+        .iter()
+        .flat_map(|t| &t.points_m)
+        .map(|p| p[2])
+        .fold(10.0_f64, f64::max);
+    let z_min = traces
+        .iter()
+        .flat_map(|t| &t.points_m)
+        .map(|p| p[2])
+        .fold(0.0_f64, f64::min);
+    let z_top = with_headroom(z_min, z_max * 1.03, legend_frac);
+    let mut chart = profile_chart(&top, "Altitude profile", d_max, z_min..z_top)?;
+    mesh(&mut chart, "altitude z (m)")?;
+    series(&mut chart, traces, derived, &labels, &drawable, |t, k| {
+        t.points_m[k][2]
+    })?;
+    legend(&mut chart)?;
+
+    // Serving RSRP with the class bands.
+    let (r_lo, r_hi) = traces
+        .iter()
+        .flat_map(|t| &t.serving_rsrp_dbm)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let r_bot = (r_lo - 3.0).min(-130.0);
+    let r_top = with_headroom(r_bot, (r_hi + 3.0).max(-50.0), legend_frac);
+    let mut chart = profile_chart(&bottom, "Serving RSRP", d_max, r_bot..r_top)?;
+    let bands = [
+        (RsrpClass::Excellent, RSRP_EXCELLENT_DBM, r_top),
+        (RsrpClass::Mediocre, RSRP_POOR_DBM, RSRP_EXCELLENT_DBM),
+        (RsrpClass::Poor, r_bot, RSRP_POOR_DBM),
+    ];
+    for (class, lo, hi) in bands {
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(0.0, lo), (d_max, hi)],
+                class_colour(class).mix(0.13).filled(),
+            )))
+            .map_err(pe)?;
+    }
+    mesh(&mut chart, "serving RSRP (dBm)")?;
+    for b in [RSRP_EXCELLENT_DBM, RSRP_POOR_DBM] {
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(0.0, b), (d_max, b)],
+                10,
+                7,
+                RGBColor(60, 60, 60).stroke_width(2),
+            ))
+            .map_err(pe)?;
+    }
+    series(&mut chart, traces, derived, &labels, &drawable, |t, k| {
+        t.serving_rsrp_dbm[k]
+    })?;
+    legend(&mut chart)?;
+    // Class names right of the plot, beside their bands.
+    let plot = chart.plotting_area();
+    let text = (FONT, LEGEND_PX)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (class, lo, hi) in bands {
+        let (x, y) = plot.map_coordinate(&(d_max, 0.5 * (lo + hi)));
+        let x = x + 10;
+        root.draw(&Rectangle::new(
+            [(x, y - 8), (x + 14, y + 8)],
+            class_colour(class).filled(),
+        ))
+        .map_err(pe)?;
+        root.draw_text(class.name(), &text, (x + 20, y))
+            .map_err(pe)?;
+    }
+    Ok(())
+}
+
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+fn profile_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    caption: &str,
+    d_max: f64,
+    y: std::ops::Range<f64>,
+) -> Result<Chart<'a, 'b>> {
+    ChartBuilder::on(area)
+        .caption(caption, (FONT, CAPTION_PX))
+        .margin(MARGIN)
+        .margin_right(125)
+        .x_label_area_size(60)
+        .y_label_area_size(84)
+        .build_cartesian_2d(0.0..d_max, y)
+        .map_err(pe)
+}
+
+fn mesh(chart: &mut Chart, y_desc: &str) -> Result<()> {
+    chart
+        .configure_mesh()
+        .x_desc("distance flown (m)")
+        .y_desc(y_desc)
+        .x_labels(8)
+        .y_labels(7)
+        .x_label_formatter(&|v| fmt_num(*v))
+        .y_label_formatter(&|v| fmt_num(*v))
+        .label_style((FONT, LABEL_PX))
+        .axis_desc_style((FONT, DESC_PX))
+        .axis_style(BLACK.stroke_width(1))
+        .bold_line_style(RGBColor(0, 0, 0).mix(0.12))
+        .light_line_style(TRANSPARENT)
+        .draw()
+        .map_err(pe)
+}
+
+fn series<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+    traces: &[FlightTrace],
+    derived: &[Derived],
+    labels: &[String],
+    drawable: &[usize],
+    value: impl Fn(&FlightTrace, usize) -> f64,
+) -> Result<()> {
+    for &i in drawable {
+        let (t, d) = (&traces[i], &derived[i]);
+        let colour = trace_colour(i);
+        let w = profile_width(i);
+        let pts: Vec<(f64, f64)> = (0..t.points_m.len())
+            .map(|k| (d.dist_m[k], value(t, k)))
+            .collect();
+        if pts.len() == 1 {
+            chart
+                .draw_series(std::iter::once(Circle::new(pts[0], 4, colour.filled())))
+                .map_err(pe)?;
+        }
+        chart
+            .draw_series(LineSeries::new(pts, colour.stroke_width(w)))
+            .map_err(pe)?
+            .label(labels[i].clone())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x - 2, y), (x + 26, y)], colour.stroke_width(w))
+            });
+    }
+    Ok(())
+}
+
+fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .margin(8)
+        .legend_area_size(36)
+        .label_font((FONT, LEGEND_PX))
+        .background_style(WHITE.mix(0.92))
+        .border_style(RGBColor(0, 0, 0).mix(0.5))
+        .draw()
+        .map_err(pe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dupac_common::SiteId;
+    use dupac_radio::sites::Mount;
+
+    fn bld(id: &str, x: f64, y: f64, w: f64, h: f64, z: f64) -> Building {
+        Building {
+            id: id.into(),
+            outer_m: vec![[x, y], [x + w, y], [x + w, y + h], [x, y + h]],
+            holes_m: vec![],
+            z_min_m: 0.0,
+            z_max_m: z,
+        }
+    }
+
+    fn class_of(rsrp: f64) -> RsrpClass {
+        if rsrp >= RSRP_EXCELLENT_DBM {
+            RsrpClass::Excellent
+        } else if rsrp >= RSRP_POOR_DBM {
+            RsrpClass::Mediocre
+        } else {
+            RsrpClass::Poor
+        }
+    }
+
+    /// A trace through `waypoints` (x, y, z), sampled every ~5 m, with a synthetic RSRP field.
+    fn trace(label: &str, waypoints: &[[f64; 3]]) -> FlightTrace {
+        let mut points_m = vec![waypoints[0]];
+        for w in waypoints.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let l = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+            let n = ((l / 5.0).ceil() as usize).max(1);
+            for k in 1..=n {
+                let f = k as f64 / n as f64;
+                points_m.push([
+                    a[0] + f * (b[0] - a[0]),
+                    a[1] + f * (b[1] - a[1]),
+                    a[2] + f * (b[2] - a[2]),
+                ]);
+            }
+        }
+        let serving_rsrp_dbm: Vec<f64> = points_m
+            .iter()
+            .map(|p| {
+                let d = ((p[0] - 150.0).powi(2) + (p[1] - 100.0).powi(2)).sqrt();
+                -62.0 - 0.11 * d + 6.0 * (p[0] / 37.0).sin() + 0.05 * p[2]
+            })
+            .collect();
+        let class = serving_rsrp_dbm.iter().map(|&v| class_of(v)).collect();
+        FlightTrace {
+            label: label.into(),
+            points_m,
+            serving_rsrp_dbm,
+            class,
+        }
+    }
+
+    fn scene() -> (Vec<Building>, Vec<Site>, [f64; 4], Vec<FlightTrace>) {
+        let mut buildings = Vec::new();
+        let mut k = 0;
+        for ix in -4_i32..6 {
+            for iy in -3..5 {
+                let (x, y) = (f64::from(ix) * 80.0, f64::from(iy) * 70.0);
+                let z = 15.0 + f64::from((ix * 7 + iy * 13).rem_euclid(11)) * 22.0;
+                buildings.push(bld(&format!("b{k}"), x + 8.0, y + 8.0, 62.0, 52.0, z));
+                k += 1;
+            }
+        }
+        // A courtyard building.
+        buildings.push(Building {
+            id: "court".into(),
+            outer_m: vec![
+                [500.0, 100.0],
+                [580.0, 100.0],
+                [580.0, 170.0],
+                [500.0, 170.0],
+            ],
+            holes_m: vec![vec![
+                [520.0, 120.0],
+                [560.0, 120.0],
+                [560.0, 150.0],
+                [520.0, 150.0],
+            ]],
+            z_min_m: 0.0,
+            z_max_m: 60.0,
+        });
+        let site = |i: u16, x: f64, y: f64, kind| Site {
+            id: SiteId(i),
+            name: format!("s{i}"),
+            position_m: [x, y, 30.0],
+            kind,
+            boresights_deg: vec![30.0, 150.0, 270.0],
+            electrical_tilt_deg: 10.0,
+            tx_power_dbm: 15.2,
+            mount: Mount::User,
+        };
+        let sites = vec![
+            site(3, 150.0, 100.0, SiteKind::Macro),
+            site(7, -160.0, 250.0, SiteKind::Micro),
+            site(11, 380.0, -140.0, SiteKind::Micro),
+            site(40, 3000.0, 3000.0, SiteKind::Macro), // outside the view
+        ];
+        let shortest = trace(
+            "shortest (A3)",
+            &[
+                [-230.0, -150.0, 0.0],
+                [-230.0, -150.0, 60.0],
+                [400.0, 290.0, 60.0],
+                [400.0, 290.0, 0.0],
+            ],
+        );
+        let aware = trace(
+            "coverage-aware λ=1 (A3)",
+            &[
+                [-230.0, -150.0, 0.0],
+                [-230.0, -150.0, 90.0],
+                [-0.0, -150.0, 90.0],
+                [160.0, 75.0, 120.0],
+                [240.0, 75.0, 120.0],
+                [400.0, 220.0, 90.0],
+                [400.0, 290.0, 90.0],
+                [400.0, 290.0, 0.0],
+            ],
+        );
+        (
+            buildings,
+            sites,
+            [-600.0, -500.0, 900.0, 700.0],
+            vec![shortest, aware],
+        )
+    }
+
+    #[test]
+    fn renders_two_traces() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("sub").join("plan.png");
+        let (buildings, sites, area, traces) = scene();
+        render_plan_png(&buildings, &sites, area, &traces, "synthetic plan", &path)
+            .expect("render");
+        let bytes = std::fs::read(&path).expect("png exists");
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        assert!(bytes.len() > 20_000, "{} bytes", bytes.len());
+        let left: Vec<_> = std::fs::read_dir(path.parent().expect("parent"))
+            .expect("dir")
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(left.len(), 1, "{left:?}");
+    }
+
+    #[test]
+    fn rejects_bad_traces_naming_path_and_label() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("bad.png");
+        let (buildings, sites, area, mut traces) = scene();
+        traces[1].serving_rsrp_dbm.pop();
+        let err = render_plan_png(&buildings, &sites, area, &traces, "t", &path)
+            .expect_err("length mismatch");
+        let msg = format!("{err:#}");
+        assert!(
+            msg.contains("bad.png") && msg.contains("coverage-aware λ=1 (A3)"),
+            "{msg}"
+        );
+        assert!(!path.exists());
+
+        let (_, _, _, mut traces) = scene();
+        traces[0].points_m[3][2] = f64::NAN;
+        let msg = format!(
+            "{:#}",
+            render_plan_png(&buildings, &sites, area, &traces, "t", &path).expect_err("NaN")
+        );
+        assert!(msg.contains("shortest (A3)"), "{msg}");
+
+        let (_, _, _, mut traces) = scene();
+        traces.iter_mut().for_each(|t| {
+            t.points_m.truncate(1);
+            t.serving_rsrp_dbm.truncate(1);
+            t.class.truncate(1);
+        });
+        assert!(render_plan_png(&buildings, &sites, area, &traces, "t", &path).is_err());
+        assert!(render_plan_png(&buildings, &sites, area, &[], "t", &path).is_err());
+        assert!(!path.exists());
+    }
+
+    #[test]
+    fn clip_polyline_cuts_and_rejoins() {
+        let r = [0.0, 0.0, 10.0, 10.0];
+        let inside = vec![(1.0, 1.0), (5.0, 5.0), (9.0, 1.0)];
+        assert_eq!(clip_polyline(&inside, r), vec![inside.clone()]);
+        // Out and back in: two pieces, cut at the border.
+        let p = vec![(5.0, 5.0), (15.0, 5.0), (15.0, 8.0), (5.0, 8.0)];
+        let pieces = clip_polyline(&p, r);
+        assert_eq!(
+            pieces,
+            vec![vec![(5.0, 5.0), (10.0, 5.0)], vec![(10.0, 8.0), (5.0, 8.0)]]
+        );
+        assert!(clip_polyline(&[(20.0, 20.0), (30.0, 30.0)], r).is_empty());
+    }
+
+    #[test]
+    fn class_runs_split_segments_at_midpoints() {
+        let t = FlightTrace {
+            label: "t".into(),
+            points_m: vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]],
+            serving_rsrp_dbm: vec![-70.0, -90.0, -90.0],
+            class: vec![
+                RsrpClass::Excellent,
+                RsrpClass::Mediocre,
+                RsrpClass::Mediocre,
+            ],
+        };
+        let runs = class_runs(&t);
+        assert_eq!(runs.len(), 2);
+        assert_eq!(
+            runs[0],
+            (RsrpClass::Excellent, vec![(0.0, 0.0), (5.0, 0.0)])
+        );
+        assert_eq!(
+            runs[1],
+            (
+                RsrpClass::Mediocre,
+                vec![(5.0, 0.0), (10.0, 0.0), (20.0, 0.0)]
+            )
+        );
+        let d = derive(&t);
+        assert_eq!(d.dist_m, vec![0.0, 10.0, 20.0]);
+        assert!((d.share[0] - 0.25).abs() < 1e-12 && (d.share[1] - 0.75).abs() < 1e-12);
+    }
+
+    #[test]
+    fn view_contains_traces_and_stays_in_area() {
+        let (_, _, area, traces) = scene();
+        let v = view_bounds(&traces, area, 1.2);
+        assert!(v[0] <= -230.0 - VIEW_MARGIN_M + 1e-9 && v[2] >= 400.0 + VIEW_MARGIN_M - 1e-9);
+        assert!(v[0] >= area[0] && v[2] <= area[2] && v[1] >= area[1] && v[3] <= area[3]);
+        assert!(
+            (((v[2] - v[0]) / (v[3] - v[1])) - 1.2).abs() < 1e-9,
+            "{v:?}"
+        );
+    }
+
+    /// Renders the synthetic plan to `$DUPAC_PLAN_PLOT_DEMO` for a visual check (ignored).
+    #[test]
+    #[ignore]
+    fn demo_png() {
+        let Ok(out) = std::env::var("DUPAC_PLAN_PLOT_DEMO") else {
+            return;
+        };
+        let (buildings, sites, area, traces) = scene();
+        render_plan_png(
+            &buildings,
+            &sites,
+            area,
+            &traces,
+            "Planned paths, synthetic scene, A3 handover",
+            Path::new(&out),
+        )
+        .expect("render");
+    }
+}
