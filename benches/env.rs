@@ -75,5 +75,24 @@ fn benches(c: &mut Criterion) {
     }
 }
 
-criterion_group!(env, benches);
+/// Planner time per pair: shortest flyable path of 20 evaluation-like pairs (warm edge cache).
+fn planner(c: &mut Criterion) {
+    let cfg = Config::load(None, &["pairs.eval_per_bin=3".to_string()]).expect("config");
+    let world = RadioWorld::build(&cfg).expect("world");
+    let planner = dupac_actor::planner::Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let pairs = dupac_actor::pairs::eval_pairs(&planner, &cfg.pairs, &cfg.env, &|_| {});
+    let mut g = c.benchmark_group("planner");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(pairs.len() as u64));
+    g.bench_function("shortest_per_pair", |b| {
+        b.iter(|| {
+            for p in &pairs {
+                black_box(planner.shortest(p.source_m, p.destination_m).expect("path"));
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(env, benches, planner);
 criterion_main!(env);
