@@ -19,7 +19,6 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// One flown or planned path with the radio along it.
 #[derive(Debug, Clone, PartialEq)]
@@ -225,32 +224,10 @@ pub fn render_plan_png(
     validate(area_m, traces, path)?;
     ensure_font()?;
 
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("cannot create directory {} for the plot", dir.display()))?;
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let file_name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "plan".into());
-    // The bitmap encoder picks the format from the extension, so the temporary name ends in .png.
-    let tmp = dir.join(format!(
-        ".{file_name}.{}.{}.tmp.png",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let drawn = draw(buildings, sites, area_m, traces, title, &tmp);
-    let result = drawn.and_then(|()| {
-        std::fs::rename(&tmp, path)
-            .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("cannot write path plot {}", path.display()))
+    crate::plot::write_png_atomic(path, |tmp| {
+        draw(buildings, sites, area_m, traces, title, tmp)
+    })
+    .with_context(|| format!("cannot write path plot {}", path.display()))
 }
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;

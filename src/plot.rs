@@ -203,32 +203,39 @@ pub fn render_coverage_png(
     }
     ensure_font()?;
 
+    write_png_atomic(path, |tmp| {
+        draw(slice, buildings, sites, area_m, title, tmp)
+    })
+    .with_context(|| format!("cannot write coverage map {}", path.display()))
+}
+
+/// Renders with `draw` into a temporary `.png` next to `path` (the bitmap encoder picks the
+/// format from the extension), then renames it over `path`: a reader never sees half a PNG.
+pub(crate) fn write_png_atomic(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
     std::fs::create_dir_all(&dir)
-        .with_context(|| format!("cannot create directory {} for the map", dir.display()))?;
+        .with_context(|| format!("cannot create directory {}", dir.display()))?;
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let file_name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "map".into());
-    // The bitmap encoder picks the format from the extension, so the temporary name ends in .png.
+        .unwrap_or_else(|| "plot".into());
     let tmp = dir.join(format!(
         ".{file_name}.{}.{}.tmp.png",
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let drawn = draw(slice, buildings, sites, area_m, title, &tmp);
-    let result = drawn.and_then(|()| {
+    let result = draw(&tmp).and_then(|()| {
         std::fs::rename(&tmp, path)
             .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
     });
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
-    result.with_context(|| format!("cannot write coverage map {}", path.display()))
+    result
 }
 
 /// Draws the whole figure into `file` (a .png path).

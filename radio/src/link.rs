@@ -62,13 +62,8 @@ impl LinkModel {
 
     /// The full budget of the link `tx → uav_m` with the given LoS state.
     pub fn evaluate(&self, tx: &Transmitter<'_>, uav_m: [f64; 3], los: bool) -> LinkBudget {
-        let dx = uav_m[0] - tx.position_m[0];
-        let dy = uav_m[1] - tx.position_m[1];
-        let dz = uav_m[2] - tx.position_m[2];
-        let d2d_m = dx.hypot(dy);
-        let d3d_m = d2d_m.hypot(dz);
-        let theta_deg = d2d_m.atan2(dz).to_degrees();
-        let phi_deg = crate::antenna::wrap_deg(dy.atan2(dx).to_degrees());
+        let (d2d_m, d3d_m, theta_deg, phi_deg) = geometry(tx.position_m, uav_m);
+        let phi_deg = crate::antenna::wrap_deg(phi_deg);
         let g = tx
             .antenna
             .site_gain_dbi(theta_deg, phi_deg, tx.boresights_deg);
@@ -93,13 +88,7 @@ impl LinkModel {
     /// RSRP only (dBm): the hot path of coverage maps and the cache.
     #[inline]
     pub fn rsrp_dbm(&self, tx: &Transmitter<'_>, uav_m: [f64; 3], los: bool) -> f64 {
-        let dx = uav_m[0] - tx.position_m[0];
-        let dy = uav_m[1] - tx.position_m[1];
-        let dz = uav_m[2] - tx.position_m[2];
-        let d2d_m = dx.hypot(dy);
-        let d3d_m = d2d_m.hypot(dz);
-        let theta_deg = d2d_m.atan2(dz).to_degrees();
-        let phi_deg = dy.atan2(dx).to_degrees();
+        let (_, d3d_m, theta_deg, phi_deg) = geometry(tx.position_m, uav_m);
         let g = tx
             .antenna
             .site_gain_dbi(theta_deg, phi_deg, tx.boresights_deg);
@@ -108,4 +97,21 @@ impl LinkModel {
                 .pathloss
                 .path_loss_db(tx.scenario, los, d3d_m, uav_m[2])
     }
+}
+
+/// Link geometry (spec/radio.md §2): `(d2D m, d3D m, θ deg zenith at the GBS, φ deg CCW from
+/// east, unwrapped)`.
+#[inline(always)]
+fn geometry(bs_m: [f64; 3], uav_m: [f64; 3]) -> (f64, f64, f64, f64) {
+    let dx = uav_m[0] - bs_m[0];
+    let dy = uav_m[1] - bs_m[1];
+    let dz = uav_m[2] - bs_m[2];
+    let d2d_m = dx.hypot(dy);
+    let d3d_m = d2d_m.hypot(dz);
+    (
+        d2d_m,
+        d3d_m,
+        d2d_m.atan2(dz).to_degrees(),
+        dy.atan2(dx).to_degrees(),
+    )
 }
