@@ -574,7 +574,7 @@ fn draw_side(
         .color(&BLACK)
         .pos(Pos::new(HPos::Center, VPos::Top));
     side.draw_text(
-        "best-server RSRP (dBm)",
+        "RSRP (dBm)",
         &desc,
         (bar_x0 + bar_w + 72, bar_y0 + bar_h / 2),
     )

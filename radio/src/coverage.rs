@@ -39,11 +39,22 @@ impl CoverageSlice {
     }
 }
 
-/// Computes the best-server slice at `altitude_m` over `area_m` (`[x_min, y_min, x_max, y_max]`)
-/// with square cells of `resolution_m`, rows in parallel (rayon). `progress(rows_done)` is called
-/// once per finished row.
+/// Which RSRP a slice shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Server {
+    /// The strongest site at each cell (paper Fig. 2(b)).
+    Best,
+    /// One site everywhere: shows its shadows, back lobes and the antenna-null rings of
+    /// spec/radio.md §2 that the best server hides.
+    Site(SiteId),
+}
+
+/// Computes the slice at `altitude_m` over `area_m` (`[x_min, y_min, x_max, y_max]`) with square
+/// cells of `resolution_m`, rows in parallel (rayon). `progress(rows_done)` is called once per
+/// finished row.
 pub fn compute_slice(
     world: &RadioWorld,
+    server: Server,
     area_m: [f64; 4],
     altitude_m: f64,
     resolution_m: f64,
@@ -72,7 +83,10 @@ pub fn compute_slice(
                     if world.city.is_inside_building(p) {
                         (f32::NAN, None, false)
                     } else {
-                        let (id, rsrp, los) = world.best_server(p);
+                        let (id, rsrp, los) = match server {
+                            Server::Best => world.best_server(p),
+                            Server::Site(id) => (id, world.rsrp_dbm(id, p), world.los(id, p)),
+                        };
                         (rsrp as f32, Some(id), los)
                     }
                 })

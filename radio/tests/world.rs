@@ -6,7 +6,7 @@ use dupac_common::config::{CityKind, Config};
 use dupac_radio::cache::{GridSpec, Opened, RsrpCache, RsrpSource};
 use dupac_radio::city::{Building, City};
 use dupac_radio::class::RsrpClass;
-use dupac_radio::coverage::{compute_slice, summarise};
+use dupac_radio::coverage::{Server, compute_slice, summarise};
 use dupac_radio::sites::{Mount, Site, SiteKind, place_sites};
 use dupac_radio::world::RadioWorld;
 
@@ -94,7 +94,14 @@ fn spec_table_row_macro_500m_through_the_world() {
 #[test]
 fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     let w = tower_world();
-    let slice = compute_slice(&w, [-500.0, -500.0, 500.0, 500.0], 30.0, 10.0, &|_| {});
+    let slice = compute_slice(
+        &w,
+        Server::Best,
+        [-500.0, -500.0, 500.0, 500.0],
+        30.0,
+        10.0,
+        &|_| {},
+    );
     assert_eq!((slice.nx, slice.ny), (100, 100));
     let at = |x: f64, y: f64| {
         let ix = ((x + 500.0) / 10.0) as usize;
@@ -109,6 +116,16 @@ fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     assert!(open > shadow + 10.0, "open {open} shadow {shadow}");
     let s = summarise(&w, &slice);
     assert_eq!(s.cells, 100 * 100 - 6 * 6);
+    // With a single site the slice is that site's RSRP; here it is the only one, so identical.
+    let one = compute_slice(
+        &w,
+        Server::Site(SiteId(0)),
+        [-500.0, -500.0, 500.0, 500.0],
+        30.0,
+        10.0,
+        &|_| {},
+    );
+    assert_eq!(one.rsrp_dbm[at(400.0, 0.0)], shadow);
     assert!((s.excellent_pct + s.mediocre_pct + s.poor_pct - 100.0).abs() < 1e-9);
     assert!(s.nlos_pct > 0.0 && s.nlos_pct < 20.0, "{}", s.nlos_pct);
 }

@@ -4,7 +4,7 @@ use crate::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};
 use anyhow::{Context, Result};
 use clap::Args;
-use dupac_radio::coverage::{SliceSummary, compute_slice, summarise, write_slice_csv};
+use dupac_radio::coverage::{Server, SliceSummary, compute_slice, summarise, write_slice_csv};
 use dupac_radio::world::RadioWorld;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -16,6 +16,9 @@ pub struct MapArgs {
     /// Output directory (default: `map.out_dir` of the configuration, `out/map`).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Map one site's RSRP instead of the best server (its shadows and antenna-null rings).
+    #[arg(long, value_name = "ID")]
+    pub site: Option<u16>,
 }
 
 pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
@@ -36,6 +39,18 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
             .count(),
         t0.elapsed().as_secs_f64()
     );
+    let server = match args.site {
+        None => Server::Best,
+        Some(id) if usize::from(id) < world.num_sites() => Server::Site(dupac_common::SiteId(id)),
+        Some(id) => anyhow::bail!(
+            "--site {id}: the scenario has sites 0..{}",
+            world.num_sites() - 1
+        ),
+    };
+    let what = match server {
+        Server::Best => "best-server RSRP".to_string(),
+        Server::Site(id) => format!("RSRP of site {}", id.0),
+    };
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
     write_atomic_with(&out.join("sites.csv"), |w| {
@@ -49,16 +64,21 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
             .floor()
             .max(1.0) as u64;
         let pb = super::progress_bar(ny, &format!("map at {alt} m"), global.quiet);
-        let slice = compute_slice(&world, world.city.area_m, alt, cfg.map.resolution_m, &|n| {
-            pb.inc(n)
-        });
+        let slice = compute_slice(
+            &world,
+            server,
+            world.city.area_m,
+            alt,
+            cfg.map.resolution_m,
+            &|n| pb.inc(n),
+        );
         pb.finish_and_clear();
         let stem = format!("rsrp_{}m", fmt_alt(alt));
         write_atomic_with(&out.join(format!("{stem}.csv")), |w| {
             write_slice_csv(&slice, w)
         })?;
         let title = format!(
-            "{}: best-server RSRP at {} m ({} m grid, {} sites)",
+            "{}: {what} at {} m ({} m grid, {} sites)",
             world.city.name,
             fmt_alt(alt),
             cfg.map.resolution_m,
