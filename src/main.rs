@@ -1,6 +1,7 @@
 //! `dupac`, the one command: a thin layer of argument parsing over the DUPAC libraries.
 
 mod commands;
+mod curves;
 mod io;
 mod plan_plot;
 mod plot;
@@ -61,6 +62,10 @@ enum Command {
     Pairs(commands::pairs::PairsArgs),
     /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
     Plan(commands::plan::PlanArgs),
+    /// Train DUPAC (`--association learned`) or the base method (`a3`) with PPO in one process.
+    Train(commands::train::TrainArgs),
+    /// Fly one pair with a trained policy (deterministic) and plot it beside the shortest path.
+    Fly(commands::fly::FlyArgs),
     /// Print the resolved configuration as TOML (defaults + file + --set).
     Config,
 }
@@ -74,6 +79,8 @@ fn main() -> ExitCode {
         Command::Cache(c) => commands::cache::run(&cli.global, c),
         Command::Pairs(a) => commands::pairs::run(&cli.global, a),
         Command::Plan(a) => commands::plan::run(&cli.global, a),
+        Command::Train(a) => commands::train::run(&cli.global, a),
+        Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Config => cli.global.config().map(|c| {
             print!("{}", c.to_toml_string());
             ExitCode::SUCCESS

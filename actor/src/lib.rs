@@ -5,3 +5,4 @@ pub mod env;
 pub mod pairs;
 pub mod pilot;
 pub mod planner;
+pub mod rollout;

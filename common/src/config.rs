@@ -36,6 +36,8 @@ pub struct Config {
     pub env: EnvConfig,
     pub pairs: PairsConfig,
     pub planner: PlannerConfig,
+    pub ppo: PpoConfig,
+    pub train: TrainConfig,
 }
 
 /// Which kind of city a scenario is built from.
@@ -544,6 +546,121 @@ impl Default for PlannerConfig {
     }
 }
 
+/// PPO hyperparameters (issue 4; paper Sec. IV-A for lr, γ, ε; the rest CleanRL's
+/// `ppo_continuous_action.py` defaults unless noted).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PpoConfig {
+    /// Adam learning rate (paper: 3e-4).
+    pub learning_rate: f64,
+    /// Linear annealing of the learning rate to 0 over the run.
+    pub anneal_lr: bool,
+    /// Discount γ (paper: 0.95).
+    pub gamma: f64,
+    /// GAE λ.
+    pub gae_lambda: f64,
+    /// Minibatches per epoch (minibatch = num_envs × num_steps / num_minibatches).
+    pub num_minibatches: usize,
+    /// Epochs over each batch.
+    pub update_epochs: usize,
+    /// Normalise advantages per minibatch.
+    pub norm_adv: bool,
+    /// Clip ε of the surrogate (paper: 0.2).
+    pub clip_coef: f64,
+    /// Clip the value loss like the surrogate.
+    pub clip_vloss: bool,
+    /// Entropy bonus of the move Gaussian.
+    pub ent_coef_move: f64,
+    /// Entropy bonus of the site categorical.
+    pub ent_coef_site: f64,
+    /// Weight of the value loss.
+    pub vf_coef: f64,
+    /// Global gradient-norm clip (over both networks and the log-std).
+    pub max_grad_norm: f64,
+    /// Stop the epochs of an update early when the approximate KL exceeds this (0 = off).
+    pub target_kl: f64,
+    /// Adam ε.
+    pub adam_eps: f64,
+    /// Hidden layer widths of both MLPs.
+    pub hidden: Vec<usize>,
+    /// Initial log-std of the move Gaussian.
+    pub init_log_std: f64,
+    /// Normalise observations by running mean/variance, clipped to ±obs_clip.
+    pub normalize_obs: bool,
+    pub obs_clip: f64,
+    /// Scale rewards by the running std of the discounted return, clipped to ±reward_clip.
+    pub normalize_reward: bool,
+    pub reward_clip: f64,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            learning_rate: 3e-4,
+            anneal_lr: true,
+            gamma: 0.95,
+            gae_lambda: 0.95,
+            num_minibatches: 8,
+            update_epochs: 4,
+            norm_adv: true,
+            clip_coef: 0.2,
+            clip_vloss: true,
+            ent_coef_move: 0.0,
+            ent_coef_site: 0.001,
+            vf_coef: 0.5,
+            max_grad_norm: 0.5,
+            target_kl: 0.0,
+            adam_eps: 1e-5,
+            hidden: vec![256, 256],
+            init_log_std: 0.0,
+            normalize_obs: true,
+            obs_clip: 10.0,
+            normalize_reward: true,
+            reward_clip: 10.0,
+        }
+    }
+}
+
+/// The training run (`dupac train`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Seed of the run: network init, action sampling, episode pairs and resets.
+    pub seed: u64,
+    /// Total environment steps.
+    pub total_timesteps: u64,
+    /// Parallel environments (stepped on worker threads).
+    pub num_envs: usize,
+    /// Steps per environment per rollout (batch = num_envs × num_steps).
+    pub num_steps: usize,
+    /// Training pairs in the pool episodes are drawn from (`pairs.min_m..max_m`).
+    pub pool_size: usize,
+    /// Output directory: checkpoints, metrics, curves, exported policy.
+    pub out_dir: PathBuf,
+    /// Write a checkpoint every this many updates (and at the end).
+    pub checkpoint_every: u64,
+    /// Evaluate the deterministic policy on `eval_pairs` held-out pairs every this many updates
+    /// (0 = only at the end).
+    pub eval_every: u64,
+    pub eval_pairs: usize,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            total_timesteps: 4_000_000,
+            num_envs: 16,
+            num_steps: 256,
+            pool_size: 2000,
+            out_dir: "out/train".into(),
+            checkpoint_every: 10,
+            eval_every: 25,
+            eval_pairs: 70,
+        }
+    }
+}
+
 impl Config {
     /// Parses a TOML string (`origin` names it in errors), applies `--set` overrides, validates.
     pub fn from_toml_str(text: &str, origin: &str, sets: &[String]) -> Result<Config, ConfigError> {
@@ -839,6 +956,59 @@ impl Config {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(bad(k, format!("must be a finite number >= 0, got {v}")));
             }
+        }
+        let pp = &self.ppo;
+        positive("ppo.learning_rate", pp.learning_rate)?;
+        for (k, v) in [("ppo.gamma", pp.gamma), ("ppo.gae_lambda", pp.gae_lambda)] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(bad(k, format!("must be in [0, 1], got {v}")));
+            }
+        }
+        if pp.num_minibatches == 0 {
+            return Err(bad("ppo.num_minibatches", "must be >= 1"));
+        }
+        if pp.update_epochs == 0 {
+            return Err(bad("ppo.update_epochs", "must be >= 1"));
+        }
+        positive("ppo.clip_coef", pp.clip_coef)?;
+        for (k, v) in [
+            ("ppo.ent_coef_move", pp.ent_coef_move),
+            ("ppo.ent_coef_site", pp.ent_coef_site),
+            ("ppo.vf_coef", pp.vf_coef),
+            ("ppo.target_kl", pp.target_kl),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(k, format!("must be a finite number >= 0, got {v}")));
+            }
+        }
+        positive("ppo.max_grad_norm", pp.max_grad_norm)?;
+        positive("ppo.adam_eps", pp.adam_eps)?;
+        if pp.hidden.is_empty() || pp.hidden.iter().any(|&h| h == 0 || h > 65_536) {
+            return Err(bad("ppo.hidden", "must list 1 or more widths in 1..=65536"));
+        }
+        finite("ppo.init_log_std", pp.init_log_std)?;
+        positive("ppo.obs_clip", pp.obs_clip)?;
+        positive("ppo.reward_clip", pp.reward_clip)?;
+
+        let t = &self.train;
+        if t.num_envs == 0 || t.num_envs > 4096 {
+            return Err(bad("train.num_envs", "must be in 1..=4096"));
+        }
+        if t.num_steps == 0 {
+            return Err(bad("train.num_steps", "must be >= 1"));
+        }
+        let batch = t.num_envs * t.num_steps;
+        if batch % pp.num_minibatches != 0 || batch < pp.num_minibatches {
+            return Err(bad(
+                "ppo.num_minibatches",
+                format!("must divide the batch train.num_envs × train.num_steps = {batch}"),
+            ));
+        }
+        if t.pool_size == 0 {
+            return Err(bad("train.pool_size", "must be >= 1"));
+        }
+        if t.checkpoint_every == 0 {
+            return Err(bad("train.checkpoint_every", "must be >= 1"));
         }
         Ok(())
     }

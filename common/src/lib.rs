@@ -4,10 +4,12 @@
 //! Units are in names (`_m`, `_dbm`, `_deg`, `_ghz`) and the frame is east-north-up metres with
 //! the origin at the scenario centre (x east, y north, z up = height above flat ground).
 
+pub mod codec;
 pub mod config;
 pub mod fingerprint;
 pub mod ids;
 pub mod obs;
+pub mod policy;
 
 pub use config::{Config, ConfigError};
 pub use ids::SiteId;

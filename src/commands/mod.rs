@@ -1,10 +1,12 @@
 //! One module per subcommand.
 
 pub mod cache;
+pub mod fly;
 pub mod map;
 pub mod pairs;
 pub mod plan;
 pub mod radio;
+pub mod train;
 
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -1,0 +1,329 @@
+//! Rollouts: one [`Worker`] owns an environment, its RNG and the episode in progress, and steps
+//! it with an exported policy ([`PolicyWeights`], no burn), recording what PPO needs. Workers
+//! are independent, so many run on worker threads; a worker's randomness comes only from its own
+//! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
+//!
+//! Also the per-episode summary that training metrics and evaluation are built from
+//! (spec/env.md "Metrics").
+
+use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
+use crate::pairs::Pair;
+use dupac_common::SiteId;
+use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
+use dupac_radio::class::RsrpClass;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// What one episode amounted to.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeSummary {
+    /// Id of the pair in its pool or file.
+    pub pair_id: u64,
+    pub outcome: Outcome,
+    /// Undiscounted sum of the raw rewards.
+    pub episodic_return: f64,
+    pub length: u32,
+    /// Distance flown L (m).
+    pub distance_flown_m: f64,
+    /// Shortest flyable path D of the pair (m).
+    pub shortest_m: f64,
+    /// Distance left to the destination at the end (m).
+    pub remaining_m: f64,
+    /// Mean serving RSRP over the steps (dBm).
+    pub mean_rsrp_dbm: f64,
+    /// Fractions of steps (= flight time) per serving-RSRP class.
+    pub frac_excellent: f64,
+    pub frac_mediocre: f64,
+    pub frac_poor: f64,
+    pub handovers: u32,
+    pub ping_pongs: u32,
+}
+
+impl EpisodeSummary {
+    /// Distance overhead over the shortest path, (L + remaining) / D − 1 (for a successful
+    /// episode remaining ≤ the goal radius).
+    pub fn overhead(&self) -> f64 {
+        (self.distance_flown_m + self.remaining_m) / self.shortest_m - 1.0
+    }
+}
+
+/// Accumulates [`StepInfo`] records into an [`EpisodeSummary`].
+#[derive(Debug, Clone, Default)]
+pub struct EpisodeAccumulator {
+    steps: u32,
+    rsrp_sum_dbm: f64,
+    class_counts: [u32; 3],
+    handovers: u32,
+    ping_pongs: u32,
+    distance_flown_m: f64,
+    remaining_m: f64,
+    episodic_return: f64,
+}
+
+impl EpisodeAccumulator {
+    pub fn push(&mut self, info: &StepInfo) {
+        self.steps += 1;
+        self.rsrp_sum_dbm += info.serving_rsrp_dbm;
+        let k = match info.class {
+            RsrpClass::Excellent => 0,
+            RsrpClass::Mediocre => 1,
+            RsrpClass::Poor => 2,
+        };
+        self.class_counts[k] += 1;
+        self.handovers += u32::from(info.handover);
+        self.ping_pongs += u32::from(info.ping_pong);
+        self.distance_flown_m = info.distance_flown_m;
+        self.remaining_m = info.distance_to_goal_m;
+        self.episodic_return += info.reward;
+    }
+
+    pub fn finish(&mut self, pair_id: u64, shortest_m: f64, outcome: Outcome) -> EpisodeSummary {
+        let n = f64::from(self.steps.max(1));
+        let s = EpisodeSummary {
+            pair_id,
+            outcome,
+            episodic_return: self.episodic_return,
+            length: self.steps,
+            distance_flown_m: self.distance_flown_m,
+            shortest_m,
+            remaining_m: self.remaining_m,
+            mean_rsrp_dbm: self.rsrp_sum_dbm / n,
+            frac_excellent: f64::from(self.class_counts[0]) / n,
+            frac_mediocre: f64::from(self.class_counts[1]) / n,
+            frac_poor: f64::from(self.class_counts[2]) / n,
+            handovers: self.handovers,
+            ping_pongs: self.ping_pongs,
+        };
+        *self = EpisodeAccumulator::default();
+        s
+    }
+}
+
+/// One environment's steps of a rollout, time-ordered: what PPO needs.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct EnvTrajectory {
+    /// Worker (environment stream) index: reward scaling keeps one return per stream.
+    pub env: u32,
+    pub obs_dim: usize,
+    /// Raw (unnormalised) observations `[T × obs_dim]`.
+    pub obs: Vec<f32>,
+    /// Unclipped moves `[T × 3]`.
+    pub moves: Vec<f32>,
+    pub sites: Vec<u32>,
+    pub logprobs: Vec<f32>,
+    pub values: Vec<f32>,
+    /// Raw rewards (scaling is the learner's).
+    pub rewards: Vec<f32>,
+    pub terminated: Vec<bool>,
+    pub truncated: Vec<bool>,
+    /// V(s_{t+1}) of the state each step reached (the final observation when the episode
+    /// ended; meaningless, 0, after a termination).
+    pub next_values: Vec<f32>,
+    /// Episodes that ended during this rollout.
+    pub episodes: Vec<EpisodeSummary>,
+}
+
+impl EnvTrajectory {
+    pub fn len(&self) -> usize {
+        self.rewards.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rewards.is_empty()
+    }
+}
+
+/// Errors of a worker.
+#[derive(Debug, thiserror::Error)]
+pub enum RolloutError {
+    #[error(transparent)]
+    Env(#[from] EnvError),
+    #[error("the episode pool is empty")]
+    EmptyPool,
+    #[error("the policy expects observations of {policy}, the environment gives {env}")]
+    ObsMismatch { policy: usize, env: usize },
+    #[error("the policy has {policy} site logits, the scenario {env} sites")]
+    SiteMismatch { policy: usize, env: usize },
+}
+
+/// An environment with its own RNG and the episode in progress.
+pub struct Worker {
+    index: u32,
+    env: Env,
+    pool: Arc<Vec<Pair>>,
+    rng: ChaCha8Rng,
+    scratch: Scratch,
+    obs: Vec<f32>,
+    acc: EpisodeAccumulator,
+    pair_id: u64,
+    shortest_m: f64,
+}
+
+/// Seed of stream `index` in round `round` of run `seed` (SplitMix64 of the three).
+pub fn stream_seed(seed: u64, index: u64, round: u64) -> u64 {
+    let mut z = seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ round.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl Worker {
+    /// A worker over `env` drawing episodes from `pool` (each pair flown in either direction),
+    /// seeded with `seed`; starts its first episode.
+    pub fn new(index: u32, env: Env, pool: Arc<Vec<Pair>>, seed: u64) -> Result<Worker, RolloutError> {
+        if pool.is_empty() {
+            return Err(RolloutError::EmptyPool);
+        }
+        let mut w = Worker {
+            index,
+            env,
+            pool,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            scratch: Scratch::default(),
+            obs: Vec::new(),
+            acc: EpisodeAccumulator::default(),
+            pair_id: 0,
+            shortest_m: 1.0,
+        };
+        w.new_episode()?;
+        Ok(w)
+    }
+
+    /// Replaces the RNG (a rollout round derives it from the run seed, so a resumed run draws
+    /// the same numbers as an uninterrupted one from that round on).
+    pub fn reseed(&mut self, seed: u64) {
+        self.rng = ChaCha8Rng::seed_from_u64(seed);
+    }
+
+    pub fn env(&self) -> &Env {
+        &self.env
+    }
+
+    fn new_episode(&mut self) -> Result<(), RolloutError> {
+        let k = self.rng.random_range(0..self.pool.len());
+        let p = &self.pool[k];
+        let (source_m, destination_m) = if self.rng.random::<bool>() {
+            (p.source_m, p.destination_m)
+        } else {
+            (p.destination_m, p.source_m)
+        };
+        let reset_seed = self.rng.random::<u64>();
+        self.pair_id = p.id;
+        self.shortest_m = p.shortest_m;
+        let obs = self.env.reset(
+            reset_seed,
+            Episode {
+                source_m,
+                destination_m,
+                shortest_m: p.shortest_m,
+            },
+        )?;
+        self.obs.clear();
+        self.obs.extend_from_slice(obs);
+        self.acc = EpisodeAccumulator::default();
+        Ok(())
+    }
+
+    /// Steps the environment `steps` times with actions sampled from `policy`, starting new
+    /// episodes as they end.
+    pub fn collect(&mut self, policy: &PolicyWeights, steps: usize) -> Result<EnvTrajectory, RolloutError> {
+        let d = self.env.layout().len();
+        if policy.obs_dim != d {
+            return Err(RolloutError::ObsMismatch {
+                policy: policy.obs_dim,
+                env: d,
+            });
+        }
+        if policy.n_sites != 0 && policy.n_sites != self.env.num_sites() {
+            return Err(RolloutError::SiteMismatch {
+                policy: policy.n_sites,
+                env: self.env.num_sites(),
+            });
+        }
+        let mut tr = EnvTrajectory {
+            env: self.index,
+            obs_dim: d,
+            obs: Vec::with_capacity(steps * d),
+            moves: Vec::with_capacity(steps * MOVE_DIM),
+            ..EnvTrajectory::default()
+        };
+        for _ in 0..steps {
+            tr.obs.extend_from_slice(&self.obs);
+            let rng = &mut self.rng;
+            let a = policy.act_sample(&self.obs, &mut self.scratch, || rng.random::<f64>());
+            let action = Action {
+                move_: a.move_raw.map(f64::from),
+                site: SiteId(a.site as u16),
+            };
+            let step = self.env.step(&action)?;
+            self.acc.push(&step.info);
+            tr.moves.extend_from_slice(&a.move_raw);
+            tr.sites.push(a.site);
+            tr.logprobs.push(a.logprob);
+            tr.values.push(a.value);
+            tr.rewards.push(step.reward as f32);
+            tr.terminated.push(step.terminated);
+            tr.truncated.push(step.truncated);
+            if step.terminated || step.truncated {
+                let next_v = if step.truncated {
+                    policy.value(self.env.observation(), &mut self.scratch)
+                } else {
+                    0.0
+                };
+                tr.next_values.push(next_v);
+                let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
+                tr.episodes.push(self.acc.finish(self.pair_id, self.shortest_m, outcome));
+                self.new_episode()?;
+            } else {
+                self.obs.clear();
+                self.obs.extend_from_slice(self.env.observation());
+                tr.next_values.push(f32::NAN); // filled below
+            }
+        }
+        // Within an episode, V(s_{t+1}) is the value recorded at t + 1; the last step bootstraps
+        // from the current observation.
+        let n = tr.len();
+        for t in 0..n {
+            if tr.next_values[t].is_nan() {
+                tr.next_values[t] = if t + 1 < n {
+                    tr.values[t + 1]
+                } else {
+                    policy.value(&self.obs, &mut self.scratch)
+                };
+            }
+        }
+        Ok(tr)
+    }
+}
+
+/// Flies one episode with the deterministic policy (mean move, arg-max site), returning the
+/// summary and every step's record.
+pub fn fly_policy(
+    env: &mut Env,
+    policy: &PolicyWeights,
+    pair_id: u64,
+    episode: Episode,
+    seed: u64,
+) -> Result<(EpisodeSummary, Vec<StepInfo>), RolloutError> {
+    let mut scratch = Scratch::default();
+    let mut obs = env.reset(seed, episode)?.to_vec();
+    let mut acc = EpisodeAccumulator::default();
+    let mut steps = Vec::new();
+    loop {
+        let a = policy.act_deterministic(&obs, &mut scratch);
+        let step = env.step(&Action {
+            move_: a.move_raw.map(f64::from),
+            site: SiteId(a.site as u16),
+        })?;
+        acc.push(&step.info);
+        steps.push(step.info);
+        if step.terminated || step.truncated {
+            let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
+            return Ok((acc.finish(pair_id, episode.shortest_m, outcome), steps));
+        }
+        obs.clear();
+        obs.extend_from_slice(env.observation());
+    }
+}

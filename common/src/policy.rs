@@ -1,0 +1,477 @@
+//! The exported policy: the weights of the actor and critic MLPs *with* the observation
+//! normaliser they were trained with, and a hand-written forward pass over them.
+//!
+//! This is what travels from the learner to actors and deployed pilots, and what `dupac fly`
+//! loads. It has no burn dependency: an actor steps environments and samples actions on plain
+//! `f32` slices (burn's per-call overhead at batch 1 is larger than the whole forward pass here),
+//! and `learner` proves with a test that this forward pass and the burn model give the same
+//! outputs to 1e-5 for the same weights.
+//!
+//! Network (issue 4): separate MLPs `obs → hidden… → out` with tanh hidden activations. The actor
+//! head outputs 3 Gaussian means (the move, before clipping to [−1, 1]³) followed by `n_sites`
+//! logits of the categorical site choice (absent, `n_sites = 0`, for the base method whose site is
+//! chosen by A3); the move's log-std is state-independent. The critic outputs one value.
+
+use serde::{Deserialize, Serialize};
+
+/// Dimension of the continuous move action (x, y, z).
+pub const MOVE_DIM: usize = 3;
+
+/// ln(2π)/2, used by the Gaussian log-density.
+pub const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
+
+/// tanh as the learner computes it: `1 − 2 / (exp(2·clamp(x, ±15)) + 1)` (max |error| vs the
+/// exact tanh ≈ 2e-7; chosen because burn's CPU `tanh` is ≈ 6× slower, notes/burn-cpu.md).
+#[inline]
+pub fn tanh_f32(x: f32) -> f32 {
+    let x = x.clamp(-15.0, 15.0);
+    1.0 - 2.0 / ((2.0 * x).exp() + 1.0)
+}
+
+/// One dense layer `y = x·W + b`, `W` stored row-major as `[n_in][n_out]` (burn's layout).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Dense {
+    pub n_in: usize,
+    pub n_out: usize,
+    pub weight: Vec<f32>,
+    pub bias: Vec<f32>,
+}
+
+impl Dense {
+    /// `out = x·W + b` (`x.len() == n_in`, `out.len() == n_out`).
+    #[inline]
+    pub fn forward(&self, x: &[f32], out: &mut [f32]) {
+        out.copy_from_slice(&self.bias);
+        for (i, &xi) in x.iter().enumerate() {
+            let row = &self.weight[i * self.n_out..(i + 1) * self.n_out];
+            for (o, &w) in out.iter_mut().zip(row) {
+                *o += xi * w;
+            }
+        }
+    }
+
+    fn check(&self, what: &str) -> Result<(), String> {
+        if self.weight.len() != self.n_in * self.n_out || self.bias.len() != self.n_out {
+            return Err(format!(
+                "{what}: weight has {} values and bias {}, expected {}×{} and {}",
+                self.weight.len(),
+                self.bias.len(),
+                self.n_in,
+                self.n_out,
+                self.n_out
+            ));
+        }
+        if !self.weight.iter().chain(&self.bias).all(|v| v.is_finite()) {
+            return Err(format!("{what}: non-finite weight"));
+        }
+        Ok(())
+    }
+}
+
+/// An MLP: tanh after every layer but the last.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Mlp {
+    pub layers: Vec<Dense>,
+}
+
+impl Mlp {
+    pub fn n_in(&self) -> usize {
+        self.layers.first().map(|l| l.n_in).unwrap_or(0)
+    }
+
+    pub fn n_out(&self) -> usize {
+        self.layers.last().map(|l| l.n_out).unwrap_or(0)
+    }
+
+    /// Forward pass into `out` (`n_out` values), using `scratch` (two buffers of the widest layer).
+    pub fn forward(&self, x: &[f32], out: &mut [f32], scratch: &mut [Vec<f32>; 2]) {
+        let last = self.layers.len() - 1;
+        let [a, b] = scratch;
+        a.clear();
+        a.extend_from_slice(x);
+        for (k, layer) in self.layers.iter().enumerate() {
+            b.resize(layer.n_out, 0.0);
+            layer.forward(a, b);
+            if k < last {
+                for v in b.iter_mut() {
+                    *v = tanh_f32(*v);
+                }
+            }
+            std::mem::swap(a, b);
+        }
+        out.copy_from_slice(&a[..out.len()]);
+    }
+
+    fn check(&self, what: &str, n_in: usize, n_out: usize) -> Result<(), String> {
+        if self.layers.is_empty() {
+            return Err(format!("{what}: no layers"));
+        }
+        let mut width = n_in;
+        for (k, l) in self.layers.iter().enumerate() {
+            if l.n_in != width {
+                return Err(format!(
+                    "{what} layer {k}: input width {} after width {width}",
+                    l.n_in
+                ));
+            }
+            l.check(&format!("{what} layer {k}"))?;
+            width = l.n_out;
+        }
+        if width != n_out {
+            return Err(format!("{what}: output width {width}, expected {n_out}"));
+        }
+        Ok(())
+    }
+}
+
+/// Running mean and variance (parallel Welford / Chan et al.), the statistics of a normaliser.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunningMeanStd {
+    pub mean: Vec<f64>,
+    pub var: Vec<f64>,
+    /// Number of samples seen (starts at a tiny ε so the first batch dominates, as in CleanRL).
+    pub count: f64,
+}
+
+impl RunningMeanStd {
+    /// Statistics of dimension `dim`: mean 0, variance 1, count 1e-4.
+    pub fn new(dim: usize) -> RunningMeanStd {
+        RunningMeanStd {
+            mean: vec![0.0; dim],
+            var: vec![1.0; dim],
+            count: 1e-4,
+        }
+    }
+
+    pub fn dim(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Merges a batch of rows (`rows.len()` a multiple of `dim`).
+    pub fn update<T: Copy + Into<f64>>(&mut self, rows: &[T]) {
+        let dim = self.dim();
+        if dim == 0 || rows.is_empty() {
+            return;
+        }
+        let n = (rows.len() / dim) as f64;
+        let mut mean = vec![0.0; dim];
+        for row in rows.chunks_exact(dim) {
+            for (m, &v) in mean.iter_mut().zip(row) {
+                *m += v.into();
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= n);
+        let mut var = vec![0.0; dim];
+        for row in rows.chunks_exact(dim) {
+            for ((s, &v), m) in var.iter_mut().zip(row).zip(&mean) {
+                let d = v.into() - m;
+                *s += d * d;
+            }
+        }
+        var.iter_mut().for_each(|s| *s /= n);
+        self.merge(&mean, &var, n);
+    }
+
+    /// Merges batch moments (`batch_mean`, `batch_var` of `batch_count` samples).
+    pub fn merge(&mut self, batch_mean: &[f64], batch_var: &[f64], batch_count: f64) {
+        let tot = self.count + batch_count;
+        for i in 0..self.dim() {
+            let delta = batch_mean[i] - self.mean[i];
+            let m_a = self.var[i] * self.count;
+            let m_b = batch_var[i] * batch_count;
+            let m2 = m_a + m_b + delta * delta * self.count * batch_count / tot;
+            self.mean[i] += delta * batch_count / tot;
+            self.var[i] = m2 / tot;
+        }
+        self.count = tot;
+    }
+}
+
+/// Observation normaliser: `clamp((x − mean) / sqrt(var + 1e-8), ±clip)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObsNormalizer {
+    pub enabled: bool,
+    pub clip: f64,
+    pub stats: RunningMeanStd,
+}
+
+impl ObsNormalizer {
+    pub fn new(dim: usize, enabled: bool, clip: f64) -> ObsNormalizer {
+        ObsNormalizer {
+            enabled,
+            clip,
+            stats: RunningMeanStd::new(dim),
+        }
+    }
+
+    /// Normalises one observation into `out`.
+    pub fn apply(&self, raw: &[f32], out: &mut [f32]) {
+        if !self.enabled {
+            out.copy_from_slice(raw);
+            return;
+        }
+        let clip = self.clip;
+        for (((o, &x), m), v) in out
+            .iter_mut()
+            .zip(raw)
+            .zip(&self.stats.mean)
+            .zip(&self.stats.var)
+        {
+            *o = ((f64::from(x) - m) / (v + 1e-8).sqrt()).clamp(-clip, clip) as f32;
+        }
+    }
+}
+
+/// Reward scaler: rewards divided by the running std of the discounted return (CleanRL's
+/// `NormalizeReward`), per environment stream; clipped to ±`clip`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RewardScaler {
+    pub enabled: bool,
+    pub gamma: f64,
+    pub clip: f64,
+    pub stats: RunningMeanStd,
+}
+
+impl RewardScaler {
+    pub fn new(enabled: bool, gamma: f64, clip: f64) -> RewardScaler {
+        RewardScaler {
+            enabled,
+            gamma,
+            clip,
+            stats: RunningMeanStd::new(1),
+        }
+    }
+
+    /// The scale a reward is divided by.
+    pub fn std(&self) -> f64 {
+        (self.stats.var[0] + 1e-8).sqrt()
+    }
+
+    pub fn scale(&self, r: f64) -> f64 {
+        if self.enabled {
+            (r / self.std()).clamp(-self.clip, self.clip)
+        } else {
+            r
+        }
+    }
+}
+
+/// The exported policy: both networks, the move's log-std and the normalisers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PolicyWeights {
+    /// Policy version (number of PPO updates that produced it).
+    pub version: u64,
+    /// Observation length (the [`crate::obs::ObsLayout`] of the environment).
+    pub obs_dim: usize,
+    /// Sites of the categorical head; 0 when the site is not learned (base method).
+    pub n_sites: usize,
+    pub actor: Mlp,
+    pub critic: Mlp,
+    /// Log standard deviation of the move Gaussian, per axis.
+    pub log_std: [f32; MOVE_DIM],
+    pub obs_norm: ObsNormalizer,
+    pub reward_scaler: RewardScaler,
+}
+
+/// One sampled (or deterministic) action with what the learner stores about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ActionSample {
+    /// The move before clipping to [−1, 1]³ (what the learner stores).
+    pub move_raw: [f32; MOVE_DIM],
+    /// Chosen site index (0 when `n_sites == 0`).
+    pub site: u32,
+    /// log π(a|s) of the whole hybrid action (move + site).
+    pub logprob: f32,
+    /// V(s), in the critic's (scaled-reward) units.
+    pub value: f32,
+}
+
+/// Reusable buffers of one inference thread.
+#[derive(Debug, Default, Clone)]
+pub struct Scratch {
+    norm: Vec<f32>,
+    head: Vec<f32>,
+    value: Vec<f32>,
+    layers: [Vec<f32>; 2],
+}
+
+impl PolicyWeights {
+    /// Checks shapes and finiteness (weights can come from a file or the network).
+    pub fn validate(&self) -> Result<(), String> {
+        self.actor
+            .check("actor", self.obs_dim, MOVE_DIM + self.n_sites)?;
+        self.critic.check("critic", self.obs_dim, 1)?;
+        if !self.log_std.iter().all(|v| v.is_finite()) {
+            return Err("log_std: non-finite".into());
+        }
+        let s = &self.obs_norm.stats;
+        if s.dim() != self.obs_dim || s.var.len() != self.obs_dim {
+            return Err(format!(
+                "obs_norm: dimension {} for observations of {}",
+                s.dim(),
+                self.obs_dim
+            ));
+        }
+        if !s.mean.iter().chain(&s.var).all(|v| v.is_finite()) || s.var.iter().any(|v| *v < 0.0)
+        {
+            return Err("obs_norm: non-finite or negative statistics".into());
+        }
+        Ok(())
+    }
+
+    /// Normalised observation, actor head (means then logits) and value for a raw observation.
+    fn heads<'a>(&self, raw_obs: &[f32], s: &'a mut Scratch) -> (&'a [f32], f32) {
+        s.norm.resize(self.obs_dim, 0.0);
+        self.obs_norm.apply(raw_obs, &mut s.norm);
+        s.head.resize(MOVE_DIM + self.n_sites, 0.0);
+        self.actor.forward(&s.norm, &mut s.head, &mut s.layers);
+        s.value.resize(1, 0.0);
+        self.critic.forward(&s.norm, &mut s.value, &mut s.layers);
+        (&s.head, s.value[0])
+    }
+
+    /// V(s) of a raw observation.
+    pub fn value(&self, raw_obs: &[f32], s: &mut Scratch) -> f32 {
+        s.norm.resize(self.obs_dim, 0.0);
+        self.obs_norm.apply(raw_obs, &mut s.norm);
+        s.value.resize(1, 0.0);
+        self.critic.forward(&s.norm, &mut s.value, &mut s.layers);
+        s.value[0]
+    }
+
+    /// The deterministic action (Gaussian mean, arg-max site) used to fly and evaluate.
+    pub fn act_deterministic(&self, raw_obs: &[f32], s: &mut Scratch) -> ActionSample {
+        let (head, value) = self.heads(raw_obs, s);
+        let mut move_raw = [0.0; MOVE_DIM];
+        move_raw.copy_from_slice(&head[..MOVE_DIM]);
+        let logits = &head[MOVE_DIM..];
+        let site = argmax(logits);
+        let logprob = self.logprob_of(head, &move_raw, site);
+        ActionSample {
+            move_raw,
+            site: site as u32,
+            logprob,
+            value,
+        }
+    }
+
+    /// Samples an action: `u` supplies uniform numbers in [0, 1) (3 Box–Muller pairs and one for
+    /// the site), so the caller owns the RNG and runs are reproducible.
+    pub fn act_sample(
+        &self,
+        raw_obs: &[f32],
+        s: &mut Scratch,
+        mut u: impl FnMut() -> f64,
+    ) -> ActionSample {
+        let (head, value) = self.heads(raw_obs, s);
+        let mut move_raw = [0.0f32; MOVE_DIM];
+        for (k, m) in move_raw.iter_mut().enumerate() {
+            let u1 = u().max(1e-300);
+            let u2 = u();
+            let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            *m = (f64::from(head[k]) + f64::from(self.log_std[k]).exp() * z) as f32;
+        }
+        let logits = &head[MOVE_DIM..];
+        let site = if logits.is_empty() {
+            0
+        } else {
+            let max = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+            let total: f64 = logits.iter().map(|&l| f64::from(l - max).exp()).sum();
+            let mut target = u() * total;
+            let mut pick = logits.len() - 1;
+            for (k, &l) in logits.iter().enumerate() {
+                target -= f64::from(l - max).exp();
+                if target < 0.0 {
+                    pick = k;
+                    break;
+                }
+            }
+            pick
+        };
+        let logprob = self.logprob_of(head, &move_raw, site);
+        ActionSample {
+            move_raw,
+            site: site as u32,
+            logprob,
+            value,
+        }
+    }
+
+    /// log π of (move, site) given the actor head.
+    fn logprob_of(&self, head: &[f32], move_raw: &[f32; MOVE_DIM], site: usize) -> f32 {
+        let mut lp = 0.0f64;
+        for k in 0..MOVE_DIM {
+            let log_std = f64::from(self.log_std[k]);
+            let z = (f64::from(move_raw[k]) - f64::from(head[k])) / log_std.exp();
+            lp += -0.5 * z * z - log_std - HALF_LN_2PI;
+        }
+        let logits = &head[MOVE_DIM..];
+        if !logits.is_empty() {
+            let max = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+            let lse = f64::from(max)
+                + logits
+                    .iter()
+                    .map(|&l| f64::from(l - max).exp())
+                    .sum::<f64>()
+                    .ln();
+            lp += f64::from(logits[site]) - lse;
+        }
+        lp as f32
+    }
+
+    /// Actor head (means then logits) and value of a raw observation (for tests and tools).
+    pub fn forward(&self, raw_obs: &[f32], s: &mut Scratch) -> (Vec<f32>, f32) {
+        let (h, v) = self.heads(raw_obs, s);
+        (h.to_vec(), v)
+    }
+}
+
+fn argmax(v: &[f32]) -> usize {
+    let mut best = 0;
+    for (k, &x) in v.iter().enumerate() {
+        if x > v[best] {
+            best = k;
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn running_mean_std_matches_two_pass_statistics() {
+        let data: Vec<f64> = (0..100).map(|i| (i as f64 * 0.37).sin() * 5.0 + 2.0).collect();
+        let mut rms = RunningMeanStd::new(1);
+        for chunk in data.chunks(7) {
+            rms.update(chunk);
+        }
+        let n = data.len() as f64;
+        let mean = data.iter().sum::<f64>() / n;
+        let var = data.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
+        // The initial pseudo-count 1e-4 (mean 0, var 1) perturbs by ~1e-6.
+        assert!((rms.mean[0] - mean).abs() < 1e-5, "{} vs {mean}", rms.mean[0]);
+        assert!((rms.var[0] - var).abs() < 1e-4, "{} vs {var}", rms.var[0]);
+        assert!((rms.count - n).abs() < 1e-3);
+    }
+
+    #[test]
+    fn normaliser_clips_and_centres() {
+        let mut n = ObsNormalizer::new(2, true, 10.0);
+        n.stats.mean = vec![1.0, -2.0];
+        n.stats.var = vec![4.0, 1e-12];
+        let mut out = [0.0; 2];
+        n.apply(&[5.0, -1.0], &mut out);
+        assert!((out[0] - 2.0).abs() < 1e-6);
+        assert_eq!(out[1], 10.0, "tiny variance is clipped to ±clip");
+    }
+
+    #[test]
+    fn tanh_rewrite_matches_libm() {
+        for i in -400..=400 {
+            let x = i as f32 * 0.05;
+            assert!((tanh_f32(x) - x.tanh()).abs() < 5e-7, "x = {x}");
+        }
+    }
+}

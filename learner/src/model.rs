@@ -1,0 +1,235 @@
+//! The actor-critic in burn: separate MLPs (default 2 × 256, tanh), orthogonal init (gain √2
+//! hidden, 0.01 policy head, 1.0 value head, zero biases), a state-independent log-std for the 3D
+//! move Gaussian and an optional categorical head over the M sites (issue 4).
+//!
+//! Layers are written here rather than taken from `burn::nn::Linear` because burn's orthogonal
+//! initializer panics on a bias, and because the weights must export one-to-one to the plain
+//! [`dupac_common::policy::PolicyWeights`] the actors run.
+
+use burn::module::{Module, Param};
+use burn::tensor::activation::log_softmax;
+use burn::tensor::{Device, Int, Tensor, TensorData};
+use dupac_common::policy::{Dense as PlainDense, HALF_LN_2PI, MOVE_DIM, Mlp as PlainMlp};
+use rand::RngExt;
+
+/// A dense layer `y = x·W + b`, `W: [n_in, n_out]`.
+#[derive(Module, Debug)]
+pub struct Dense {
+    pub weight: Param<Tensor<2>>,
+    pub bias: Param<Tensor<1>>,
+}
+
+/// tanh as `1 − 2 / (exp(2·clamp(x, ±15)) + 1)`: about 2× faster through burn's CPU backend than
+/// its `tanh` (notes/burn-cpu.md), max |error| ≈ 2e-7; the actors' forward pass uses the same.
+pub fn fast_tanh<const D: usize>(x: Tensor<D>) -> Tensor<D> {
+    let e = x.clamp(-15.0, 15.0).mul_scalar(2.0).exp();
+    e.add_scalar(1.0).recip().mul_scalar(-2.0).add_scalar(1.0)
+}
+
+impl Dense {
+    pub fn forward(&self, x: Tensor<2>) -> Tensor<2> {
+        x.matmul(self.weight.val()) + self.bias.val().unsqueeze::<2>()
+    }
+
+    fn from_plain(d: &PlainDense, device: &Device) -> Dense {
+        Dense {
+            weight: Param::from_data(
+                TensorData::new(d.weight.clone(), [d.n_in, d.n_out]),
+                device,
+            ),
+            bias: Param::from_data(TensorData::new(d.bias.clone(), [d.n_out]), device),
+        }
+    }
+
+    fn to_plain(&self) -> PlainDense {
+        let [n_in, n_out] = self.weight.val().dims();
+        PlainDense {
+            n_in,
+            n_out,
+            weight: tensor_to_vec(self.weight.val()),
+            bias: tensor_to_vec(self.bias.val()),
+        }
+    }
+}
+
+/// An MLP, tanh after every layer but the last.
+#[derive(Module, Debug)]
+pub struct Mlp {
+    pub layers: Vec<Dense>,
+}
+
+impl Mlp {
+    pub fn forward(&self, mut x: Tensor<2>) -> Tensor<2> {
+        let last = self.layers.len() - 1;
+        for (k, l) in self.layers.iter().enumerate() {
+            x = l.forward(x);
+            if k < last {
+                x = fast_tanh(x);
+            }
+        }
+        x
+    }
+
+    pub fn from_plain(m: &PlainMlp, device: &Device) -> Mlp {
+        Mlp {
+            layers: m.layers.iter().map(|l| Dense::from_plain(l, device)).collect(),
+        }
+    }
+
+    pub fn to_plain(&self) -> PlainMlp {
+        PlainMlp {
+            layers: self.layers.iter().map(Dense::to_plain).collect(),
+        }
+    }
+}
+
+/// Actor and critic with the move's log-std.
+#[derive(Module, Debug)]
+pub struct ActorCritic {
+    pub actor: Mlp,
+    pub critic: Mlp,
+    pub log_std: Param<Tensor<1>>,
+}
+
+/// What the update needs from a forward pass over a minibatch.
+pub struct Evaluated {
+    /// log π(a|s) of the stored hybrid actions, `[B]`.
+    pub logprob: Tensor<1>,
+    /// Entropy of the move Gaussian (state-independent, scalar `[1]`).
+    pub entropy_move: Tensor<1>,
+    /// Entropy of the site categorical, `[B]` (zeros without a site head).
+    pub entropy_site: Tensor<1>,
+    /// V(s), `[B]`.
+    pub value: Tensor<1>,
+}
+
+impl ActorCritic {
+    /// Initial weights from plain ones (see [`init_plain`]).
+    pub fn from_plain(actor: &PlainMlp, critic: &PlainMlp, log_std: [f32; 3], device: &Device) -> Self {
+        ActorCritic {
+            actor: Mlp::from_plain(actor, device),
+            critic: Mlp::from_plain(critic, device),
+            log_std: Param::from_data(TensorData::new(log_std.to_vec(), [MOVE_DIM]), device),
+        }
+    }
+
+    /// Number of sites of the categorical head.
+    pub fn n_sites(&self) -> usize {
+        let out = self.actor.layers.last().map(|l| l.weight.val().dims()[1]).unwrap_or(MOVE_DIM);
+        out - MOVE_DIM
+    }
+
+    /// Log-probabilities, entropies and values of stored actions.
+    /// `obs: [B, obs_dim]` (normalised), `moves: [B, 3]` (unclipped), `sites: [B]`.
+    pub fn evaluate(&self, obs: Tensor<2>, moves: Tensor<2>, sites: Tensor<1, Int>) -> Evaluated {
+        let [b, _] = obs.dims();
+        let n_sites = self.n_sites();
+        let head = self.actor.forward(obs.clone());
+        let mean = head.clone().narrow(1, 0, MOVE_DIM);
+        let log_std = self.log_std.val();
+        let inv_std = log_std.clone().neg().exp().unsqueeze::<2>();
+        let z = (moves - mean) * inv_std;
+        // log N(a; μ, σ) summed over the 3 axes.
+        let lp_move = z
+            .square()
+            .mul_scalar(-0.5)
+            .sum_dim(1)
+            .squeeze_dim::<1>(1)
+            .sub(log_std.clone().sum().add_scalar(HALF_LN_2PI * MOVE_DIM as f64).expand([b]));
+        let entropy_move = log_std.sum().add_scalar((0.5 + HALF_LN_2PI) * MOVE_DIM as f64);
+        let (logprob, entropy_site) = if n_sites > 0 {
+            let logits = head.narrow(1, MOVE_DIM, n_sites);
+            let logp = log_softmax(logits, 1);
+            let lp_site = logp
+                .clone()
+                .gather(1, sites.unsqueeze_dim::<2>(1))
+                .squeeze_dim::<1>(1);
+            let ent = (logp.clone().exp() * logp).sum_dim(1).squeeze_dim::<1>(1).neg();
+            (lp_move + lp_site, ent)
+        } else {
+            let dev = obs.device();
+            (lp_move, Tensor::<1>::zeros([b], &dev))
+        };
+        let value = self.critic.forward(obs).squeeze_dim::<1>(1);
+        Evaluated {
+            logprob,
+            entropy_move,
+            entropy_site,
+            value,
+        }
+    }
+
+    /// V(s) of a batch `[B, obs_dim]` → `[B]`.
+    pub fn value(&self, obs: Tensor<2>) -> Tensor<1> {
+        self.critic.forward(obs).squeeze_dim::<1>(1)
+    }
+
+    /// Plain copies of the weights.
+    pub fn to_plain(&self) -> (PlainMlp, PlainMlp, [f32; 3]) {
+        let v = tensor_to_vec(self.log_std.val());
+        let mut log_std = [0.0; 3];
+        log_std.copy_from_slice(&v[..3]);
+        (self.actor.to_plain(), self.critic.to_plain(), log_std)
+    }
+}
+
+/// Reads a float tensor back as a `Vec<f32>`.
+pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default()
+}
+
+/// A random `rows × cols` matrix with orthonormal rows or columns (whichever are fewer) times
+/// `gain`: the orthogonal initialisation of Saxe et al. (QR of a Gaussian matrix, here by
+/// modified Gram–Schmidt), as CleanRL's `layer_init`. Seeded by the caller's RNG.
+pub fn orthogonal(rows: usize, cols: usize, gain: f64, rng: &mut impl RngExt) -> Vec<f32> {
+    let (n, k) = if rows >= cols { (rows, cols) } else { (cols, rows) };
+    // k orthonormal vectors of length n.
+    let mut q: Vec<Vec<f64>> = Vec::with_capacity(k);
+    while q.len() < k {
+        let mut v: Vec<f64> = (0..n).map(|_| gaussian(rng)).collect();
+        for u in &q {
+            let d: f64 = v.iter().zip(u).map(|(a, b)| a * b).sum();
+            v.iter_mut().zip(u).for_each(|(a, b)| *a -= d * b);
+        }
+        let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if norm > 1e-8 {
+            v.iter_mut().for_each(|a| *a /= norm);
+            q.push(v);
+        }
+    }
+    let mut w = vec![0.0f32; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            let val = if rows >= cols { q[c][r] } else { q[r][c] };
+            w[r * cols + c] = (gain * val) as f32;
+        }
+    }
+    w
+}
+
+fn gaussian(rng: &mut impl RngExt) -> f64 {
+    let u1: f64 = rng.random::<f64>().max(1e-300);
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Initial plain weights: an MLP `n_in → hidden… → n_out`, hidden layers with gain √2, the last
+/// with `out_gain`, biases zero.
+pub fn init_plain(n_in: usize, hidden: &[usize], n_out: usize, out_gain: f64, rng: &mut impl RngExt) -> PlainMlp {
+    let mut layers = Vec::new();
+    let mut width = n_in;
+    for (k, &h) in hidden.iter().chain(std::iter::once(&n_out)).enumerate() {
+        let gain = if k < hidden.len() { 2f64.sqrt() } else { out_gain };
+        layers.push(PlainDense {
+            n_in: width,
+            n_out: h,
+            weight: orthogonal(width, h, gain, rng),
+            bias: vec![0.0; h],
+        });
+        width = h;
+    }
+    PlainMlp { layers }
+}

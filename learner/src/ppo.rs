@@ -1,0 +1,311 @@
+//! The PPO update (issue 4), readable top to bottom like CleanRL's `ppo_continuous_action.py`:
+//! epochs × shuffled minibatches, per-minibatch advantage normalisation, clipped surrogate,
+//! clipped value loss, separately weighted entropy bonuses of the move and site heads, Adam with a
+//! caller-annealed learning rate, *global* gradient-norm clipping, optional target-KL early stop.
+//!
+//! The update does not care where the batch came from (one process or many actors).
+
+use crate::model::{ActorCritic, Evaluated, tensor_to_vec};
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Int, Tensor, TensorData};
+use dupac_common::config::PpoConfig;
+use dupac_common::policy::MOVE_DIM;
+use rand::RngExt;
+use rand::seq::SliceRandom;
+
+/// A batch of samples, flat (`len` rows), observations already normalised with the statistics
+/// the acting policy used.
+#[derive(Debug, Clone, Default)]
+pub struct Batch {
+    pub obs_dim: usize,
+    /// `[len × obs_dim]`.
+    pub obs: Vec<f32>,
+    /// Unclipped moves `[len × 3]`.
+    pub moves: Vec<f32>,
+    /// Site indices `[len]` (0 without a site head).
+    pub sites: Vec<i64>,
+    /// log π_old(a|s) `[len]`.
+    pub logprobs: Vec<f32>,
+    /// V_old(s) `[len]`.
+    pub values: Vec<f32>,
+    pub advantages: Vec<f32>,
+    pub returns: Vec<f32>,
+}
+
+impl Batch {
+    pub fn len(&self) -> usize {
+        self.logprobs.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.logprobs.is_empty()
+    }
+}
+
+/// What one update reports, with the metric names RL users know (CleanRL's `losses/*`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct UpdateStats {
+    pub policy_loss: f64,
+    pub value_loss: f64,
+    /// Total entropy (move + site), mean over the last epoch.
+    pub entropy: f64,
+    pub entropy_move: f64,
+    pub entropy_site: f64,
+    pub old_approx_kl: f64,
+    pub approx_kl: f64,
+    pub clipfrac: f64,
+    pub explained_variance: f64,
+    /// Global gradient norm before clipping, mean over minibatches.
+    pub grad_norm: f64,
+    pub epochs: usize,
+    pub minibatches: usize,
+    /// Minibatches whose loss or gradient was not finite: skipped, weights untouched.
+    pub skipped_nonfinite: usize,
+    pub learning_rate: f64,
+}
+
+/// Clipped surrogate policy loss `mean(max(−A·ρ, −A·clip(ρ, 1 − ε, 1 + ε)))`, ρ = exp(logπ − logπ_old).
+pub fn policy_loss(
+    new_logprob: Tensor<1>,
+    old_logprob: Tensor<1>,
+    adv: Tensor<1>,
+    clip: f64,
+) -> (Tensor<1>, Tensor<1>) {
+    let logratio = new_logprob - old_logprob;
+    let ratio = logratio.clone().exp();
+    let pg1 = adv.clone().neg() * ratio.clone();
+    let pg2 = adv.neg() * ratio.clone().clamp(1.0 - clip, 1.0 + clip);
+    (pg1.max_pair(pg2).mean(), ratio)
+}
+
+/// Value loss `0.5 · mean(max((V − R)², (V_old + clip(V − V_old, ±ε) − R)²))`, or the
+/// unclipped `0.5 · mean((V − R)²)`.
+pub fn value_loss(
+    new_value: Tensor<1>,
+    old_value: Tensor<1>,
+    returns: Tensor<1>,
+    clip: Option<f64>,
+) -> Tensor<1> {
+    let unclipped = (new_value.clone() - returns.clone()).square();
+    match clip {
+        Some(eps) => {
+            let clipped = old_value.clone() + (new_value - old_value).clamp(-eps, eps);
+            let clipped = (clipped - returns).square();
+            unclipped.max_pair(clipped).mean().mul_scalar(0.5)
+        }
+        None => unclipped.mean().mul_scalar(0.5),
+    }
+}
+
+/// Sums the squares of every gradient of `module`'s float parameters.
+struct SquaredNorm<'a> {
+    grads: &'a GradientsParams,
+    sum: f64,
+}
+
+impl ModuleVisitor for SquaredNorm<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = self.grads.get::<D>(param.id) {
+            self.sum += f64::from(g.square().sum().into_scalar::<f32>());
+        }
+    }
+}
+
+/// Multiplies every gradient by `scale`.
+struct Scale<'a> {
+    grads: &'a mut GradientsParams,
+    scale: f64,
+}
+
+impl ModuleVisitor for Scale<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = self.grads.remove::<D>(param.id) {
+            self.grads.register(param.id, g.mul_scalar(self.scale));
+        }
+    }
+}
+
+/// Global gradient-norm clipping (what `torch.nn.utils.clip_grad_norm_` does; burn's
+/// `GradientClippingConfig::Norm` clips each tensor separately): if ‖g‖₂ over all parameters
+/// exceeds `max_norm`, every gradient is scaled by `max_norm / ‖g‖₂`. Returns ‖g‖₂ before
+/// clipping (non-finite when a gradient is).
+pub fn clip_global_grad_norm<M: Module>(module: &M, grads: &mut GradientsParams, max_norm: f64) -> f64 {
+    let mut sq = SquaredNorm { grads, sum: 0.0 };
+    module.visit(&mut sq);
+    let norm = sq.sum.sqrt();
+    if norm.is_finite() && norm > max_norm {
+        let mut sc = Scale {
+            grads,
+            scale: max_norm / (norm + 1e-6),
+        };
+        module.visit(&mut sc);
+    }
+    norm
+}
+
+/// The PPO learner state: model on an autodiff device and its Adam optimiser.
+pub struct Ppo {
+    pub cfg: PpoConfig,
+    pub model: ActorCritic,
+    pub optim: ModuleOptimizer,
+    pub device: Device,
+}
+
+impl Ppo {
+    /// `model` must live on `device` (an autodiff device).
+    pub fn new(cfg: PpoConfig, model: ActorCritic, device: Device) -> Ppo {
+        let optim = AdamConfig::new().with_epsilon(cfg.adam_eps as f32).init();
+        Ppo {
+            cfg,
+            model,
+            optim,
+            device,
+        }
+    }
+
+    fn t1(&self, v: Vec<f32>) -> Tensor<1> {
+        let n = v.len();
+        Tensor::from_data(TensorData::new(v, [n]), &self.device)
+    }
+
+    /// Runs `update_epochs` × `num_minibatches` gradient steps on `batch` at learning rate `lr`,
+    /// shuffling with `rng`.
+    pub fn update(&mut self, batch: &Batch, lr: f64, rng: &mut impl RngExt) -> UpdateStats {
+        let n = batch.len();
+        let d = batch.obs_dim;
+        let mb = (n / self.cfg.num_minibatches).max(1);
+        let clip = self.cfg.clip_coef;
+        let mut stats = UpdateStats {
+            learning_rate: lr,
+            ..UpdateStats::default()
+        };
+        let mut order: Vec<usize> = (0..n).collect();
+        let mut grad_norm_sum = 0.0;
+        'epochs: for _epoch in 0..self.cfg.update_epochs {
+            stats.epochs += 1;
+            order.shuffle(rng);
+            let mut sums = [0.0f64; 7];
+            let mut count = 0usize;
+            for idx in order.chunks(mb) {
+                let b = idx.len();
+                let mut obs = Vec::with_capacity(b * d);
+                let mut moves = Vec::with_capacity(b * MOVE_DIM);
+                let mut sites = Vec::with_capacity(b);
+                let (mut oldlp, mut oldv, mut adv, mut ret) =
+                    (Vec::with_capacity(b), Vec::with_capacity(b), Vec::with_capacity(b), Vec::with_capacity(b));
+                for &i in idx {
+                    obs.extend_from_slice(&batch.obs[i * d..(i + 1) * d]);
+                    moves.extend_from_slice(&batch.moves[i * MOVE_DIM..(i + 1) * MOVE_DIM]);
+                    sites.push(batch.sites[i]);
+                    oldlp.push(batch.logprobs[i]);
+                    oldv.push(batch.values[i]);
+                    adv.push(batch.advantages[i]);
+                    ret.push(batch.returns[i]);
+                }
+                if self.cfg.norm_adv && b > 1 {
+                    let mean = adv.iter().map(|&a| f64::from(a)).sum::<f64>() / b as f64;
+                    // torch.std is the unbiased estimate.
+                    let var = adv.iter().map(|&a| (f64::from(a) - mean).powi(2)).sum::<f64>()
+                        / (b - 1) as f64;
+                    let sd = var.sqrt() + 1e-8;
+                    adv.iter_mut().for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
+                }
+                let obs = Tensor::<2>::from_data(TensorData::new(obs, [b, d]), &self.device);
+                let moves = Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), &self.device);
+                let sites = Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), &self.device);
+                let Evaluated {
+                    logprob,
+                    entropy_move,
+                    entropy_site,
+                    value,
+                } = self.model.evaluate(obs, moves, sites);
+                let oldlp = self.t1(oldlp);
+                let (pg_loss, ratio) = policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
+                let v_loss = value_loss(
+                    value,
+                    self.t1(oldv),
+                    self.t1(ret),
+                    self.cfg.clip_vloss.then_some(clip),
+                );
+                let ent_move = entropy_move.clone().mean();
+                let ent_site = entropy_site.clone().mean();
+                let loss = pg_loss.clone()
+                    - ent_move.clone().mul_scalar(self.cfg.ent_coef_move)
+                    - ent_site.clone().mul_scalar(self.cfg.ent_coef_site)
+                    + v_loss.clone().mul_scalar(self.cfg.vf_coef);
+
+                // Diagnostics (no gradient): KL estimators of Schulman's blog, clip fraction.
+                let logratio = tensor_to_vec(logprob.detach() - oldlp);
+                let ratio = tensor_to_vec(ratio.detach());
+                let (mut old_kl, mut kl, mut cf) = (0.0, 0.0, 0.0);
+                for (lr_, r) in logratio.iter().zip(&ratio) {
+                    let (lr_, r) = (f64::from(*lr_), f64::from(*r));
+                    old_kl += -lr_;
+                    kl += (r - 1.0) - lr_;
+                    cf += f64::from(u8::from((r - 1.0).abs() > clip));
+                }
+                let bf = b as f64;
+                let loss_v = f64::from(loss.clone().into_scalar::<f32>());
+                let pg_v = f64::from(pg_loss.into_scalar::<f32>());
+                let vl_v = f64::from(v_loss.into_scalar::<f32>());
+                let em_v = f64::from(ent_move.into_scalar::<f32>());
+                let es_v = f64::from(ent_site.into_scalar::<f32>());
+
+                let grads = loss.backward();
+                let mut grads = GradientsParams::from_grads(grads, &self.model);
+                let norm = clip_global_grad_norm(&self.model, &mut grads, self.cfg.max_grad_norm);
+                if !(loss_v.is_finite() && norm.is_finite()) {
+                    stats.skipped_nonfinite += 1;
+                    tracing::warn!(loss = loss_v, grad_norm = norm, "non-finite minibatch skipped");
+                    continue;
+                }
+                self.model = self.optim.step(lr, self.model.clone(), grads);
+                stats.minibatches += 1;
+                grad_norm_sum += norm;
+                for (s, v) in sums.iter_mut().zip([pg_v, vl_v, em_v, es_v, old_kl / bf, kl / bf, cf / bf]) {
+                    *s += v;
+                }
+                count += 1;
+            }
+            if count > 0 {
+                let c = count as f64;
+                stats.policy_loss = sums[0] / c;
+                stats.value_loss = sums[1] / c;
+                stats.entropy_move = sums[2] / c;
+                stats.entropy_site = sums[3] / c;
+                stats.entropy = stats.entropy_move + stats.entropy_site;
+                stats.old_approx_kl = sums[4] / c;
+                stats.approx_kl = sums[5] / c;
+                stats.clipfrac = sums[6] / c;
+            }
+            if self.cfg.target_kl > 0.0 && stats.approx_kl > self.cfg.target_kl {
+                break 'epochs;
+            }
+        }
+        if stats.minibatches > 0 {
+            stats.grad_norm = grad_norm_sum / stats.minibatches as f64;
+        }
+        stats.explained_variance = explained_variance(&batch.values, &batch.returns);
+        stats
+    }
+}
+
+/// 1 − Var(R − V) / Var(R) (NaN when the returns have no variance), as CleanRL reports it.
+pub fn explained_variance(values: &[f32], returns: &[f32]) -> f64 {
+    let n = returns.len() as f64;
+    if n < 2.0 {
+        return f64::NAN;
+    }
+    let var = |xs: &mut dyn Iterator<Item = f64>| {
+        let v: Vec<f64> = xs.collect();
+        let m = v.iter().sum::<f64>() / n;
+        v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n
+    };
+    let var_y = var(&mut returns.iter().map(|&r| f64::from(r)));
+    if var_y == 0.0 {
+        return f64::NAN;
+    }
+    let var_res = var(&mut returns.iter().zip(values).map(|(&r, &v)| f64::from(r) - f64::from(v)));
+    1.0 - var_res / var_y
+}

@@ -1,0 +1,94 @@
+//! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
+//! against environment steps.
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The panels drawn: (metric key, panel title with units).
+pub const PANELS: &[(&str, &str)] = &[
+    ("charts/episodic_return", "episodic return (train, last 100)"),
+    ("domain/success_rate", "success rate (train, last 100)"),
+    ("eval/success_rate", "success rate (held-out pairs, deterministic)"),
+    ("eval/collision_rate", "collision rate (held-out pairs)"),
+    ("domain/mean_rsrp_dbm", "mean serving RSRP (dBm, train)"),
+    ("domain/pct_excellent", "time in excellent RSRP (%, train)"),
+    ("eval/distance_overhead", "distance overhead (fraction, held-out successes)"),
+    ("domain/handovers_per_km", "handovers per km (train)"),
+    ("losses/value_loss", "value loss"),
+    ("losses/entropy", "entropy (move + site, nats)"),
+    ("losses/approx_kl", "approx KL"),
+    ("charts/SPS", "env steps per second"),
+];
+
+/// Draws the panels of [`PANELS`] that have data into `path` (atomically).
+pub fn render_curves(rows: &[BTreeMap<String, f64>], title: &str, path: &Path) -> Result<()> {
+    crate::plot::ensure_font()?;
+    crate::plot::write_png_atomic(path, |tmp| draw(rows, title, tmp))
+        .with_context(|| format!("cannot write learning curves {}", path.display()))
+}
+
+fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
+    let root = BitMapBackend::new(tmp, (1800, 1300)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (head, body) = root.split_vertically(50);
+    head.draw_text(
+        title,
+        &("DejaVu Sans", 26).into_font().color(&BLACK),
+        (20, 12),
+    )?;
+    let cells = body.split_evenly((3, 4));
+    for (cell, (key, label)) in cells.iter().zip(PANELS) {
+        let pts: Vec<(f64, f64)> = rows
+            .iter()
+            .filter_map(|r| Some((*r.get("global_step")?, *r.get(*key)?)))
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);
+        let (mut y_min, mut y_max) = pts
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+        if !y_min.is_finite() {
+            (y_min, y_max) = (0.0, 1.0);
+        }
+        if (y_max - y_min).abs() < 1e-9 {
+            y_min -= 0.5;
+            y_max += 0.5;
+        }
+        let pad = 0.05 * (y_max - y_min);
+        let mut chart = ChartBuilder::on(cell)
+            .caption(*label, ("DejaVu Sans", 17))
+            .margin(8)
+            .x_label_area_size(34)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max, (y_min - pad)..(y_max + pad))?;
+        chart
+            .configure_mesh()
+            .x_desc("environment steps")
+            .label_style(("DejaVu Sans", 12))
+            .x_label_formatter(&|x| format_steps(*x))
+            .x_labels(5)
+            .y_labels(5)
+            .draw()?;
+        if pts.is_empty() {
+            continue;
+        }
+        chart.draw_series(LineSeries::new(pts.iter().copied(), BLUE.stroke_width(2)))?;
+        if pts.len() < 40 {
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, BLUE.filled())))?;
+        }
+    }
+    root.present()?;
+    Ok(())
+}
+
+fn format_steps(x: f64) -> String {
+    if x >= 1e6 {
+        format!("{:.1}M", x / 1e6)
+    } else if x >= 1e3 {
+        format!("{:.0}k", x / 1e3)
+    } else {
+        format!("{x:.0}")
+    }
+}
