@@ -35,7 +35,7 @@ fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
     let (head, body) = root.split_vertically(50);
     head.draw_text(
         title,
-        &("DejaVu Sans", 26).into_font().color(&BLACK),
+        &("sans-serif", 26).into_font().color(&BLACK),
         (20, 12),
     )?;
     let cells = body.split_evenly((3, 4));
@@ -58,7 +58,7 @@ fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
         }
         let pad = 0.05 * (y_max - y_min);
         let mut chart = ChartBuilder::on(cell)
-            .caption(*label, ("DejaVu Sans", 17))
+            .caption(*label, ("sans-serif", 17))
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(60)
@@ -66,7 +66,7 @@ fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
         chart
             .configure_mesh()
             .x_desc("environment steps")
-            .label_style(("DejaVu Sans", 12))
+            .label_style(("sans-serif", 12))
             .x_label_formatter(&|x| format_steps(*x))
             .x_labels(5)
             .y_labels(5)

@@ -161,6 +161,8 @@ impl Trainer {
         pool: Arc<Vec<Pair>>,
         device: &burn::tensor::Device,
     ) -> Result<Trainer, TrainError> {
+        // Parameters live on the autodiff decoration of the chosen device.
+        let device = &device.clone().autodiff();
         let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
         let obs_dim = probe.layout().len();
         let n_sites = match cfg.env.association {
@@ -205,6 +207,7 @@ impl Trainer {
         ck: &LoadedCheckpoint,
     ) -> Result<Trainer, TrainError> {
         let mut t = Trainer::new(cfg, world, rsrp, pool, device)?;
+        let device = &device.clone().autodiff();
         let p = &ck.meta.policy;
         if p.obs_dim != t.obs_dim || p.n_sites != t.n_sites {
             return Err(TrainError::Invalid(format!(

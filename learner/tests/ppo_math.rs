@@ -1,0 +1,301 @@
+//! The PPO maths against hand-computed values and closed forms (issue 4): clipped objective at
+//! the clip edges, clipped value loss, the hybrid distribution's log-probability and entropy,
+//! global gradient-norm clipping, the burn model against the actors' plain forward pass, and
+//! checkpoint round trips.
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::{Device, Int, Tensor, TensorData};
+use dupac_common::policy::{HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch};
+use dupac_learner::checkpoint::{CheckpointMeta, load_checkpoint, load_policy, save_checkpoint, save_policy};
+use dupac_learner::model::{ActorCritic, init_plain, tensor_to_vec};
+use dupac_learner::ppo::{Batch, Ppo, clip_global_grad_norm, policy_loss, value_loss};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const OBS: usize = 7;
+const SITES: usize = 4;
+
+fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let actor = init_plain(OBS, &[16, 16], MOVE_DIM + n_sites, out_gain, &mut rng);
+    let critic = init_plain(OBS, &[16, 16], 1, 1.0, &mut rng);
+    let mut obs_norm = ObsNormalizer::new(OBS, true, 10.0);
+    for (k, (m, v)) in obs_norm.stats.mean.iter_mut().zip(obs_norm.stats.var.iter_mut()).enumerate() {
+        *m = 0.1 * k as f64;
+        *v = 1.0 + 0.5 * k as f64;
+    }
+    PolicyWeights {
+        version: 0,
+        obs_dim: OBS,
+        n_sites,
+        actor,
+        critic,
+        log_std: [-0.3, 0.1, 0.4],
+        obs_norm,
+        reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+    }
+}
+
+fn model_of(p: &PolicyWeights, device: &Device) -> ActorCritic {
+    ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, device)
+}
+
+fn t1(v: Vec<f32>, device: &Device) -> Tensor<1> {
+    let n = v.len();
+    Tensor::from_data(TensorData::new(v, [n]), device)
+}
+
+fn random_obs(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
+    (0..n * OBS).map(|_| rng.random_range(-3.0f32..3.0)).collect()
+}
+
+#[test]
+fn clipped_surrogate_at_the_clip_edges() {
+    let device = Device::flex().autodiff();
+    // ratios 1.3, 0.7, 0.7, 1.1 with advantages +1, +1, −1, +2 (ε = 0.2):
+    //  ρ=1.3, A>0: clipped at 1.2 → −1.2, no gradient;   ρ=0.7, A>0: unclipped → −0.7;
+    //  ρ=0.7, A<0: clipped at 0.8 → +0.8, no gradient;   ρ=1.1: inside → −2.2.
+    let ratios = [1.3f32, 0.7, 0.7, 1.1];
+    let adv = vec![1.0f32, 1.0, -1.0, 2.0];
+    let old = vec![0.0f32; 4];
+    let new: Vec<f32> = ratios.iter().map(|r| r.ln()).collect();
+    let new_t = t1(new, &device).require_grad();
+    let (loss, ratio) = policy_loss(new_t.clone(), t1(old, &device), t1(adv, &device), 0.2);
+    let want = (-1.2 - 0.7 + 0.8 - 2.2) / 4.0;
+    let got = loss.clone().into_scalar::<f32>();
+    assert!((got - want).abs() < 1e-5, "loss {got} vs {want}");
+    let r = tensor_to_vec(ratio);
+    for (a, b) in r.iter().zip(ratios) {
+        assert!((a - b).abs() < 1e-5);
+    }
+    let grads = loss.backward();
+    let g = tensor_to_vec(new_t.grad(&grads).expect("gradient"));
+    // d/dlogπ of −A·ρ/4 = −A·ρ/4 where unclipped, 0 where the clipped branch is active.
+    let want_g = [0.0, -0.7 / 4.0, 0.0, -2.0 * 1.1 / 4.0];
+    for (a, b) in g.iter().zip(want_g) {
+        assert!((a - b).abs() < 1e-5, "grad {g:?} vs {want_g:?}");
+    }
+}
+
+#[test]
+fn clipped_value_loss_takes_the_pessimistic_branch() {
+    let device = Device::flex();
+    // V_old = 0, R = 1: V = 0.5 (inside ε = 0.2 → clipped V = 0.2, (0.2−1)² = 0.64 > 0.25);
+    // V = 1.5 (clipped 0.2 → 0.64 vs 0.25 → 0.64); V = −0.1 (inside → 1.21 both).
+    let v = t1(vec![0.5, 1.5, -0.1], &device);
+    let old = t1(vec![0.0; 3], &device);
+    let ret = t1(vec![1.0; 3], &device);
+    let clipped = value_loss(v.clone(), old.clone(), ret.clone(), Some(0.2)).into_scalar::<f32>();
+    let want = 0.5 * (0.64 + 0.64 + 1.21) / 3.0;
+    assert!((clipped - want).abs() < 1e-5, "{clipped} vs {want}");
+    let plain = value_loss(v, old, ret, None).into_scalar::<f32>();
+    let want = 0.5 * (0.25 + 0.25 + 1.21) / 3.0;
+    assert!((plain - want).abs() < 1e-5, "{plain} vs {want}");
+}
+
+#[test]
+fn hybrid_log_prob_and_entropy_match_closed_forms() {
+    let device = Device::flex();
+    let p = plain_policy(3, SITES, 1.0);
+    let model = model_of(&p, &device);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let n = 6;
+    let raw = random_obs(&mut rng, n);
+    let mut norm = vec![0.0f32; n * OBS];
+    for (r, o) in raw.chunks(OBS).zip(norm.chunks_mut(OBS)) {
+        p.obs_norm.apply(r, o);
+    }
+    let moves: Vec<f32> = (0..n * MOVE_DIM).map(|_| rng.random_range(-2.0f32..2.0)).collect();
+    let sites: Vec<i64> = (0..n).map(|k| (k % SITES) as i64).collect();
+    let ev = model.evaluate(
+        Tensor::from_data(TensorData::new(norm, [n, OBS]), &device),
+        Tensor::from_data(TensorData::new(moves.clone(), [n, MOVE_DIM]), &device),
+        Tensor::<1, Int>::from_data(TensorData::new(sites.clone(), [n]), &device),
+    );
+    let lp = tensor_to_vec(ev.logprob);
+    let ent_site = tensor_to_vec(ev.entropy_site);
+    let ent_move = tensor_to_vec(ev.entropy_move)[0];
+    // Closed form of the Gaussian entropy: Σ (log σ + ½ ln(2πe)).
+    let want_ent_move: f64 = p.log_std.iter().map(|&l| f64::from(l) + 0.5 + HALF_LN_2PI).sum();
+    assert!((f64::from(ent_move) - want_ent_move).abs() < 1e-5);
+    let mut s = Scratch::default();
+    for k in 0..n {
+        let (head, _) = p.forward(&raw[k * OBS..(k + 1) * OBS], &mut s);
+        let mut want = 0.0f64;
+        for a in 0..MOVE_DIM {
+            let mu = f64::from(head[a]);
+            let sd = f64::from(p.log_std[a]).exp();
+            let x = f64::from(moves[k * MOVE_DIM + a]);
+            want += -(x - mu).powi(2) / (2.0 * sd * sd) - sd.ln() - 0.5 * (2.0 * std::f64::consts::PI).ln();
+        }
+        let logits: Vec<f64> = head[MOVE_DIM..].iter().map(|&v| f64::from(v)).collect();
+        let z: f64 = logits.iter().map(|l| l.exp()).sum();
+        let probs: Vec<f64> = logits.iter().map(|l| l.exp() / z).collect();
+        want += probs[sites[k] as usize].ln();
+        assert!((f64::from(lp[k]) - want).abs() < 1e-4, "sample {k}: {} vs {want}", lp[k]);
+        let want_h: f64 = -probs.iter().map(|p| p * p.ln()).sum::<f64>();
+        assert!((f64::from(ent_site[k]) - want_h).abs() < 1e-5);
+    }
+}
+
+#[test]
+fn burn_model_and_plain_forward_agree() {
+    let device = Device::flex();
+    for (seed, n_sites) in [(1, SITES), (2, 0)] {
+        let p = plain_policy(seed, n_sites, 1.0);
+        let model = model_of(&p, &device);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed + 10);
+        let n = 64;
+        let raw = random_obs(&mut rng, n);
+        let mut norm = vec![0.0f32; n * OBS];
+        for (r, o) in raw.chunks(OBS).zip(norm.chunks_mut(OBS)) {
+            p.obs_norm.apply(r, o);
+        }
+        let x = Tensor::<2>::from_data(TensorData::new(norm, [n, OBS]), &device);
+        let head = tensor_to_vec(model.actor.forward(x.clone()));
+        let value = tensor_to_vec(model.value(x));
+        let w = MOVE_DIM + n_sites;
+        let mut s = Scratch::default();
+        for k in 0..n {
+            let (h, v) = p.forward(&raw[k * OBS..(k + 1) * OBS], &mut s);
+            for j in 0..w {
+                assert!((h[j] - head[k * w + j]).abs() < 1e-5, "row {k} col {j}: {} vs {}", h[j], head[k * w + j]);
+            }
+            assert!((v - value[k]).abs() < 1e-5);
+        }
+    }
+}
+
+/// Squared L2 norm of every gradient, visited independently of the code under test.
+struct Collect<'a>(&'a GradientsParams, Vec<Vec<f32>>);
+impl ModuleVisitor for Collect<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = self.0.get::<D>(param.id) {
+            self.1.push(tensor_to_vec(g));
+        }
+    }
+}
+
+#[test]
+fn global_gradient_norm_clipping_scales_all_tensors_together() {
+    let device = Device::flex().autodiff();
+    let p = plain_policy(5, SITES, 1.0);
+    let model = model_of(&p, &device);
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let x = Tensor::<2>::from_data(TensorData::new(random_obs(&mut rng, 32), [32, OBS]), &device);
+    let loss = (model.actor.forward(x.clone()).square().sum() + model.value(x).sum()).mul_scalar(10.0)
+        + model.log_std.val().sum().mul_scalar(3.0);
+    let mut grads = GradientsParams::from_grads(loss.backward(), &model);
+    let mut before = Collect(&grads, Vec::new());
+    model.visit(&mut before);
+    let before = before.1;
+    assert_eq!(before.len(), 2 * 3 * 2 + 1, "3 layers × (W, b) × 2 networks + log-std");
+    let norm: f64 = before.iter().flatten().map(|&g| f64::from(g).powi(2)).sum::<f64>().sqrt();
+    assert!(norm > 1.0, "the test needs a large gradient, got {norm}");
+    let reported = clip_global_grad_norm(&model, &mut grads, 0.5);
+    assert!((reported - norm).abs() / norm < 1e-5);
+    let mut after = Collect(&grads, Vec::new());
+    model.visit(&mut after);
+    let after = after.1;
+    let norm_after: f64 = after.iter().flatten().map(|&g| f64::from(g).powi(2)).sum::<f64>().sqrt();
+    assert!((norm_after - 0.5).abs() < 1e-4, "clipped norm {norm_after}");
+    // One common factor for every tensor (per-tensor clipping would give different ones).
+    let factor = 0.5 / norm;
+    for (b, a) in before.iter().zip(&after) {
+        for (x, y) in b.iter().zip(a) {
+            assert!((f64::from(*x) * factor - f64::from(*y)).abs() < 1e-6 + 1e-4 * f64::from(x.abs()));
+        }
+    }
+    // Below the threshold nothing changes.
+    let again = clip_global_grad_norm(&model, &mut grads, 10.0);
+    assert!((again - 0.5).abs() < 1e-4);
+}
+
+fn small_batch(seed: u64, n: usize) -> Batch {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Batch {
+        obs_dim: OBS,
+        obs: random_obs(&mut rng, n),
+        moves: (0..n * MOVE_DIM).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        sites: (0..n).map(|_| rng.random_range(0..SITES as i64)).collect(),
+        logprobs: (0..n).map(|_| rng.random_range(-8.0f32..-4.0)).collect(),
+        values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+    }
+}
+
+#[test]
+fn checkpoint_round_trip_gives_identical_actions_and_optimiser_state() {
+    let device = Device::flex().autodiff();
+    let p = plain_policy(6, SITES, 0.01);
+    let mut cfg = dupac_common::config::PpoConfig {
+        num_minibatches: 2,
+        update_epochs: 2,
+        ..Default::default()
+    };
+    cfg.hidden = vec![16, 16];
+    let mut ppo = Ppo::new(cfg.clone(), model_of(&p, &device), device.clone());
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let stats = ppo.update(&small_batch(1, 64), 3e-4, &mut rng);
+    assert_eq!(stats.minibatches, 4);
+    let (actor, critic, log_std) = ppo.model.to_plain();
+    let policy = PolicyWeights {
+        actor,
+        critic,
+        log_std,
+        version: 1,
+        ..p.clone()
+    };
+    assert_ne!(policy.actor, p.actor, "the update moved the weights");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ck = dir.path().join("checkpoint.bin");
+    let meta = CheckpointMeta {
+        seed: 1,
+        update: 1,
+        global_step: 64,
+        episodes: 0,
+        train_seconds: 0.0,
+        config_toml: String::new(),
+        policy: policy.clone(),
+        return_acc: vec![0.5],
+    };
+    save_checkpoint(&ck, &meta, &ppo.model, &ppo.optim).expect("save");
+    let loaded = load_checkpoint(&ck).expect("load");
+    assert_eq!(loaded.meta.policy, policy);
+    let (model2, optim2) = loaded
+        .restore(&device, AdamConfig::new().with_epsilon(1e-5).init())
+        .expect("restore");
+    let (a2, c2, l2) = model2.to_plain();
+    assert_eq!((a2, c2, l2), (policy.actor.clone(), policy.critic.clone(), policy.log_std));
+    // Same actions, bit for bit, from the exported policy file too.
+    let pol = dir.path().join("policy.bin");
+    save_policy(&pol, &policy).expect("save policy");
+    let back = load_policy(&pol).expect("load policy");
+    let from_ck = load_policy(&ck).expect("policy from checkpoint");
+    let mut s = Scratch::default();
+    let obs = random_obs(&mut ChaCha8Rng::seed_from_u64(2), 1);
+    let a = policy.act_deterministic(&obs, &mut s);
+    assert_eq!(back.act_deterministic(&obs, &mut s), a);
+    assert_eq!(from_ck.act_deterministic(&obs, &mut s), a);
+    // The Adam moments came back: one more identical update gives identical weights.
+    let mut ppo2 = Ppo::new(cfg, model2, device.clone());
+    ppo2.optim = optim2;
+    let b = small_batch(2, 64);
+    ppo.update(&b, 3e-4, &mut ChaCha8Rng::seed_from_u64(3));
+    ppo2.update(&b, 3e-4, &mut ChaCha8Rng::seed_from_u64(3));
+    assert_eq!(ppo.model.to_plain(), ppo2.model.to_plain());
+}
+
+#[test]
+fn corrupt_checkpoint_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = dir.path().join("bad.bin");
+    std::fs::write(&f, b"DUPACCKP\x01\x00\x00\x00garbage").expect("write");
+    let e = load_checkpoint(&f).err().expect("must fail").to_string();
+    assert!(e.contains("bad.bin"), "{e}");
+    std::fs::write(&f, b"not a policy at all").expect("write");
+    let e = load_policy(&f).err().expect("must fail").to_string();
+    assert!(e.contains("bad.bin") && e.contains("magic"), "{e}");
+}
