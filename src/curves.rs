@@ -8,13 +8,22 @@ use std::path::Path;
 
 /// The panels drawn: (metric key, panel title with units).
 pub const PANELS: &[(&str, &str)] = &[
-    ("charts/episodic_return", "episodic return (train, last 100)"),
+    (
+        "charts/episodic_return",
+        "episodic return (train, last 100)",
+    ),
     ("domain/success_rate", "success rate (train, last 100)"),
-    ("eval/success_rate", "success rate (held-out pairs, deterministic)"),
+    (
+        "eval/success_rate",
+        "success rate (held-out pairs, deterministic)",
+    ),
     ("eval/collision_rate", "collision rate (held-out pairs)"),
     ("domain/mean_rsrp_dbm", "mean serving RSRP (dBm, train)"),
     ("domain/pct_excellent", "time in excellent RSRP (%, train)"),
-    ("eval/distance_overhead", "distance overhead (fraction, held-out successes)"),
+    (
+        "eval/distance_overhead",
+        "distance overhead (fraction, held-out successes)",
+    ),
     ("domain/handovers_per_km", "handovers per km (train)"),
     ("losses/value_loss", "value loss"),
     ("losses/entropy", "entropy (move + site, nats)"),
@@ -48,7 +57,9 @@ fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
         let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);
         let (mut y_min, mut y_max) = pts
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.1), b.max(p.1))
+            });
         if !y_min.is_finite() {
             (y_min, y_max) = (0.0, 1.0);
         }

@@ -163,7 +163,9 @@ pub struct Worker {
 
 /// Seed of stream `index` in round `round` of run `seed` (SplitMix64 of the three).
 pub fn stream_seed(seed: u64, index: u64, round: u64) -> u64 {
-    let mut z = seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ round.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    let mut z = seed
+        ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ round.wrapping_mul(0xD1B5_4A32_D192_ED03);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -172,7 +174,12 @@ pub fn stream_seed(seed: u64, index: u64, round: u64) -> u64 {
 impl Worker {
     /// A worker over `env` drawing episodes from `pool` (each pair flown in either direction),
     /// seeded with `seed`; starts its first episode.
-    pub fn new(index: u32, env: Env, pool: Arc<Vec<Pair>>, seed: u64) -> Result<Worker, RolloutError> {
+    pub fn new(
+        index: u32,
+        env: Env,
+        pool: Arc<Vec<Pair>>,
+        seed: u64,
+    ) -> Result<Worker, RolloutError> {
         if pool.is_empty() {
             return Err(RolloutError::EmptyPool);
         }
@@ -228,7 +235,11 @@ impl Worker {
 
     /// Steps the environment `steps` times with actions sampled from `policy`, starting new
     /// episodes as they end.
-    pub fn collect(&mut self, policy: &PolicyWeights, steps: usize) -> Result<EnvTrajectory, RolloutError> {
+    pub fn collect(
+        &mut self,
+        policy: &PolicyWeights,
+        steps: usize,
+    ) -> Result<EnvTrajectory, RolloutError> {
         let d = self.env.layout().len();
         if policy.obs_dim != d {
             return Err(RolloutError::ObsMismatch {
@@ -274,7 +285,8 @@ impl Worker {
                 };
                 tr.next_values.push(next_v);
                 let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
-                tr.episodes.push(self.acc.finish(self.pair_id, self.shortest_m, outcome));
+                tr.episodes
+                    .push(self.acc.finish(self.pair_id, self.shortest_m, outcome));
                 self.new_episode()?;
             } else {
                 self.obs.clear();

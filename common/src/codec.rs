@@ -13,7 +13,11 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum CodecError {
     #[error("{what}: {len} bytes exceed the limit of {limit}")]
-    TooLarge { what: String, len: usize, limit: usize },
+    TooLarge {
+        what: String,
+        len: usize,
+        limit: usize,
+    },
     #[error("{what}: not a {expected} blob (bad magic)")]
     BadMagic { what: String, expected: String },
     #[error("{what}: format version {got}, this build reads {want}")]
@@ -25,7 +29,10 @@ pub enum CodecError {
     #[error("cannot encode {what}: {message}")]
     Encode { what: String, message: String },
     #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
 }
 
 /// Hard cap on any decoded blob (checkpoints of large networks included).
@@ -36,7 +43,12 @@ fn config() -> impl bincode::config::Config {
 }
 
 /// Encodes `value` behind `magic` and `version`.
-pub fn encode<T: Serialize>(magic: &[u8; 8], version: u32, value: &T, what: &str) -> Result<Vec<u8>, CodecError> {
+pub fn encode<T: Serialize>(
+    magic: &[u8; 8],
+    version: u32,
+    value: &T,
+    what: &str,
+) -> Result<Vec<u8>, CodecError> {
     let mut out = Vec::with_capacity(1024);
     out.extend_from_slice(magic);
     out.extend_from_slice(&version.to_le_bytes());
@@ -137,13 +149,29 @@ mod tests {
     fn round_trip_and_clear_errors() {
         let v = (1u32, vec![1.5f32, -2.0], "x".to_string());
         let b = encode(b"TESTBLOB", 3, &v, "t").expect("encode");
-        let back: (u32, Vec<f32>, String) = decode(b"TESTBLOB", 3, &b, 1 << 20, "t").expect("decode");
+        let back: (u32, Vec<f32>, String) =
+            decode(b"TESTBLOB", 3, &b, 1 << 20, "t").expect("decode");
         assert_eq!(back, v);
-        let e = decode::<(u32, Vec<f32>, String)>(b"OTHERBLB", 3, &b, 1 << 20, "f.bin").unwrap_err();
-        assert!(e.to_string().contains("f.bin") && e.to_string().contains("magic"), "{e}");
+        let e =
+            decode::<(u32, Vec<f32>, String)>(b"OTHERBLB", 3, &b, 1 << 20, "f.bin").unwrap_err();
+        assert!(
+            e.to_string().contains("f.bin") && e.to_string().contains("magic"),
+            "{e}"
+        );
         let e = decode::<(u32, Vec<f32>, String)>(b"TESTBLOB", 4, &b, 1 << 20, "f").unwrap_err();
-        assert!(matches!(e, CodecError::Version { got: 3, want: 4, .. }), "{e}");
-        let e = decode::<(u32, Vec<f32>, String)>(b"TESTBLOB", 3, &b[..b.len() - 2], 1 << 20, "f").unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CodecError::Version {
+                    got: 3,
+                    want: 4,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let e = decode::<(u32, Vec<f32>, String)>(b"TESTBLOB", 3, &b[..b.len() - 2], 1 << 20, "f")
+            .unwrap_err();
         assert!(matches!(e, CodecError::Decode { .. }), "{e}");
         let e = decode::<(u32, Vec<f32>, String)>(b"TESTBLOB", 3, &b, 8, "f").unwrap_err();
         assert!(matches!(e, CodecError::TooLarge { .. }), "{e}");

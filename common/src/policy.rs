@@ -312,8 +312,7 @@ impl PolicyWeights {
                 self.obs_dim
             ));
         }
-        if !s.mean.iter().chain(&s.var).all(|v| v.is_finite()) || s.var.iter().any(|v| *v < 0.0)
-        {
+        if !s.mean.iter().chain(&s.var).all(|v| v.is_finite()) || s.var.iter().any(|v| *v < 0.0) {
             return Err("obs_norm: non-finite or negative statistics".into());
         }
         Ok(())
@@ -442,7 +441,9 @@ mod tests {
 
     #[test]
     fn running_mean_std_matches_two_pass_statistics() {
-        let data: Vec<f64> = (0..100).map(|i| (i as f64 * 0.37).sin() * 5.0 + 2.0).collect();
+        let data: Vec<f64> = (0..100)
+            .map(|i| (i as f64 * 0.37).sin() * 5.0 + 2.0)
+            .collect();
         let mut rms = RunningMeanStd::new(1);
         for chunk in data.chunks(7) {
             rms.update(chunk);
@@ -451,7 +452,11 @@ mod tests {
         let mean = data.iter().sum::<f64>() / n;
         let var = data.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
         // The initial pseudo-count 1e-4 (mean 0, var 1) perturbs by ~1e-6.
-        assert!((rms.mean[0] - mean).abs() < 1e-5, "{} vs {mean}", rms.mean[0]);
+        assert!(
+            (rms.mean[0] - mean).abs() < 1e-5,
+            "{} vs {mean}",
+            rms.mean[0]
+        );
         assert!((rms.var[0] - var).abs() < 1e-4, "{} vs {var}", rms.var[0]);
         assert!((rms.count - n).abs() < 1e-3);
     }

@@ -104,11 +104,20 @@ pub struct LoadedCheckpoint {
 pub fn load_checkpoint(path: &Path) -> Result<LoadedCheckpoint, CheckpointError> {
     let what = path.display().to_string();
     let bytes = codec::read_limited(path, MAX_FILE_BYTES)?;
-    let f: CheckpointFile = codec::decode(CHECKPOINT_MAGIC, CHECKPOINT_VERSION, &bytes, MAX_FILE_BYTES, &what)?;
-    f.meta.policy.validate().map_err(|message| CheckpointError::Invalid {
-        path: what.clone(),
-        message,
-    })?;
+    let f: CheckpointFile = codec::decode(
+        CHECKPOINT_MAGIC,
+        CHECKPOINT_VERSION,
+        &bytes,
+        MAX_FILE_BYTES,
+        &what,
+    )?;
+    f.meta
+        .policy
+        .validate()
+        .map_err(|message| CheckpointError::Invalid {
+            path: what.clone(),
+            message,
+        })?;
     Ok(LoadedCheckpoint {
         meta: f.meta,
         model: f.model,
@@ -132,7 +141,9 @@ impl LoadedCheckpoint {
         let skeleton = ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, device);
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(self.model.clone()))
             .map_err(|e| rec(format!("{e:?}")))?;
-        let model = skeleton.try_load_record(record).map_err(|e| rec(format!("{e:?}")))?;
+        let model = skeleton
+            .try_load_record(record)
+            .map_err(|e| rec(format!("{e:?}")))?;
         let optim = optim
             .from_bytes(Bytes::from_bytes_vec(self.optim.clone()))
             .map_err(|e| rec(format!("optimiser: {e:?}")))?;
@@ -152,11 +163,22 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let what = path.display().to_string();
     let bytes = codec::read_limited(path, MAX_FILE_BYTES)?;
     let policy: PolicyWeights = if bytes.starts_with(CHECKPOINT_MAGIC) {
-        let f: CheckpointFile = codec::decode(CHECKPOINT_MAGIC, CHECKPOINT_VERSION, &bytes, MAX_FILE_BYTES, &what)?;
+        let f: CheckpointFile = codec::decode(
+            CHECKPOINT_MAGIC,
+            CHECKPOINT_VERSION,
+            &bytes,
+            MAX_FILE_BYTES,
+            &what,
+        )?;
         f.meta.policy
     } else {
         codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)?
     };
-    policy.validate().map_err(|message| CheckpointError::Invalid { path: what, message })?;
+    policy
+        .validate()
+        .map_err(|message| CheckpointError::Invalid {
+            path: what,
+            message,
+        })?;
     Ok(policy)
 }

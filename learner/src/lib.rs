@@ -2,8 +2,8 @@
 //! checkpoints and the synchronous training loop. The update does not care where trajectories
 //! came from; the distributed learner (issue 5) wraps the same update.
 
+pub mod checkpoint;
 pub mod gae;
 pub mod model;
 pub mod ppo;
-pub mod checkpoint;
 pub mod train;

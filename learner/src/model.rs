@@ -33,10 +33,7 @@ impl Dense {
 
     fn from_plain(d: &PlainDense, device: &Device) -> Dense {
         Dense {
-            weight: Param::from_data(
-                TensorData::new(d.weight.clone(), [d.n_in, d.n_out]),
-                device,
-            ),
+            weight: Param::from_data(TensorData::new(d.weight.clone(), [d.n_in, d.n_out]), device),
             bias: Param::from_data(TensorData::new(d.bias.clone(), [d.n_out]), device),
         }
     }
@@ -72,7 +69,11 @@ impl Mlp {
 
     pub fn from_plain(m: &PlainMlp, device: &Device) -> Mlp {
         Mlp {
-            layers: m.layers.iter().map(|l| Dense::from_plain(l, device)).collect(),
+            layers: m
+                .layers
+                .iter()
+                .map(|l| Dense::from_plain(l, device))
+                .collect(),
         }
     }
 
@@ -105,7 +106,12 @@ pub struct Evaluated {
 
 impl ActorCritic {
     /// Initial weights from plain ones (see [`init_plain`]).
-    pub fn from_plain(actor: &PlainMlp, critic: &PlainMlp, log_std: [f32; 3], device: &Device) -> Self {
+    pub fn from_plain(
+        actor: &PlainMlp,
+        critic: &PlainMlp,
+        log_std: [f32; 3],
+        device: &Device,
+    ) -> Self {
         ActorCritic {
             actor: Mlp::from_plain(actor, device),
             critic: Mlp::from_plain(critic, device),
@@ -115,7 +121,12 @@ impl ActorCritic {
 
     /// Number of sites of the categorical head.
     pub fn n_sites(&self) -> usize {
-        let out = self.actor.layers.last().map(|l| l.weight.val().dims()[1]).unwrap_or(MOVE_DIM);
+        let out = self
+            .actor
+            .layers
+            .last()
+            .map(|l| l.weight.val().dims()[1])
+            .unwrap_or(MOVE_DIM);
         out - MOVE_DIM
     }
 
@@ -135,8 +146,16 @@ impl ActorCritic {
             .mul_scalar(-0.5)
             .sum_dim(1)
             .squeeze_dim::<1>(1)
-            .sub(log_std.clone().sum().add_scalar(HALF_LN_2PI * MOVE_DIM as f64).expand([b]));
-        let entropy_move = log_std.sum().add_scalar((0.5 + HALF_LN_2PI) * MOVE_DIM as f64);
+            .sub(
+                log_std
+                    .clone()
+                    .sum()
+                    .add_scalar(HALF_LN_2PI * MOVE_DIM as f64)
+                    .expand([b]),
+            );
+        let entropy_move = log_std
+            .sum()
+            .add_scalar((0.5 + HALF_LN_2PI) * MOVE_DIM as f64);
         let (logprob, entropy_site) = if n_sites > 0 {
             let logits = head.narrow(1, MOVE_DIM, n_sites);
             let logp = log_softmax(logits, 1);
@@ -144,7 +163,10 @@ impl ActorCritic {
                 .clone()
                 .gather(1, sites.unsqueeze_dim::<2>(1))
                 .squeeze_dim::<1>(1);
-            let ent = (logp.clone().exp() * logp).sum_dim(1).squeeze_dim::<1>(1).neg();
+            let ent = (logp.clone().exp() * logp)
+                .sum_dim(1)
+                .squeeze_dim::<1>(1)
+                .neg();
             (lp_move + lp_site, ent)
         } else {
             let dev = obs.device();
@@ -185,7 +207,11 @@ pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
 /// `gain`: the orthogonal initialisation of Saxe et al. (QR of a Gaussian matrix, here by
 /// modified Gram–Schmidt), as CleanRL's `layer_init`. Seeded by the caller's RNG.
 pub fn orthogonal(rows: usize, cols: usize, gain: f64, rng: &mut impl RngExt) -> Vec<f32> {
-    let (n, k) = if rows >= cols { (rows, cols) } else { (cols, rows) };
+    let (n, k) = if rows >= cols {
+        (rows, cols)
+    } else {
+        (cols, rows)
+    };
     // k orthonormal vectors of length n.
     let mut q: Vec<Vec<f64>> = Vec::with_capacity(k);
     while q.len() < k {
@@ -218,11 +244,21 @@ fn gaussian(rng: &mut impl RngExt) -> f64 {
 
 /// Initial plain weights: an MLP `n_in → hidden… → n_out`, hidden layers with gain √2, the last
 /// with `out_gain`, biases zero.
-pub fn init_plain(n_in: usize, hidden: &[usize], n_out: usize, out_gain: f64, rng: &mut impl RngExt) -> PlainMlp {
+pub fn init_plain(
+    n_in: usize,
+    hidden: &[usize],
+    n_out: usize,
+    out_gain: f64,
+    rng: &mut impl RngExt,
+) -> PlainMlp {
     let mut layers = Vec::new();
     let mut width = n_in;
     for (k, &h) in hidden.iter().chain(std::iter::once(&n_out)).enumerate() {
-        let gain = if k < hidden.len() { 2f64.sqrt() } else { out_gain };
+        let gain = if k < hidden.len() {
+            2f64.sqrt()
+        } else {
+            out_gain
+        };
         layers.push(PlainDense {
             n_in: width,
             n_out: h,

@@ -130,7 +130,11 @@ impl ModuleVisitor for Scale<'_> {
 /// `GradientClippingConfig::Norm` clips each tensor separately): if ‖g‖₂ over all parameters
 /// exceeds `max_norm`, every gradient is scaled by `max_norm / ‖g‖₂`. Returns ‖g‖₂ before
 /// clipping (non-finite when a gradient is).
-pub fn clip_global_grad_norm<M: Module>(module: &M, grads: &mut GradientsParams, max_norm: f64) -> f64 {
+pub fn clip_global_grad_norm<M: Module>(
+    module: &M,
+    grads: &mut GradientsParams,
+    max_norm: f64,
+) -> f64 {
     let mut sq = SquaredNorm { grads, sum: 0.0 };
     module.visit(&mut sq);
     let norm = sq.sum.sqrt();
@@ -192,8 +196,12 @@ impl Ppo {
                 let mut obs = Vec::with_capacity(b * d);
                 let mut moves = Vec::with_capacity(b * MOVE_DIM);
                 let mut sites = Vec::with_capacity(b);
-                let (mut oldlp, mut oldv, mut adv, mut ret) =
-                    (Vec::with_capacity(b), Vec::with_capacity(b), Vec::with_capacity(b), Vec::with_capacity(b));
+                let (mut oldlp, mut oldv, mut adv, mut ret) = (
+                    Vec::with_capacity(b),
+                    Vec::with_capacity(b),
+                    Vec::with_capacity(b),
+                    Vec::with_capacity(b),
+                );
                 for &i in idx {
                     obs.extend_from_slice(&batch.obs[i * d..(i + 1) * d]);
                     moves.extend_from_slice(&batch.moves[i * MOVE_DIM..(i + 1) * MOVE_DIM]);
@@ -206,13 +214,18 @@ impl Ppo {
                 if self.cfg.norm_adv && b > 1 {
                     let mean = adv.iter().map(|&a| f64::from(a)).sum::<f64>() / b as f64;
                     // torch.std is the unbiased estimate.
-                    let var = adv.iter().map(|&a| (f64::from(a) - mean).powi(2)).sum::<f64>()
+                    let var = adv
+                        .iter()
+                        .map(|&a| (f64::from(a) - mean).powi(2))
+                        .sum::<f64>()
                         / (b - 1) as f64;
                     let sd = var.sqrt() + 1e-8;
-                    adv.iter_mut().for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
+                    adv.iter_mut()
+                        .for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
                 }
                 let obs = Tensor::<2>::from_data(TensorData::new(obs, [b, d]), &self.device);
-                let moves = Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), &self.device);
+                let moves =
+                    Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), &self.device);
                 let sites = Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), &self.device);
                 let Evaluated {
                     logprob,
@@ -221,7 +234,8 @@ impl Ppo {
                     value,
                 } = self.model.evaluate(obs, moves, sites);
                 let oldlp = self.t1(oldlp);
-                let (pg_loss, ratio) = policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
+                let (pg_loss, ratio) =
+                    policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
                 let v_loss = value_loss(
                     value,
                     self.t1(oldv),
@@ -257,13 +271,20 @@ impl Ppo {
                 let norm = clip_global_grad_norm(&self.model, &mut grads, self.cfg.max_grad_norm);
                 if !(loss_v.is_finite() && norm.is_finite()) {
                     stats.skipped_nonfinite += 1;
-                    tracing::warn!(loss = loss_v, grad_norm = norm, "non-finite minibatch skipped");
+                    tracing::warn!(
+                        loss = loss_v,
+                        grad_norm = norm,
+                        "non-finite minibatch skipped"
+                    );
                     continue;
                 }
                 self.model = self.optim.step(lr, self.model.clone(), grads);
                 stats.minibatches += 1;
                 grad_norm_sum += norm;
-                for (s, v) in sums.iter_mut().zip([pg_v, vl_v, em_v, es_v, old_kl / bf, kl / bf, cf / bf]) {
+                for (s, v) in
+                    sums.iter_mut()
+                        .zip([pg_v, vl_v, em_v, es_v, old_kl / bf, kl / bf, cf / bf])
+                {
                     *s += v;
                 }
                 count += 1;
@@ -306,6 +327,9 @@ pub fn explained_variance(values: &[f32], returns: &[f32]) -> f64 {
     if var_y == 0.0 {
         return f64::NAN;
     }
-    let var_res = var(&mut returns.iter().zip(values).map(|(&r, &v)| f64::from(r) - f64::from(v)));
+    let var_res = var(&mut returns
+        .iter()
+        .zip(values)
+        .map(|(&r, &v)| f64::from(r) - f64::from(v)));
     1.0 - var_res / var_y
 }

@@ -15,7 +15,9 @@ use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
 use dupac_actor::env::{Env, EnvError, Episode, Outcome};
 use dupac_actor::pairs::Pair;
-use dupac_actor::rollout::{EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed};
+use dupac_actor::rollout::{
+    EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed,
+};
 use dupac_common::config::{Association, Config};
 use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler};
 use dupac_radio::cache::RsrpSource;
@@ -72,8 +74,14 @@ pub fn domain_stats(eps: &[EpisodeSummary]) -> DomainStats {
     }
     let nf = n as f64;
     let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f64 / nf;
-    let steps: f64 = eps.iter().map(|e| f64::from(e.length)).sum::<f64>().max(1.0);
-    let w = |f: &dyn Fn(&EpisodeSummary) -> f64| eps.iter().map(|e| f(e) * f64::from(e.length)).sum::<f64>() / steps;
+    let steps: f64 = eps
+        .iter()
+        .map(|e| f64::from(e.length))
+        .sum::<f64>()
+        .max(1.0);
+    let w = |f: &dyn Fn(&EpisodeSummary) -> f64| {
+        eps.iter().map(|e| f(e) * f64::from(e.length)).sum::<f64>() / steps
+    };
     let km: f64 = eps.iter().map(|e| e.distance_flown_m).sum::<f64>() / 1000.0;
     let ho: f64 = eps.iter().map(|e| f64::from(e.handovers)).sum();
     let ok: Vec<&EpisodeSummary> = eps.iter().filter(|e| e.outcome == Outcome::Goal).collect();
@@ -361,7 +369,12 @@ impl Trainer {
             self.reward_scaler.stats.update(&returns_seen);
         }
         for tr in trajs {
-            scaled.push(tr.rewards.iter().map(|&r| self.reward_scaler.scale(f64::from(r)) as f32).collect());
+            scaled.push(
+                tr.rewards
+                    .iter()
+                    .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32)
+                    .collect(),
+            );
         }
         let mut batch = Batch {
             obs_dim: self.obs_dim,

@@ -6,8 +6,12 @@
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use dupac_common::policy::{HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch};
-use dupac_learner::checkpoint::{CheckpointMeta, load_checkpoint, load_policy, save_checkpoint, save_policy};
+use dupac_common::policy::{
+    HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch,
+};
+use dupac_learner::checkpoint::{
+    CheckpointMeta, load_checkpoint, load_policy, save_checkpoint, save_policy,
+};
 use dupac_learner::model::{ActorCritic, init_plain, tensor_to_vec};
 use dupac_learner::ppo::{Batch, Ppo, clip_global_grad_norm, policy_loss, value_loss};
 use rand::{RngExt, SeedableRng};
@@ -21,7 +25,13 @@ fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
     let actor = init_plain(OBS, &[16, 16], MOVE_DIM + n_sites, out_gain, &mut rng);
     let critic = init_plain(OBS, &[16, 16], 1, 1.0, &mut rng);
     let mut obs_norm = ObsNormalizer::new(OBS, true, 10.0);
-    for (k, (m, v)) in obs_norm.stats.mean.iter_mut().zip(obs_norm.stats.var.iter_mut()).enumerate() {
+    for (k, (m, v)) in obs_norm
+        .stats
+        .mean
+        .iter_mut()
+        .zip(obs_norm.stats.var.iter_mut())
+        .enumerate()
+    {
         *m = 0.1 * k as f64;
         *v = 1.0 + 0.5 * k as f64;
     }
@@ -47,7 +57,9 @@ fn t1(v: Vec<f32>, device: &Device) -> Tensor<1> {
 }
 
 fn random_obs(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
-    (0..n * OBS).map(|_| rng.random_range(-3.0f32..3.0)).collect()
+    (0..n * OBS)
+        .map(|_| rng.random_range(-3.0f32..3.0))
+        .collect()
 }
 
 #[test]
@@ -106,7 +118,9 @@ fn hybrid_log_prob_and_entropy_match_closed_forms() {
     for (r, o) in raw.chunks(OBS).zip(norm.chunks_mut(OBS)) {
         p.obs_norm.apply(r, o);
     }
-    let moves: Vec<f32> = (0..n * MOVE_DIM).map(|_| rng.random_range(-2.0f32..2.0)).collect();
+    let moves: Vec<f32> = (0..n * MOVE_DIM)
+        .map(|_| rng.random_range(-2.0f32..2.0))
+        .collect();
     let sites: Vec<i64> = (0..n).map(|k| (k % SITES) as i64).collect();
     let ev = model.evaluate(
         Tensor::from_data(TensorData::new(norm, [n, OBS]), &device),
@@ -117,7 +131,11 @@ fn hybrid_log_prob_and_entropy_match_closed_forms() {
     let ent_site = tensor_to_vec(ev.entropy_site);
     let ent_move = tensor_to_vec(ev.entropy_move)[0];
     // Closed form of the Gaussian entropy: Σ (log σ + ½ ln(2πe)).
-    let want_ent_move: f64 = p.log_std.iter().map(|&l| f64::from(l) + 0.5 + HALF_LN_2PI).sum();
+    let want_ent_move: f64 = p
+        .log_std
+        .iter()
+        .map(|&l| f64::from(l) + 0.5 + HALF_LN_2PI)
+        .sum();
     assert!((f64::from(ent_move) - want_ent_move).abs() < 1e-5);
     let mut s = Scratch::default();
     for k in 0..n {
@@ -127,13 +145,19 @@ fn hybrid_log_prob_and_entropy_match_closed_forms() {
             let mu = f64::from(head[a]);
             let sd = f64::from(p.log_std[a]).exp();
             let x = f64::from(moves[k * MOVE_DIM + a]);
-            want += -(x - mu).powi(2) / (2.0 * sd * sd) - sd.ln() - 0.5 * (2.0 * std::f64::consts::PI).ln();
+            want += -(x - mu).powi(2) / (2.0 * sd * sd)
+                - sd.ln()
+                - 0.5 * (2.0 * std::f64::consts::PI).ln();
         }
         let logits: Vec<f64> = head[MOVE_DIM..].iter().map(|&v| f64::from(v)).collect();
         let z: f64 = logits.iter().map(|l| l.exp()).sum();
         let probs: Vec<f64> = logits.iter().map(|l| l.exp() / z).collect();
         want += probs[sites[k] as usize].ln();
-        assert!((f64::from(lp[k]) - want).abs() < 1e-4, "sample {k}: {} vs {want}", lp[k]);
+        assert!(
+            (f64::from(lp[k]) - want).abs() < 1e-4,
+            "sample {k}: {} vs {want}",
+            lp[k]
+        );
         let want_h: f64 = -probs.iter().map(|p| p * p.ln()).sum::<f64>();
         assert!((f64::from(ent_site[k]) - want_h).abs() < 1e-5);
     }
@@ -160,7 +184,12 @@ fn burn_model_and_plain_forward_agree() {
         for k in 0..n {
             let (h, v) = p.forward(&raw[k * OBS..(k + 1) * OBS], &mut s);
             for j in 0..w {
-                assert!((h[j] - head[k * w + j]).abs() < 1e-5, "row {k} col {j}: {} vs {}", h[j], head[k * w + j]);
+                assert!(
+                    (h[j] - head[k * w + j]).abs() < 1e-5,
+                    "row {k} col {j}: {} vs {}",
+                    h[j],
+                    head[k * w + j]
+                );
             }
             assert!((v - value[k]).abs() < 1e-5);
         }
@@ -183,28 +212,48 @@ fn global_gradient_norm_clipping_scales_all_tensors_together() {
     let p = plain_policy(5, SITES, 1.0);
     let model = model_of(&p, &device);
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    let x = Tensor::<2>::from_data(TensorData::new(random_obs(&mut rng, 32), [32, OBS]), &device);
-    let loss = (model.actor.forward(x.clone()).square().sum() + model.value(x).sum()).mul_scalar(10.0)
+    let x = Tensor::<2>::from_data(
+        TensorData::new(random_obs(&mut rng, 32), [32, OBS]),
+        &device,
+    );
+    let loss = (model.actor.forward(x.clone()).square().sum() + model.value(x).sum())
+        .mul_scalar(10.0)
         + model.log_std.val().sum().mul_scalar(3.0);
     let mut grads = GradientsParams::from_grads(loss.backward(), &model);
     let mut before = Collect(&grads, Vec::new());
     model.visit(&mut before);
     let before = before.1;
-    assert_eq!(before.len(), 2 * 3 * 2 + 1, "3 layers × (W, b) × 2 networks + log-std");
-    let norm: f64 = before.iter().flatten().map(|&g| f64::from(g).powi(2)).sum::<f64>().sqrt();
+    assert_eq!(
+        before.len(),
+        2 * 3 * 2 + 1,
+        "3 layers × (W, b) × 2 networks + log-std"
+    );
+    let norm: f64 = before
+        .iter()
+        .flatten()
+        .map(|&g| f64::from(g).powi(2))
+        .sum::<f64>()
+        .sqrt();
     assert!(norm > 1.0, "the test needs a large gradient, got {norm}");
     let reported = clip_global_grad_norm(&model, &mut grads, 0.5);
     assert!((reported - norm).abs() / norm < 1e-5);
     let mut after = Collect(&grads, Vec::new());
     model.visit(&mut after);
     let after = after.1;
-    let norm_after: f64 = after.iter().flatten().map(|&g| f64::from(g).powi(2)).sum::<f64>().sqrt();
+    let norm_after: f64 = after
+        .iter()
+        .flatten()
+        .map(|&g| f64::from(g).powi(2))
+        .sum::<f64>()
+        .sqrt();
     assert!((norm_after - 0.5).abs() < 1e-4, "clipped norm {norm_after}");
     // One common factor for every tensor (per-tensor clipping would give different ones).
     let factor = 0.5 / norm;
     for (b, a) in before.iter().zip(&after) {
         for (x, y) in b.iter().zip(a) {
-            assert!((f64::from(*x) * factor - f64::from(*y)).abs() < 1e-6 + 1e-4 * f64::from(x.abs()));
+            assert!(
+                (f64::from(*x) * factor - f64::from(*y)).abs() < 1e-6 + 1e-4 * f64::from(x.abs())
+            );
         }
     }
     // Below the threshold nothing changes.
@@ -217,7 +266,9 @@ fn small_batch(seed: u64, n: usize) -> Batch {
     Batch {
         obs_dim: OBS,
         obs: random_obs(&mut rng, n),
-        moves: (0..n * MOVE_DIM).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        moves: (0..n * MOVE_DIM)
+            .map(|_| rng.random_range(-1.0f32..1.0))
+            .collect(),
         sites: (0..n).map(|_| rng.random_range(0..SITES as i64)).collect(),
         logprobs: (0..n).map(|_| rng.random_range(-8.0f32..-4.0)).collect(),
         values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
@@ -268,7 +319,10 @@ fn checkpoint_round_trip_gives_identical_actions_and_optimiser_state() {
         .restore(&device, AdamConfig::new().with_epsilon(1e-5).init())
         .expect("restore");
     let (a2, c2, l2) = model2.to_plain();
-    assert_eq!((a2, c2, l2), (policy.actor.clone(), policy.critic.clone(), policy.log_std));
+    assert_eq!(
+        (a2, c2, l2),
+        (policy.actor.clone(), policy.critic.clone(), policy.log_std)
+    );
     // Same actions, bit for bit, from the exported policy file too.
     let pol = dir.path().join("policy.bin");
     save_policy(&pol, &policy).expect("save policy");

@@ -47,11 +47,23 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    let file = args.pairs.clone().unwrap_or_else(|| cfg.pairs.eval_file.clone());
-    let pairs = read_pairs_jsonl(&file, &planner, &cfg.pairs)
-        .with_context(|| format!("reading pairs {} (make them with `dupac pairs`)", file.display()))?;
+    let file = args
+        .pairs
+        .clone()
+        .unwrap_or_else(|| cfg.pairs.eval_file.clone());
+    let pairs = read_pairs_jsonl(&file, &planner, &cfg.pairs).with_context(|| {
+        format!(
+            "reading pairs {} (make them with `dupac pairs`)",
+            file.display()
+        )
+    })?;
     let p = pairs.get(args.pair).ok_or_else(|| {
-        anyhow!("{}: --pair {} but the file has {} pairs", file.display(), args.pair, pairs.len())
+        anyhow!(
+            "{}: --pair {} but the file has {} pairs",
+            file.display(),
+            args.pair,
+            pairs.len()
+        )
     })?;
     let episode = Episode {
         source_m: p.source_m,
@@ -74,7 +86,9 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     a3_cfg.env.association = Association::A3;
     let mut a3_env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
     let shortest = planner.shortest(p.source_m, p.destination_m)?;
-    let base = fly_waypoints(&mut a3_env, p.id, episode, &shortest.waypoints_m, |e| e.serving())?;
+    let base = fly_waypoints(&mut a3_env, p.id, episode, &shortest.waypoints_m, |e| {
+        e.serving()
+    })?;
     let mut acc = EpisodeAccumulator::default();
     base.steps.iter().for_each(|s| acc.push(s));
     let base_summary = acc.finish(p.id, p.shortest_m, base.outcome);
@@ -97,12 +111,17 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         }
         t
     };
-    let method = if learned { "policy (learned site)" } else { "policy (A3)" };
+    let method = if learned {
+        "policy (learned site)"
+    } else {
+        "policy (A3)"
+    };
     let traces = vec![
         trace(format!("{method} v{}", policy.version), &steps),
         trace("shortest path (A3)".into(), &base.steps),
     ];
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let title = format!(
         "{}: pair {} ({:.0} m shortest), {} → {:?}",
         world.city.name, p.id, p.shortest_m, method, summary.outcome
@@ -118,8 +137,19 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     write_atomic_with(&args.out.join("steps.csv"), |w| {
         let mut c = csv::Writer::from_writer(w);
         c.write_record([
-            "step", "x_m", "y_m", "z_m", "serving", "serving_rsrp_dbm", "best_site", "best_rsrp_dbm", "class", "los",
-            "handover", "distance_flown_m", "reward",
+            "step",
+            "x_m",
+            "y_m",
+            "z_m",
+            "serving",
+            "serving_rsrp_dbm",
+            "best_site",
+            "best_rsrp_dbm",
+            "class",
+            "los",
+            "handover",
+            "distance_flown_m",
+            "reward",
         ])?;
         for s in &steps {
             c.write_record([

@@ -61,15 +61,28 @@ pub fn device(arg: DeviceArg) -> Result<burn::tensor::Device> {
         #[cfg(feature = "cuda")]
         DeviceArg::Cuda => Ok(burn::tensor::Device::cuda(0)),
         #[cfg(feature = "wgpu")]
-        DeviceArg::Wgpu => Ok(burn::tensor::Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
+        DeviceArg::Wgpu => Ok(burn::tensor::Device::wgpu(
+            burn::tensor::DeviceKind::DefaultDevice,
+        )),
         #[allow(unreachable_patterns)]
-        other => bail!("--device {other:?}: this build has no such backend; rebuild with `--features {}`", format!("{other:?}").to_lowercase()),
+        other => bail!(
+            "--device {other:?}: this build has no such backend; rebuild with `--features {}`",
+            format!("{other:?}").to_lowercase()
+        ),
     }
 }
 
-/// The radio world and its RSRP cache (built, or opened when fresh).
-pub fn world_and_cache(cfg: &Config, quiet: bool) -> Result<(Arc<RadioWorld>, Arc<dyn RsrpSource + Send + Sync>)> {
+/// The radio world and its RSRP source: the cache (built, or opened when fresh), or the world
+/// itself with `env.radio_mode = "exact"`.
+pub fn world_and_cache(
+    cfg: &Config,
+    quiet: bool,
+) -> Result<(Arc<RadioWorld>, Arc<dyn RsrpSource + Send + Sync>)> {
     let world = Arc::new(RadioWorld::build(cfg).context("building the radio world")?);
+    if cfg.env.radio_mode == dupac_common::config::RadioMode::Exact {
+        let exact: Arc<dyn RsrpSource + Send + Sync> = world.clone();
+        return Ok((world, exact));
+    }
     let rows = GridSpec::covering(world.city.area_m, &cfg.cache).ny;
     let pb = super::progress_bar(rows as u64, "RSRP cache", quiet);
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
@@ -140,7 +153,14 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let held_out = held_out_pairs(&cfg, &planner, global.quiet)?;
     let eval_set = spread(&held_out, cfg.train.eval_pairs);
     let pb = super::progress_bar(cfg.train.pool_size as u64, "training pairs", global.quiet);
-    let pool = training_pool(&planner, &cfg.pairs, &cfg.env, cfg.train.pool_size, cfg.train.seed, &|n| pb.inc(n));
+    let pool = training_pool(
+        &planner,
+        &cfg.pairs,
+        &cfg.env,
+        cfg.train.pool_size,
+        cfg.train.seed,
+        &|n| pb.inc(n),
+    );
     pb.finish_and_clear();
     if pool.is_empty() {
         bail!("no training pairs could be drawn: the city has no free pairs of pairs.min_m..max_m");
@@ -186,7 +206,8 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         let report = trainer.iteration()?;
         let mut row = report.row;
         let last = trainer.done();
-        let eval_due = cfg.train.eval_every > 0 && trainer.update.is_multiple_of(cfg.train.eval_every);
+        let eval_due =
+            cfg.train.eval_every > 0 && trainer.update.is_multiple_of(cfg.train.eval_every);
         if eval_due || last {
             let eps = trainer.evaluate(&eval_set)?;
             put_domain(&mut row, "eval", &domain_stats(&eps));
@@ -196,7 +217,9 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         pb.set_position(trainer.global_step);
         pb.set_message(format!(
             "ret {:.0} succ {:.0}%",
-            row.get("charts/episodic_return").copied().unwrap_or(f64::NAN),
+            row.get("charts/episodic_return")
+                .copied()
+                .unwrap_or(f64::NAN),
             100.0 * row.get("domain/success_rate").copied().unwrap_or(f64::NAN)
         ));
         rows.push(row.clone());
@@ -237,7 +260,8 @@ fn read_rows(path: &Path) -> Result<Vec<MetricsRow>> {
     if !path.exists() {
         return Ok(Vec::new());
     }
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let mut rows = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
@@ -270,7 +294,10 @@ fn write_csv(path: &Path, rows: &[MetricsRow]) -> Result<()> {
         let mut c = csv::Writer::from_writer(w);
         c.write_record(keys.iter().map(|k| k.as_str()))?;
         for r in rows {
-            c.write_record(keys.iter().map(|k| r.get(*k).map(|v| format!("{v}")).unwrap_or_default()))?;
+            c.write_record(
+                keys.iter()
+                    .map(|k| r.get(*k).map(|v| format!("{v}")).unwrap_or_default()),
+            )?;
         }
         c.flush()
     })
