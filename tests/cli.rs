@@ -455,3 +455,128 @@ fn plan_rejects_an_endpoint_off_the_map() {
         "{err}"
     );
 }
+
+/// `dupac train` on a small procedural city with short pairs: one run, then `--resume` with a
+/// larger budget continues the curve; the policy flies with `dupac fly`.
+#[test]
+fn train_resume_and_fly_on_a_small_city() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("run");
+    let mut common: Vec<String> = small_world_args(dir.path());
+    for kv in [
+        "pairs.min_m=40".to_string(),
+        "pairs.max_m=70".into(),
+        "pairs.eval_bins_m=[50, 60]".into(),
+        "pairs.eval_per_bin=4".into(),
+        "pairs.bin_tolerance=0.1".into(),
+        format!(
+            "pairs.eval_file=\"{}\"",
+            dir.path().join("eval.jsonl").display()
+        ),
+        "train.num_envs=4".into(),
+        "train.num_steps=64".into(),
+        "train.pool_size=50".into(),
+        "train.checkpoint_every=2".into(),
+        "train.eval_every=2".into(),
+        "train.eval_pairs=8".into(),
+        "ppo.num_minibatches=2".into(),
+        "ppo.hidden=[32, 32]".into(),
+    ] {
+        common.push("--set".into());
+        common.push(kv);
+    }
+    let run = |extra: &[&str]| {
+        let mut a: Vec<String> = vec![
+            "train".into(),
+            "-q".into(),
+            "--out".into(),
+            out.display().to_string(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a.extend(common.iter().cloned());
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        dupac(&refs, None)
+    };
+    let first = run(&["--set", "train.total_timesteps=1024"]);
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    for f in [
+        "checkpoint.bin",
+        "policy.bin",
+        "metrics.jsonl",
+        "metrics.csv",
+        "curves.png",
+        "config.toml",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let rows = |p: &std::path::Path| -> Vec<serde_json::Value> {
+        std::fs::read_to_string(p)
+            .expect("metrics")
+            .lines()
+            .map(|l| serde_json::from_str(l).expect("json row"))
+            .collect()
+    };
+    let r1 = rows(&out.join("metrics.jsonl"));
+    assert_eq!(r1.len(), 4, "1024 steps / 256 per update");
+    assert!(r1.iter().all(|r| r["charts/SPS"].as_f64().is_some() && r["losses/approx_kl"].as_f64().is_some()));
+    assert!(
+        r1[3]["eval/success_rate"].as_f64().is_some(),
+        "evaluated at the end"
+    );
+
+    // Starting over on top of a run is refused; --resume continues it.
+    let again = run(&["--set", "train.total_timesteps=1024"]);
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"));
+    let resumed = run(&["--resume", "--set", "train.total_timesteps=2048"]);
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    let r2 = rows(&out.join("metrics.jsonl"));
+    let updates: Vec<i64> = r2
+        .iter()
+        .map(|r| r["update"].as_f64().expect("update") as i64)
+        .collect();
+    assert_eq!(updates, (1..=8).collect::<Vec<_>>(), "the curve continues");
+    let steps: Vec<f64> = r2
+        .iter()
+        .map(|r| r["global_step"].as_f64().expect("step"))
+        .collect();
+    assert_eq!(steps[4], 5.0 * 256.0);
+
+    let fly_out = dir.path().join("fly");
+    let mut a: Vec<String> = vec![
+        "fly".into(),
+        "-q".into(),
+        "--policy".into(),
+        out.join("policy.bin").display().to_string(),
+        "--pair".into(),
+        "1".into(),
+        "--out".into(),
+        fly_out.display().to_string(),
+    ];
+    a.extend(common.iter().cloned());
+    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+    let fly = dupac(&refs, None);
+    assert!(
+        fly.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fly.stderr)
+    );
+    for f in ["fly.png", "steps.csv", "summary.md"] {
+        assert!(fly_out.join(f).exists(), "{f} missing");
+    }
+    assert!(String::from_utf8_lossy(&fly.stdout).contains("shortest path (A3)"));
+
+    // A corrupt checkpoint is a clear error naming the file.
+    std::fs::write(out.join("checkpoint.bin"), b"garbage").expect("write");
+    let bad = run(&["--resume"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("checkpoint.bin"));
+}

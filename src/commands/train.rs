@@ -47,9 +47,12 @@ pub struct TrainArgs {
     /// Output directory (default `train.out_dir`).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Continue from `<out>/checkpoint.bin` (or the given checkpoint file).
-    #[arg(long, value_name = "CHECKPOINT", num_args = 0..=1, default_missing_value = "")]
-    pub resume: Option<PathBuf>,
+    /// Continue the run in `--out` from its `checkpoint.bin` (or from `--checkpoint FILE`).
+    #[arg(long)]
+    pub resume: bool,
+    /// The checkpoint `--resume` starts from (default `<out>/checkpoint.bin`).
+    #[arg(long, value_name = "FILE", requires = "resume")]
+    pub checkpoint: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: DeviceArg,
 }
@@ -127,13 +130,9 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     }
     let out = cfg.train.out_dir.clone();
     let ck_path = out.join("checkpoint.bin");
-    let resume_from = args.resume.as_ref().map(|p| {
-        if p.as_os_str().is_empty() {
-            ck_path.clone()
-        } else {
-            p.clone()
-        }
-    });
+    let resume_from = args
+        .resume
+        .then(|| args.checkpoint.clone().unwrap_or_else(|| ck_path.clone()));
     let checkpoint = match &resume_from {
         Some(p) => Some(load_checkpoint(p).with_context(|| format!("--resume {}", p.display()))?),
         None => None,
@@ -267,8 +266,13 @@ fn read_rows(path: &Path) -> Result<Vec<MetricsRow>> {
         if line.trim().is_empty() {
             continue;
         }
-        match serde_json::from_str::<MetricsRow>(line) {
-            Ok(r) => rows.push(r),
+        // Non-finite values are written as `null` by serde_json (NaN has no JSON form).
+        match serde_json::from_str::<std::collections::BTreeMap<String, Option<f64>>>(line) {
+            Ok(r) => rows.push(
+                r.into_iter()
+                    .map(|(k, v)| (k, v.unwrap_or(f64::NAN)))
+                    .collect(),
+            ),
             // A line cut by a crash is dropped; anything else is an error.
             Err(_) if i + 1 == text.lines().count() => {}
             Err(e) => bail!("{}:{}: {e}", path.display(), i + 1),
