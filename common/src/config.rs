@@ -998,7 +998,7 @@ impl Config {
             return Err(bad("train.num_steps", "must be >= 1"));
         }
         let batch = t.num_envs * t.num_steps;
-        if batch % pp.num_minibatches != 0 || batch < pp.num_minibatches {
+        if !batch.is_multiple_of(pp.num_minibatches) || batch < pp.num_minibatches {
             return Err(bad(
                 "ppo.num_minibatches",
                 format!("must divide the batch train.num_envs × train.num_steps = {batch}"),

@@ -67,8 +67,8 @@ mod tests {
             .map(|t| {
                 let mut sum = 0.0;
                 let mut w = 1.0;
-                for k in t..n {
-                    sum += w * delta[k];
+                for (k, d) in delta.iter().enumerate().skip(t) {
+                    sum += w * d;
                     if tr.terminated[k] || tr.truncated[k] {
                         break;
                     }

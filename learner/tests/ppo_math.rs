@@ -350,6 +350,6 @@ fn corrupt_checkpoint_is_a_clear_error() {
     let e = load_checkpoint(&f).err().expect("must fail").to_string();
     assert!(e.contains("bad.bin"), "{e}");
     std::fs::write(&f, b"not a policy at all").expect("write");
-    let e = load_policy(&f).err().expect("must fail").to_string();
+    let e = load_policy(&f).expect_err("must fail").to_string();
     assert!(e.contains("bad.bin") && e.contains("magic"), "{e}");
 }
