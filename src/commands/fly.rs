@@ -3,9 +3,10 @@
 //! with A3.
 
 use crate::GlobalArgs;
+use crate::commands::plan::{env_rsrp_at, trace_of, write_steps_csv};
 use crate::commands::train::world_and_cache;
-use crate::io::{write_atomic, write_atomic_with};
-use crate::plan_plot::{FlightTrace, render_plan_png};
+use crate::io::write_atomic;
+use crate::plan_plot::render_plan_png;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode, StepInfo};
@@ -94,23 +95,9 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let base_summary = acc.finish(p.id, p.shortest_m, base.outcome);
 
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
-    let trace = |label: String, steps: &[StepInfo]| {
-        let mut all = vec![0.0; world.num_sites()];
-        rsrp.rsrp_all_dbm(p.source_m, &mut all);
-        let r0 = all.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let mut t = FlightTrace {
-            label,
-            points_m: vec![p.source_m],
-            serving_rsrp_dbm: vec![r0],
-            class: vec![thresholds.classify(r0)],
-        };
-        for s in steps {
-            t.points_m.push(s.position_m);
-            t.serving_rsrp_dbm.push(s.serving_rsrp_dbm);
-            t.class.push(s.class);
-        }
-        t
-    };
+    let r0 = env_rsrp_at(rsrp.as_ref(), &world, p.source_m);
+    let trace =
+        |label: String, steps: &[StepInfo]| trace_of(label, p.source_m, r0, thresholds, steps);
     let method = if learned {
         "policy (learned site)"
     } else {
@@ -134,42 +121,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         &title,
         &args.out.join("fly.png"),
     )?;
-    write_atomic_with(&args.out.join("steps.csv"), |w| {
-        let mut c = csv::Writer::from_writer(w);
-        c.write_record([
-            "step",
-            "x_m",
-            "y_m",
-            "z_m",
-            "serving",
-            "serving_rsrp_dbm",
-            "best_site",
-            "best_rsrp_dbm",
-            "class",
-            "los",
-            "handover",
-            "distance_flown_m",
-            "reward",
-        ])?;
-        for s in &steps {
-            c.write_record([
-                s.step.to_string(),
-                format!("{:.3}", s.position_m[0]),
-                format!("{:.3}", s.position_m[1]),
-                format!("{:.3}", s.position_m[2]),
-                s.serving.0.to_string(),
-                format!("{:.3}", s.serving_rsrp_dbm),
-                s.best_site.0.to_string(),
-                format!("{:.3}", s.best_rsrp_dbm),
-                s.class.name().to_string(),
-                u8::from(s.los).to_string(),
-                u8::from(s.handover).to_string(),
-                format!("{:.3}", s.distance_flown_m),
-                format!("{:.5}", s.reward),
-            ])?;
-        }
-        c.flush()
-    })?;
+    write_steps_csv(&args.out.join("steps.csv"), &steps)?;
     let mut md = String::new();
     let _ = writeln!(md, "{title}\n");
     let _ = writeln!(

@@ -6,7 +6,7 @@ use crate::io::{write_atomic, write_atomic_with};
 use crate::plan_plot::{FlightTrace, render_plan_png};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Episode, Outcome};
+use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::pilot::{Flight, fly_waypoints};
 use dupac_actor::planner::Planner;
@@ -160,59 +160,16 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     for (label, plan) in &plans {
         let flight = fly_waypoints(&mut env, 0, episode, &plan.waypoints_m, |e| e.serving())?;
         rows.push(summarise(label, plan.length_m, episode.shortest_m, &flight));
-        let mut points = vec![source];
-        let mut rsrp = vec![env_rsrp_at(cache.as_ref(), &world, source)];
-        let mut class = vec![thresholds.classify(rsrp[0])];
-        for s in &flight.steps {
-            points.push(s.position_m);
-            rsrp.push(s.serving_rsrp_dbm);
-            class.push(s.class);
-        }
+        let start_rsrp = env_rsrp_at(cache.as_ref(), &world, source);
         let file = format!("flight_{}.csv", slug(label));
-        write_atomic_with(&args.out.join(&file), |w| {
-            let mut c = csv::Writer::from_writer(w);
-            c.write_record([
-                "step",
-                "x_m",
-                "y_m",
-                "z_m",
-                "serving",
-                "serving_rsrp_dbm",
-                "best_site",
-                "best_rsrp_dbm",
-                "class",
-                "los",
-                "handover",
-                "ping_pong",
-                "distance_flown_m",
-                "reward",
-            ])?;
-            for s in &flight.steps {
-                c.write_record([
-                    s.step.to_string(),
-                    format!("{:.3}", s.position_m[0]),
-                    format!("{:.3}", s.position_m[1]),
-                    format!("{:.3}", s.position_m[2]),
-                    s.serving.0.to_string(),
-                    format!("{:.3}", s.serving_rsrp_dbm),
-                    s.best_site.0.to_string(),
-                    format!("{:.3}", s.best_rsrp_dbm),
-                    s.class.name().to_string(),
-                    u8::from(s.los).to_string(),
-                    u8::from(s.handover).to_string(),
-                    u8::from(s.ping_pong).to_string(),
-                    format!("{:.3}", s.distance_flown_m),
-                    format!("{:.5}", s.reward),
-                ])?;
-            }
-            c.flush()
-        })?;
-        traces.push(FlightTrace {
-            label: format!("{label} (A3)"),
-            points_m: points,
-            serving_rsrp_dbm: rsrp,
-            class,
-        });
+        write_steps_csv(&args.out.join(&file), &flight.steps)?;
+        traces.push(trace_of(
+            format!("{label} (A3)"),
+            source,
+            start_rsrp,
+            thresholds,
+            &flight.steps,
+        ));
     }
     let title = format!(
         "{}: ({:.0}, {:.0}, {:.0}) → ({:.0}, {:.0}, {:.0}) m, straight {:.0} m, shortest {:.0} m",
@@ -269,7 +226,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn env_rsrp_at(rsrp: &dyn RsrpSource, world: &RadioWorld, p: [f64; 3]) -> f64 {
+pub fn env_rsrp_at(rsrp: &dyn RsrpSource, world: &RadioWorld, p: [f64; 3]) -> f64 {
     let mut all = vec![0.0; world.num_sites()];
     rsrp.rsrp_all_dbm(p, &mut all);
     all.iter().copied().fold(f64::NEG_INFINITY, f64::max)
@@ -290,4 +247,69 @@ fn slug(s: &str) -> String {
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Writes one row per step record (the columns evaluation re-plots from), atomically.
+pub fn write_steps_csv(path: &std::path::Path, steps: &[StepInfo]) -> Result<()> {
+    write_atomic_with(path, |w| {
+        let mut c = csv::Writer::from_writer(w);
+        c.write_record([
+            "step",
+            "x_m",
+            "y_m",
+            "z_m",
+            "serving",
+            "serving_rsrp_dbm",
+            "best_site",
+            "best_rsrp_dbm",
+            "class",
+            "los",
+            "handover",
+            "ping_pong",
+            "distance_flown_m",
+            "reward",
+        ])?;
+        for s in steps {
+            c.write_record([
+                s.step.to_string(),
+                format!("{:.3}", s.position_m[0]),
+                format!("{:.3}", s.position_m[1]),
+                format!("{:.3}", s.position_m[2]),
+                s.serving.0.to_string(),
+                format!("{:.3}", s.serving_rsrp_dbm),
+                s.best_site.0.to_string(),
+                format!("{:.3}", s.best_rsrp_dbm),
+                s.class.name().to_string(),
+                u8::from(s.los).to_string(),
+                u8::from(s.handover).to_string(),
+                u8::from(s.ping_pong).to_string(),
+                format!("{:.3}", s.distance_flown_m),
+                format!("{:.5}", s.reward),
+            ])?;
+        }
+        c.flush()
+    })
+}
+
+/// A plotted trace: the source (with the best RSRP there) followed by every step's position,
+/// serving RSRP and class.
+pub fn trace_of(
+    label: String,
+    source_m: [f64; 3],
+    source_rsrp_dbm: f64,
+    thresholds: RsrpThresholds,
+    steps: &[StepInfo],
+) -> FlightTrace {
+    let mut t = FlightTrace {
+        label,
+        points_m: vec![source_m],
+        serving_rsrp_dbm: vec![source_rsrp_dbm],
+        class: vec![thresholds.classify(source_rsrp_dbm)],
+    };
+    for s in steps {
+        t.points_m.push(s.position_m);
+        t.serving_rsrp_dbm.push(s.serving_rsrp_dbm);
+        t.class.push(s.class);
+    }
+    t
 }
