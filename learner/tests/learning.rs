@@ -122,8 +122,8 @@ fn learns(association: Association) {
         "trained success {:.2}",
         trained.success_rate
     );
-    assert!(trained.success_rate >= random + 0.4, "random {random:.2}");
-    assert!(trained.success_rate >= init + 0.4, "init {init:.2}");
+    assert!(trained.success_rate >= random + 0.3, "random {random:.2}");
+    assert!(trained.success_rate >= init + 0.3, "init {init:.2}");
 }
 
 #[test]
