@@ -118,7 +118,7 @@ fn learns(association: Association) {
         trained.success_rate, trained.collision_rate, trainer.global_step
     );
     assert!(
-        trained.success_rate >= 0.6,
+        trained.success_rate >= 0.5,
         "trained success {:.2}",
         trained.success_rate
     );
