@@ -62,8 +62,17 @@ enum Command {
     Pairs(commands::pairs::PairsArgs),
     /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
     Plan(commands::plan::PlanArgs),
-    /// Train DUPAC (`--association learned`) or the base method (`a3`) with PPO in one process.
+    /// Train DUPAC (`--association learned`) or the base method (`a3`): a learner and actor
+    /// processes over Zenoh on this machine (or `--single-process`).
     Train(commands::train::TrainArgs),
+    /// The PPO learner of a Zenoh run (receives trajectories, publishes weights).
+    Learner(commands::learner::LearnerArgs),
+    /// One actor of a Zenoh run (simulates episodes, publishes trajectories).
+    Actor(commands::actor::ActorArgs),
+    /// Watch a run: versions, throughput per actor, drops, training and domain metrics.
+    Monitor(commands::monitor::MonitorArgs),
+    /// A Zenoh router in this process, for multi-machine runs without `zenohd`.
+    Router(commands::net::RouterArgs),
     /// Fly one pair with a trained policy (deterministic) and plot it beside the shortest path.
     Fly(commands::fly::FlyArgs),
     /// Print the resolved configuration as TOML (defaults + file + --set).
@@ -80,6 +89,10 @@ fn main() -> ExitCode {
         Command::Pairs(a) => commands::pairs::run(&cli.global, a),
         Command::Plan(a) => commands::plan::run(&cli.global, a),
         Command::Train(a) => commands::train::run(&cli.global, a),
+        Command::Learner(a) => commands::learner::run(&cli.global, a),
+        Command::Actor(a) => commands::actor::run(&cli.global, a),
+        Command::Monitor(a) => commands::monitor::run(&cli.global, a),
+        Command::Router(a) => commands::net::run_router(&cli.global, a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Config => cli.global.config().map(|c| {
             print!("{}", c.to_toml_string());

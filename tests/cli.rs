@@ -497,7 +497,7 @@ fn train_resume_and_fly_on_a_small_city() {
         let refs: Vec<&str> = a.iter().map(String::as_str).collect();
         dupac(&refs, None)
     };
-    let first = run(&["--set", "train.total_timesteps=1024"]);
+    let first = run(&["--single-process", "--set", "train.total_timesteps=1024"]);
     assert!(
         first.status.success(),
         "{}",
@@ -529,10 +529,10 @@ fn train_resume_and_fly_on_a_small_city() {
     );
 
     // Starting over on top of a run is refused; --resume continues it.
-    let again = run(&["--set", "train.total_timesteps=1024"]);
+    let again = run(&["--single-process", "--set", "train.total_timesteps=1024"]);
     assert!(!again.status.success());
     assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"));
-    let resumed = run(&["--resume", "--set", "train.total_timesteps=2048"]);
+    let resumed = run(&["--single-process", "--resume", "--set", "train.total_timesteps=2048"]);
     assert!(
         resumed.status.success(),
         "{}",
@@ -576,7 +576,7 @@ fn train_resume_and_fly_on_a_small_city() {
 
     // A corrupt checkpoint is a clear error naming the file.
     std::fs::write(out.join("checkpoint.bin"), b"garbage").expect("write");
-    let bad = run(&["--resume"]);
+    let bad = run(&["--single-process", "--resume"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("checkpoint.bin"));
 }

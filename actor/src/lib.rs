@@ -1,6 +1,7 @@
 //! The actor side of DUPAC: the UAV flight environment (the paper's MDP, spec/env.md), the
 //! planners (shortest flyable path, coverage-aware path) and the episode pairs.
 
+pub mod dist;
 pub mod env;
 pub mod pairs;
 pub mod pilot;

@@ -9,45 +9,12 @@
 use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
 use crate::pairs::Pair;
 use dupac_common::SiteId;
+pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
 use dupac_radio::class::RsrpClass;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 use std::sync::Arc;
-
-/// What one episode amounted to.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct EpisodeSummary {
-    /// Id of the pair in its pool or file.
-    pub pair_id: u64,
-    pub outcome: Outcome,
-    /// Undiscounted sum of the raw rewards.
-    pub episodic_return: f64,
-    pub length: u32,
-    /// Distance flown L (m).
-    pub distance_flown_m: f64,
-    /// Shortest flyable path D of the pair (m).
-    pub shortest_m: f64,
-    /// Distance left to the destination at the end (m).
-    pub remaining_m: f64,
-    /// Mean serving RSRP over the steps (dBm).
-    pub mean_rsrp_dbm: f64,
-    /// Fractions of steps (= flight time) per serving-RSRP class.
-    pub frac_excellent: f64,
-    pub frac_mediocre: f64,
-    pub frac_poor: f64,
-    pub handovers: u32,
-    pub ping_pongs: u32,
-}
-
-impl EpisodeSummary {
-    /// Distance overhead over the shortest path, (L + remaining) / D − 1 (for a successful
-    /// episode remaining ≤ the goal radius).
-    pub fn overhead(&self) -> f64 {
-        (self.distance_flown_m + self.remaining_m) / self.shortest_m - 1.0
-    }
-}
 
 /// Accumulates [`StepInfo`] records into an [`EpisodeSummary`].
 #[derive(Debug, Clone, Default)]
@@ -98,40 +65,6 @@ impl EpisodeAccumulator {
         };
         *self = EpisodeAccumulator::default();
         s
-    }
-}
-
-/// One environment's steps of a rollout, time-ordered: what PPO needs.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct EnvTrajectory {
-    /// Worker (environment stream) index: reward scaling keeps one return per stream.
-    pub env: u32,
-    pub obs_dim: usize,
-    /// Raw (unnormalised) observations `[T × obs_dim]`.
-    pub obs: Vec<f32>,
-    /// Unclipped moves `[T × 3]`.
-    pub moves: Vec<f32>,
-    pub sites: Vec<u32>,
-    pub logprobs: Vec<f32>,
-    pub values: Vec<f32>,
-    /// Raw rewards (scaling is the learner's).
-    pub rewards: Vec<f32>,
-    pub terminated: Vec<bool>,
-    pub truncated: Vec<bool>,
-    /// V(s_{t+1}) of the state each step reached (the final observation when the episode
-    /// ended; meaningless, 0, after a termination).
-    pub next_values: Vec<f32>,
-    /// Episodes that ended during this rollout.
-    pub episodes: Vec<EpisodeSummary>,
-}
-
-impl EnvTrajectory {
-    pub fn len(&self) -> usize {
-        self.rewards.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.rewards.is_empty()
     }
 }
 
@@ -306,6 +239,7 @@ impl Worker {
                 };
             }
         }
+        tr.bootstrap_obs = self.obs.clone();
         Ok(tr)
     }
 }

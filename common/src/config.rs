@@ -38,6 +38,7 @@ pub struct Config {
     pub planner: PlannerConfig,
     pub ppo: PpoConfig,
     pub train: TrainConfig,
+    pub distributed: DistributedConfig,
 }
 
 /// Which kind of city a scenario is built from.
@@ -661,7 +662,107 @@ impl Default for TrainConfig {
     }
 }
 
+/// The Zenoh actor/learner system (`dupac train`, `dupac learner`, `dupac actor`; issue 5).
+/// The learner's batch is still `train.num_envs × train.num_steps` samples, whatever the number
+/// of actors: it is filled with chunks of `actor_envs × chunk_steps` samples.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DistributedConfig {
+    /// Run name: every key expression is `dupac/<run>/…` (letters, digits, `-`, `_`).
+    pub run: String,
+    /// Actor processes `dupac train` starts (0 = one per core).
+    pub actors: usize,
+    /// Environments each actor process steps (on its own threads).
+    pub actor_envs: usize,
+    /// Steps per environment in one trajectory chunk.
+    pub chunk_steps: usize,
+    /// Chunks an actor publishes per policy version before it waits for the next one (0 =
+    /// its share of a learner batch plus one: ⌈train.num_envs × train.num_steps /
+    /// (actor_envs × chunk_steps × actors alive)⌉ + 1).
+    /// Actors faster than the learner would otherwise mostly produce data that is dropped as
+    /// stale, and take the learner's cores to do it.
+    pub max_chunks_per_version: usize,
+    /// Oldest policy accepted: data from version `v − max_policy_lag` or newer trains version
+    /// `v`; older data is dropped and counted (`stale`).
+    pub max_policy_lag: u64,
+    /// Decoupled PPO (Hilton et al. 2021) for data from an older version: the clipped ratio is
+    /// taken against the current (proximal) policy, and the advantage weighted by
+    /// π_prox / π_behaviour, capped at `max_importance_weight`.
+    pub decoupled_correction: bool,
+    pub max_importance_weight: f64,
+    /// Hard cap on any received message (MiB); larger ones are dropped unread.
+    pub max_message_mib: f64,
+    /// Chunks the learner's receive queue holds; when full the oldest is dropped (`overflow`).
+    pub queue_chunks: usize,
+    /// An actor that published nothing for this long is reported silent (s).
+    pub silent_after_s: f64,
+    /// Interval of the stats messages of learner and actors (s).
+    pub stats_every_s: f64,
+}
+
+impl Default for DistributedConfig {
+    fn default() -> Self {
+        Self {
+            run: "default".into(),
+            actors: 0,
+            actor_envs: 4,
+            chunk_steps: 128,
+            max_chunks_per_version: 0,
+            max_policy_lag: 1,
+            decoupled_correction: true,
+            max_importance_weight: 2.0,
+            max_message_mib: 64.0,
+            queue_chunks: 256,
+            silent_after_s: 10.0,
+            stats_every_s: 1.0,
+        }
+    }
+}
+
+impl DistributedConfig {
+    /// [`DistributedConfig::max_chunks_per_version`] resolved for a learner batch of
+    /// `batch_samples` shared by `actors` actors.
+    pub fn chunks_per_version(&self, batch_samples: usize, actors: usize) -> usize {
+        if self.max_chunks_per_version > 0 {
+            return self.max_chunks_per_version;
+        }
+        let per_actor = (self.actor_envs * self.chunk_steps * actors.max(1)).max(1);
+        batch_samples.div_ceil(per_actor) + 1
+    }
+
+    /// The message size cap in bytes.
+    pub fn max_message_bytes(&self) -> usize {
+        (self.max_message_mib * 1024.0 * 1024.0) as usize
+    }
+}
+
 impl Config {
+    /// Identifies everything that makes one process's environment steps and policy shapes
+    /// differ from another's: the radio world (`world_fingerprint`: city, sites, RSRP
+    /// parameters), the radio, cache, environment, pairs and planner sections and the network
+    /// widths. Actors whose fingerprint differs from the learner's are refused (issue 5); the
+    /// PPO hyperparameters, seeds and output paths do not count.
+    pub fn env_fingerprint(&self, world_fingerprint: u64) -> u64 {
+        let mut h = crate::fingerprint::Fnv64::new();
+        h.write_u64(world_fingerprint);
+        // File locations may differ between hosts; only contents count.
+        let mut cache = self.cache.clone();
+        cache.path = PathBuf::new();
+        let mut pairs = self.pairs.clone();
+        pairs.eval_file = PathBuf::new();
+        for part in [
+            serde_json::to_string(&self.radio),
+            serde_json::to_string(&cache),
+            serde_json::to_string(&self.env),
+            serde_json::to_string(&pairs),
+            serde_json::to_string(&self.planner),
+            serde_json::to_string(&self.ppo.hidden),
+        ] {
+            h.write_str(&part.unwrap_or_default());
+        }
+        h.finish()
+    }
+
     /// Parses a TOML string (`origin` names it in errors), applies `--set` overrides, validates.
     pub fn from_toml_str(text: &str, origin: &str, sets: &[String]) -> Result<Config, ConfigError> {
         let mut value: toml::Table = toml::from_str(text).map_err(|e| ConfigError::Parse {
@@ -1010,6 +1111,46 @@ impl Config {
         if t.checkpoint_every == 0 {
             return Err(bad("train.checkpoint_every", "must be >= 1"));
         }
+
+        let d = &self.distributed;
+        if d.run.is_empty()
+            || d.run.len() > 64
+            || !d
+                .run
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(bad(
+                "distributed.run",
+                format!(
+                    "must be 1 to 64 letters, digits, '-' or '_' (it is a key-expression chunk), got {:?}",
+                    d.run
+                ),
+            ));
+        }
+        if d.actors > 1024 {
+            return Err(bad("distributed.actors", "must be in 0..=1024"));
+        }
+        if d.actor_envs == 0 || d.actor_envs > 4096 {
+            return Err(bad("distributed.actor_envs", "must be in 1..=4096"));
+        }
+        if d.chunk_steps == 0 || d.chunk_steps > 65_536 {
+            return Err(bad("distributed.chunk_steps", "must be in 1..=65536"));
+        }
+        if d.max_importance_weight.is_nan() || d.max_importance_weight < 1.0 {
+            return Err(bad("distributed.max_importance_weight", "must be >= 1"));
+        }
+        if !(d.max_message_mib.is_finite()
+            && d.max_message_mib > 0.0
+            && d.max_message_mib <= 1024.0)
+        {
+            return Err(bad("distributed.max_message_mib", "must be in (0, 1024]"));
+        }
+        if d.queue_chunks == 0 {
+            return Err(bad("distributed.queue_chunks", "must be >= 1"));
+        }
+        positive("distributed.silent_after_s", d.silent_after_s)?;
+        positive("distributed.stats_every_s", d.stats_every_s)?;
         Ok(())
     }
 }

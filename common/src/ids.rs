@@ -27,3 +27,23 @@ impl fmt::Display for SiteId {
         write!(f, "gbs{}", self.0)
     }
 }
+
+/// Identifies one actor process within a run (`--id`; the key `dupac/<run>/traj/<id>`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ActorId(pub u32);
+
+impl ActorId {
+    /// The id the learner uses in the headers of its own messages.
+    pub const LEARNER: ActorId = ActorId(u32::MAX);
+}
+
+impl fmt::Display for ActorId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if *self == ActorId::LEARNER {
+            f.write_str("learner")
+        } else {
+            write!(f, "{}", self.0)
+        }
+    }
+}

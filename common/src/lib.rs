@@ -1,5 +1,5 @@
-//! The contract shared by every DUPAC process: typed ids, the one TOML configuration, and
-//! (in later issues) key expressions, messages, codec and the observation layout.
+//! The contract shared by every DUPAC process: typed ids, the one TOML configuration, key
+//! expressions, messages and their codec, the exported policy and the observation layout.
 //!
 //! Units are in names (`_m`, `_dbm`, `_deg`, `_ghz`) and the frame is east-north-up metres with
 //! the origin at the scenario centre (x east, y north, z up = height above flat ground).
@@ -8,8 +8,11 @@ pub mod codec;
 pub mod config;
 pub mod fingerprint;
 pub mod ids;
+pub mod keys;
+pub mod msg;
+pub mod net;
 pub mod obs;
 pub mod policy;
 
 pub use config::{Config, ConfigError};
-pub use ids::SiteId;
+pub use ids::{ActorId, SiteId};

@@ -418,6 +418,20 @@ impl PolicyWeights {
         lp as f32
     }
 
+    /// log π(move, site | s) of a raw observation under these weights (the learner's proximal
+    /// policy for data acted with an older version).
+    pub fn logprob(
+        &self,
+        raw_obs: &[f32],
+        move_raw: &[f32; MOVE_DIM],
+        site: u32,
+        s: &mut Scratch,
+    ) -> f32 {
+        let (head, _) = self.heads(raw_obs, s);
+        let site = (site as usize).min(self.n_sites.saturating_sub(1));
+        self.logprob_of(head, move_raw, site)
+    }
+
     /// Actor head (means then logits) and value of a raw observation (for tests and tools).
     pub fn forward(&self, raw_obs: &[f32], s: &mut Scratch) -> (Vec<f32>, f32) {
         let (h, v) = self.heads(raw_obs, s);

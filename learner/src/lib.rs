@@ -3,6 +3,7 @@
 //! came from; the distributed learner (issue 5) wraps the same update.
 
 pub mod checkpoint;
+pub mod dist;
 pub mod gae;
 pub mod model;
 pub mod ppo;

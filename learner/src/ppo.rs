@@ -31,6 +31,10 @@ pub struct Batch {
     pub values: Vec<f32>,
     pub advantages: Vec<f32>,
     pub returns: Vec<f32>,
+    /// Decoupled-PPO importance weights π_prox / π_behaviour `[len]` (Hilton et al. 2021),
+    /// applied to the normalised advantages; empty means all 1 (on-policy data, where
+    /// `logprobs` are the behaviour policy's).
+    pub is_weights: Vec<f32>,
 }
 
 impl Batch {
@@ -222,6 +226,12 @@ impl Ppo {
                     let sd = var.sqrt() + 1e-8;
                     adv.iter_mut()
                         .for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
+                }
+                // w · min(ρA, clip(ρ)A) = min(ρ(wA), clip(ρ)(wA)) for w ≥ 0.
+                if !batch.is_weights.is_empty() {
+                    for (a, &i) in adv.iter_mut().zip(idx) {
+                        *a *= batch.is_weights[i];
+                    }
                 }
                 let obs = Tensor::<2>::from_data(TensorData::new(obs, [b, d]), &self.device);
                 let moves =

@@ -1,7 +1,11 @@
 //! The synchronous training loop (issue 4): vectorised environments stepped on worker threads
 //! with the exported policy, reward scaling and GAE, the PPO update, observation statistics,
-//! metrics, evaluation and checkpoints. The distributed learner (issue 5) replaces only where the
-//! trajectories come from.
+//! metrics, evaluation and checkpoints.
+//!
+//! [`Learner`] is the part that does not care where trajectories come from: reward scaling, GAE,
+//! the decoupled-PPO correction for older data, the update, the normalisers, counters, metrics
+//! and checkpoints. [`Trainer`] adds environments stepped on worker threads (one process);
+//! `crate::dist` feeds the same [`Learner`] with chunks received over Zenoh (issue 5).
 //!
 //! Determinism: the network init, every worker's RNG and the minibatch shuffles derive from
 //! `train.seed` and the update index, so one seed reproduces a run bit for bit in one process
@@ -18,8 +22,9 @@ use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::{
     EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed,
 };
+use dupac_common::ActorId;
 use dupac_common::config::{Association, Config};
-use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler};
+use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rand::SeedableRng;
@@ -137,16 +142,31 @@ pub struct IterationReport {
     pub row: MetricsRow,
 }
 
-/// The learner with its environments.
-pub struct Trainer {
+/// One environment's trajectory handed to [`Learner::learn`], with where it came from.
+#[derive(Debug, Clone, Copy)]
+pub struct Segment<'a> {
+    /// The actor process (the synchronous trainer is actor 0).
+    pub actor: ActorId,
+    /// Version of the policy that acted.
+    pub behaviour_version: u64,
+    pub traj: &'a EnvTrajectory,
+}
+
+/// Extra timings of one iteration, reported as `time/*` metrics (s).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Timings {
+    /// Collecting the batch: rollout (one process) or waiting for chunks (distributed).
+    pub collect_s: f64,
+}
+
+/// PPO with its normalisers and counters, fed with trajectories from anywhere.
+pub struct Learner {
     pub cfg: Config,
-    world: Arc<RadioWorld>,
-    rsrp: Arc<dyn RsrpSource + Send + Sync>,
     ppo: Ppo,
     obs_norm: ObsNormalizer,
     reward_scaler: RewardScaler,
-    return_acc: Vec<f64>,
-    workers: Vec<Worker>,
+    /// Running discounted return per (actor, environment) for reward scaling.
+    return_acc: BTreeMap<(ActorId, u32), f64>,
     n_sites: usize,
     obs_dim: usize,
     pub update: u64,
@@ -154,29 +174,32 @@ pub struct Trainer {
     pub episodes: u64,
     pub train_seconds: f64,
     recent: VecDeque<EpisodeSummary>,
+    /// Samples trained with the decoupled correction (acted with an older version) so far.
+    pub off_policy_samples: u64,
 }
 
 /// Episodes kept for the rolling training metrics.
 const RECENT_EPISODES: usize = 100;
 
-impl Trainer {
-    /// A fresh run: networks initialised from `train.seed`, one worker per `train.num_envs`
-    /// drawing from `pool`.
+/// Observation length and site logits of the policy for `cfg`.
+pub fn policy_shape(cfg: &Config, probe: &Env) -> (usize, usize) {
+    let n_sites = match cfg.env.association {
+        Association::Learned => probe.num_sites(),
+        Association::A3 | Association::BestRsrp => 0,
+    };
+    (probe.layout().len(), n_sites)
+}
+
+impl Learner {
+    /// Fresh networks initialised from `train.seed`.
     pub fn new(
         cfg: Config,
-        world: Arc<RadioWorld>,
-        rsrp: Arc<dyn RsrpSource + Send + Sync>,
-        pool: Arc<Vec<Pair>>,
+        obs_dim: usize,
+        n_sites: usize,
         device: &burn::tensor::Device,
-    ) -> Result<Trainer, TrainError> {
+    ) -> Learner {
         // Parameters live on the autodiff decoration of the chosen device.
         let device = &device.clone().autodiff();
-        let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
-        let obs_dim = probe.layout().len();
-        let n_sites = match cfg.env.association {
-            Association::Learned => probe.num_sites(),
-            Association::A3 | Association::BestRsrp => 0,
-        };
         let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(cfg.train.seed, u64::MAX - 1, 0));
         let pp = &cfg.ppo;
         let actor = init_plain(obs_dim, &pp.hidden, MOVE_DIM + n_sites, 0.01, &mut rng);
@@ -184,12 +207,10 @@ impl Trainer {
         let log_std = [pp.init_log_std as f32; MOVE_DIM];
         let model = ActorCritic::from_plain(&actor, &critic, log_std, device);
         let ppo = Ppo::new(pp.clone(), model, device.clone());
-        let workers = make_workers(&cfg, &world, &rsrp, &pool)?;
-        Ok(Trainer {
+        Learner {
             obs_norm: ObsNormalizer::new(obs_dim, pp.normalize_obs, pp.obs_clip),
             reward_scaler: RewardScaler::new(pp.normalize_reward, pp.gamma, pp.reward_clip),
-            return_acc: vec![0.0; cfg.train.num_envs],
-            workers,
+            return_acc: BTreeMap::new(),
             n_sites,
             obs_dim,
             ppo,
@@ -198,47 +219,45 @@ impl Trainer {
             episodes: 0,
             train_seconds: 0.0,
             recent: VecDeque::new(),
+            off_policy_samples: 0,
             cfg,
-            world,
-            rsrp,
-        })
+        }
     }
 
-    /// Continues a run from a checkpoint (its counters, normalisers, model and Adam state);
-    /// `cfg` may raise `train.total_timesteps`.
-    pub fn resume(
-        cfg: Config,
-        world: Arc<RadioWorld>,
-        rsrp: Arc<dyn RsrpSource + Send + Sync>,
-        pool: Arc<Vec<Pair>>,
+    /// Takes over a checkpoint's model, Adam state, normalisers and counters.
+    pub fn restore(
+        &mut self,
         device: &burn::tensor::Device,
         ck: &LoadedCheckpoint,
-    ) -> Result<Trainer, TrainError> {
-        let mut t = Trainer::new(cfg, world, rsrp, pool, device)?;
+    ) -> Result<(), TrainError> {
         let device = &device.clone().autodiff();
         let p = &ck.meta.policy;
-        if p.obs_dim != t.obs_dim || p.n_sites != t.n_sites {
+        if p.obs_dim != self.obs_dim || p.n_sites != self.n_sites {
             return Err(TrainError::Invalid(format!(
                 "checkpoint policy has {} observations and {} site logits; this configuration gives {} and {}",
-                p.obs_dim, p.n_sites, t.obs_dim, t.n_sites
+                p.obs_dim, p.n_sites, self.obs_dim, self.n_sites
             )));
         }
         let optim = burn::optim::AdamConfig::new()
-            .with_epsilon(t.cfg.ppo.adam_eps as f32)
+            .with_epsilon(self.cfg.ppo.adam_eps as f32)
             .init();
         let (model, optim) = ck.restore(device, optim)?;
-        t.ppo.model = model;
-        t.ppo.optim = optim;
-        t.obs_norm = p.obs_norm.clone();
-        t.reward_scaler = p.reward_scaler.clone();
-        if ck.meta.return_acc.len() == t.return_acc.len() {
-            t.return_acc = ck.meta.return_acc.clone();
-        }
-        t.update = ck.meta.update;
-        t.global_step = ck.meta.global_step;
-        t.episodes = ck.meta.episodes;
-        t.train_seconds = ck.meta.train_seconds;
-        Ok(t)
+        self.ppo.model = model;
+        self.ppo.optim = optim;
+        self.obs_norm = p.obs_norm.clone();
+        self.reward_scaler = p.reward_scaler.clone();
+        self.return_acc = ck
+            .meta
+            .return_acc
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| ((ActorId(0), k as u32), v))
+            .collect();
+        self.update = ck.meta.update;
+        self.global_step = ck.meta.global_step;
+        self.episodes = ck.meta.episodes;
+        self.train_seconds = ck.meta.train_seconds;
+        Ok(())
     }
 
     /// Samples per update (num_envs × num_steps).
@@ -253,6 +272,14 @@ impl Trainer {
 
     pub fn done(&self) -> bool {
         self.update >= self.num_updates()
+    }
+
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    pub fn n_sites(&self) -> usize {
+        self.n_sites
     }
 
     /// The current policy, exported (weights, log-std, normalisers, version).
@@ -270,24 +297,18 @@ impl Trainer {
         }
     }
 
-    /// One rollout of every worker and one PPO update.
-    pub fn iteration(&mut self) -> Result<IterationReport, TrainError> {
+    /// One PPO update on `segments`; `policy` is [`Learner::policy`] (the current version,
+    /// the proximal policy of the decoupled correction).
+    pub fn learn(
+        &mut self,
+        policy: &PolicyWeights,
+        segments: &[Segment<'_>],
+        timings: Timings,
+    ) -> IterationReport {
         let t0 = Instant::now();
-        let policy = self.policy();
-        let (seed, update) = (self.cfg.train.seed, self.update);
-        let steps = self.cfg.train.num_steps;
-        for (k, w) in self.workers.iter_mut().enumerate() {
-            w.reseed(stream_seed(seed, k as u64, update));
-        }
-        let trajs: Vec<EnvTrajectory> = self
-            .workers
-            .par_iter_mut()
-            .map(|w| w.collect(&policy, steps))
-            .collect::<Result<_, _>>()?;
-        let rollout_s = t0.elapsed().as_secs_f64();
-        let batch = self.assemble(&policy, &trajs);
-        for tr in &trajs {
-            for e in &tr.episodes {
+        let batch = self.assemble(policy, segments);
+        for seg in segments {
+            for e in &seg.traj.episodes {
                 self.recent.push_back(e.clone());
                 if self.recent.len() > RECENT_EPISODES {
                     self.recent.pop_front();
@@ -297,23 +318,24 @@ impl Trainer {
         }
         // The next policy's observation statistics include this batch.
         if self.obs_norm.enabled {
-            for tr in &trajs {
-                self.obs_norm.stats.update(&tr.obs);
+            for seg in segments {
+                self.obs_norm.stats.update(&seg.traj.obs);
             }
         }
         let frac = 1.0 - self.update as f64 / self.num_updates() as f64;
         let lr = if self.cfg.ppo.anneal_lr {
-            frac * self.cfg.ppo.learning_rate
+            frac.max(0.0) * self.cfg.ppo.learning_rate
         } else {
             self.cfg.ppo.learning_rate
         };
-        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, u64::MAX, update));
+        let mut rng =
+            ChaCha8Rng::seed_from_u64(stream_seed(self.cfg.train.seed, u64::MAX, self.update));
         let t1 = Instant::now();
         let stats = self.ppo.update(&batch, lr, &mut rng);
         let update_s = t1.elapsed().as_secs_f64();
         self.update += 1;
         self.global_step += batch.len() as u64;
-        let elapsed = t0.elapsed().as_secs_f64();
+        let elapsed = timings.collect_s + t0.elapsed().as_secs_f64();
         self.train_seconds += elapsed;
 
         let mut row = MetricsRow::new();
@@ -324,9 +346,18 @@ impl Trainer {
         put("update", self.update as f64);
         put("time_s", self.train_seconds);
         put("charts/SPS", batch.len() as f64 / elapsed);
-        put("charts/rollout_s", rollout_s);
+        put("charts/rollout_s", timings.collect_s);
         put("charts/update_s", update_s);
         put("charts/learning_rate", lr);
+        let older: usize = segments
+            .iter()
+            .filter(|s| s.behaviour_version != policy.version)
+            .map(|s| s.traj.len())
+            .sum();
+        put(
+            "charts/older_policy_frac",
+            older as f64 / batch.len().max(1) as f64,
+        );
         put("losses/policy_loss", stats.policy_loss);
         put("losses/value_loss", stats.value_loss);
         put("losses/entropy", stats.entropy);
@@ -343,20 +374,21 @@ impl Trainer {
         put("charts/episodic_return", d.episodic_return);
         put("charts/episodic_length", d.episodic_length);
         put_domain(&mut row, "domain", &d);
-        Ok(IterationReport { stats, row })
+        IterationReport { stats, row }
     }
 
     /// Reward scaling per stream, GAE per stream, observations normalised with the statistics
-    /// the acting policy used, flattened.
-    fn assemble(&mut self, policy: &PolicyWeights, trajs: &[EnvTrajectory]) -> Batch {
+    /// of `policy`, the decoupled correction for segments acted with an older version,
+    /// flattened.
+    fn assemble(&mut self, policy: &PolicyWeights, segments: &[Segment<'_>]) -> Batch {
         let (gamma, lambda) = (self.cfg.ppo.gamma, self.cfg.ppo.gae_lambda);
+        let dist = &self.cfg.distributed;
         // Discounted returns per stream update the reward scaler first (CleanRL's wrapper does
         // this step by step; here per batch, in the same order).
-        let mut scaled: Vec<Vec<f32>> = Vec::with_capacity(trajs.len());
         let mut returns_seen = Vec::new();
-        for tr in trajs {
-            let n_acc = self.return_acc.len();
-            let acc = &mut self.return_acc[tr.env as usize % n_acc];
+        for seg in segments {
+            let tr = seg.traj;
+            let acc = self.return_acc.entry((seg.actor, tr.env)).or_insert(0.0);
             for t in 0..tr.len() {
                 *acc = *acc * gamma + f64::from(tr.rewards[t]);
                 returns_seen.push(*acc);
@@ -368,52 +400,79 @@ impl Trainer {
         if self.reward_scaler.enabled {
             self.reward_scaler.stats.update(&returns_seen);
         }
-        for tr in trajs {
-            scaled.push(
-                tr.rewards
-                    .iter()
-                    .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32)
-                    .collect(),
-            );
-        }
         let mut batch = Batch {
             obs_dim: self.obs_dim,
             ..Batch::default()
         };
         let mut norm = vec![0.0f32; self.obs_dim];
-        for (tr, rewards) in trajs.iter().zip(&scaled) {
+        let mut scratch = Scratch::default();
+        let mut any_off_policy = false;
+        for seg in segments {
+            let tr = seg.traj;
+            let n = tr.len();
+            let rewards: Vec<f32> = tr
+                .rewards
+                .iter()
+                .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32)
+                .collect();
+            // The last step's bootstrap, re-evaluated with the current critic (identical for
+            // data of the current version; better for older data).
+            let mut next_values = tr.next_values.clone();
+            if n > 0
+                && !tr.terminated[n - 1]
+                && !tr.truncated[n - 1]
+                && tr.bootstrap_obs.len() == self.obs_dim
+            {
+                next_values[n - 1] = policy.value(&tr.bootstrap_obs, &mut scratch);
+            }
             let (adv, ret) = gae(
                 Trajectory {
-                    rewards,
+                    rewards: &rewards,
                     values: &tr.values,
-                    next_values: &tr.next_values,
+                    next_values: &next_values,
                     terminated: &tr.terminated,
                     truncated: &tr.truncated,
                 },
                 gamma,
                 lambda,
             );
-            for row in tr.obs.chunks_exact(self.obs_dim) {
+            let off_policy = seg.behaviour_version != policy.version && dist.decoupled_correction;
+            for (t, row) in tr.obs.chunks_exact(self.obs_dim).enumerate() {
                 policy.obs_norm.apply(row, &mut norm);
                 batch.obs.extend_from_slice(&norm);
+                if off_policy {
+                    let mut m = [0.0f32; MOVE_DIM];
+                    m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
+                    let prox = policy.logprob(row, &m, tr.sites[t], &mut scratch);
+                    let w = (f64::from(prox) - f64::from(tr.logprobs[t]))
+                        .exp()
+                        .min(dist.max_importance_weight);
+                    batch.logprobs.push(prox);
+                    batch.is_weights.push(w as f32);
+                } else {
+                    batch.logprobs.push(tr.logprobs[t]);
+                    batch.is_weights.push(1.0);
+                }
+            }
+            if off_policy {
+                any_off_policy = true;
+                self.off_policy_samples += n as u64;
             }
             batch.moves.extend_from_slice(&tr.moves);
             batch.sites.extend(tr.sites.iter().map(|&s| i64::from(s)));
-            batch.logprobs.extend_from_slice(&tr.logprobs);
             batch.values.extend_from_slice(&tr.values);
             batch.advantages.extend(adv);
             batch.returns.extend(ret);
         }
+        if !any_off_policy {
+            batch.is_weights.clear();
+        }
         batch
-    }
-
-    /// Flies `pairs` with the current deterministic policy.
-    pub fn evaluate(&self, pairs: &[Pair]) -> Result<Vec<EpisodeSummary>, TrainError> {
-        evaluate(&self.cfg, &self.world, &self.rsrp, &self.policy(), pairs)
     }
 
     /// Writes a checkpoint atomically.
     pub fn save(&self, path: &Path) -> Result<(), TrainError> {
+        let n = self.cfg.train.num_envs as u32;
         let meta = CheckpointMeta {
             seed: self.cfg.train.seed,
             update: self.update,
@@ -422,7 +481,14 @@ impl Trainer {
             train_seconds: self.train_seconds,
             config_toml: self.cfg.to_toml_string(),
             policy: self.policy(),
-            return_acc: self.return_acc.clone(),
+            return_acc: (0..n)
+                .map(|k| {
+                    self.return_acc
+                        .get(&(ActorId(0), k))
+                        .copied()
+                        .unwrap_or(0.0)
+                })
+                .collect(),
         };
         save_checkpoint(path, &meta, &self.ppo.model, &self.ppo.optim)?;
         Ok(())
@@ -430,6 +496,97 @@ impl Trainer {
 
     pub fn model(&self) -> &ActorCritic {
         &self.ppo.model
+    }
+}
+
+/// The learner with its environments, in one process.
+pub struct Trainer {
+    pub learner: Learner,
+    world: Arc<RadioWorld>,
+    rsrp: Arc<dyn RsrpSource + Send + Sync>,
+    workers: Vec<Worker>,
+}
+
+impl std::ops::Deref for Trainer {
+    type Target = Learner;
+    fn deref(&self) -> &Learner {
+        &self.learner
+    }
+}
+
+impl Trainer {
+    /// A fresh run: networks initialised from `train.seed`, one worker per `train.num_envs`
+    /// drawing from `pool`.
+    pub fn new(
+        cfg: Config,
+        world: Arc<RadioWorld>,
+        rsrp: Arc<dyn RsrpSource + Send + Sync>,
+        pool: Arc<Vec<Pair>>,
+        device: &burn::tensor::Device,
+    ) -> Result<Trainer, TrainError> {
+        let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
+        let (obs_dim, n_sites) = policy_shape(&cfg, &probe);
+        let workers = make_workers(&cfg, &world, &rsrp, &pool)?;
+        Ok(Trainer {
+            learner: Learner::new(cfg, obs_dim, n_sites, device),
+            world,
+            rsrp,
+            workers,
+        })
+    }
+
+    /// Continues a run from a checkpoint (its counters, normalisers, model and Adam state);
+    /// `cfg` may raise `train.total_timesteps`.
+    pub fn resume(
+        cfg: Config,
+        world: Arc<RadioWorld>,
+        rsrp: Arc<dyn RsrpSource + Send + Sync>,
+        pool: Arc<Vec<Pair>>,
+        device: &burn::tensor::Device,
+        ck: &LoadedCheckpoint,
+    ) -> Result<Trainer, TrainError> {
+        let mut t = Trainer::new(cfg, world, rsrp, pool, device)?;
+        t.learner.restore(device, ck)?;
+        Ok(t)
+    }
+
+    /// One rollout of every worker and one PPO update.
+    pub fn iteration(&mut self) -> Result<IterationReport, TrainError> {
+        let t0 = Instant::now();
+        let policy = self.learner.policy();
+        let (seed, update) = (self.learner.cfg.train.seed, self.learner.update);
+        let steps = self.learner.cfg.train.num_steps;
+        for (k, w) in self.workers.iter_mut().enumerate() {
+            w.reseed(stream_seed(seed, k as u64, update));
+        }
+        let trajs: Vec<EnvTrajectory> = self
+            .workers
+            .par_iter_mut()
+            .map(|w| w.collect(&policy, steps))
+            .collect::<Result<_, _>>()?;
+        let collect_s = t0.elapsed().as_secs_f64();
+        let segments: Vec<Segment<'_>> = trajs
+            .iter()
+            .map(|traj| Segment {
+                actor: ActorId(0),
+                behaviour_version: policy.version,
+                traj,
+            })
+            .collect();
+        Ok(self
+            .learner
+            .learn(&policy, &segments, Timings { collect_s }))
+    }
+
+    /// Flies `pairs` with the current deterministic policy.
+    pub fn evaluate(&self, pairs: &[Pair]) -> Result<Vec<EpisodeSummary>, TrainError> {
+        evaluate(
+            &self.learner.cfg,
+            &self.world,
+            &self.rsrp,
+            &self.learner.policy(),
+            pairs,
+        )
     }
 }
 

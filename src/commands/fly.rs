@@ -9,23 +9,39 @@ use crate::io::write_atomic;
 use crate::plan_plot::render_plan_png;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Episode, StepInfo};
+use dupac_actor::dist::Follower;
+use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
-use dupac_actor::rollout::{EpisodeAccumulator, fly_policy};
+use dupac_actor::rollout::{EpisodeAccumulator, EpisodeSummary, fly_policy};
+use dupac_common::SiteId;
 use dupac_common::config::Association;
+use dupac_common::policy::Scratch;
 use dupac_learner::checkpoint::load_policy;
 use dupac_radio::class::RsrpThresholds;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 
 #[derive(Args, Debug)]
 pub struct FlyArgs {
     /// Exported policy (`policy.bin`) or checkpoint (`checkpoint.bin`) of `dupac train`.
-    #[arg(long, value_name = "FILE")]
-    pub policy: PathBuf,
+    #[arg(long, value_name = "FILE", required_unless_present = "follow")]
+    pub policy: Option<PathBuf>,
+    /// Fly with the live weights of a running learner (`distributed.run`), swapping to each
+    /// new version at a step boundary; `steps.csv` records the version used at every step.
+    #[arg(long)]
+    pub follow: bool,
+    /// With `--follow`: `learned` (DUPAC) or `a3` (base method), as the learner trains.
+    #[arg(long, value_enum, requires = "follow")]
+    pub association: Option<super::train::AssociationArg>,
+    /// With `--follow`: wall-clock pause after each step (ms), to watch versions change.
+    #[arg(long, default_value_t = 0, requires = "follow")]
+    pub step_ms: u64,
+    #[command(flatten)]
+    pub net: super::net::ConnectArgs,
     /// A pairs file (default `pairs.eval_file`).
     #[arg(long, value_name = "FILE")]
     pub pairs: Option<PathBuf>,
@@ -38,14 +54,47 @@ pub struct FlyArgs {
 }
 
 pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
-    let mut cfg = global.config()?;
-    let policy = load_policy(&args.policy)?;
+    let mut cfg = super::train::resolve_config(global, args.association, None)?;
+    let mut follower = None;
+    let policy = match &args.policy {
+        Some(path) if !args.follow => load_policy(path)?,
+        _ => {
+            let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+            let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
+            let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
+            let stop = super::net::stop_flag()?;
+            let session = args.net.open_retrying(&stop)?;
+            let mut f = Follower::new(
+                session,
+                &cfg,
+                cfg.env_fingerprint(world.fingerprint()),
+                obs_dim,
+                n_sites,
+            )?;
+            let p = f.initial(Duration::from_secs(30))?.ok_or_else(|| {
+                anyhow!(
+                    "--follow: no learner of run {:?} answered within 30 s",
+                    cfg.distributed.run
+                )
+            })?;
+            eprintln!(
+                "following run {:?} from version {}",
+                cfg.distributed.run, p.version
+            );
+            follower = Some(f);
+            p
+        }
+    };
     let learned = policy.n_sites > 0;
     cfg.env.association = if learned {
         Association::Learned
     } else {
         Association::A3
     };
+    let policy_name = args.policy.as_ref().map_or_else(
+        || "the followed weights".to_string(),
+        |p| p.display().to_string(),
+    );
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
     let file = args
@@ -75,12 +124,19 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     if env.layout().len() != policy.obs_dim {
         bail!(
             "{}: the policy expects {} observations, this configuration gives {}",
-            args.policy.display(),
+            policy_name,
             policy.obs_dim,
             env.layout().len()
         );
     }
-    let (summary, steps) = fly_policy(&mut env, &policy, p.id, episode, p.id)?;
+    let (summary, steps, versions) = match &mut follower {
+        None => {
+            let (summary, steps) = fly_policy(&mut env, &policy, p.id, episode, p.id)?;
+            let versions = vec![policy.version; steps.len()];
+            (summary, steps, versions)
+        }
+        Some(f) => fly_following(&mut env, policy.clone(), f, p.id, episode, args.step_ms)?,
+    };
 
     // The shortest flyable path flown with A3, for comparison.
     let mut a3_cfg = cfg.clone();
@@ -122,6 +178,12 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         &args.out.join("fly.png"),
     )?;
     write_steps_csv(&args.out.join("steps.csv"), &steps)?;
+    let mut vcsv = String::from("step,policy_version\n");
+    for (s, v) in steps.iter().zip(&versions) {
+        let _ = writeln!(vcsv, "{},{v}", s.step);
+    }
+    write_atomic(&args.out.join("versions.csv"), vcsv.as_bytes())?;
+    let distinct: std::collections::BTreeSet<u64> = versions.iter().copied().collect();
     let mut md = String::new();
     let _ = writeln!(md, "{title}\n");
     let _ = writeln!(
@@ -144,8 +206,63 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
             s.episodic_return
         );
     }
+    if follower.is_some() {
+        let _ = writeln!(
+            md,
+            "\npolicy versions used: {} ({} swaps mid-flight; per step in versions.csv)",
+            distinct
+                .iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            versions.windows(2).filter(|w| w[0] != w[1]).count()
+        );
+    }
     write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");
     eprintln!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)
+}
+
+/// Flies one episode deterministically with live weights: before every step the newest
+/// version (if any arrived) replaces the one in use. Returns the version used at each step.
+fn fly_following(
+    env: &mut Env,
+    mut policy: dupac_common::policy::PolicyWeights,
+    follower: &mut Follower,
+    pair_id: u64,
+    episode: Episode,
+    step_ms: u64,
+) -> Result<(EpisodeSummary, Vec<StepInfo>, Vec<u64>)> {
+    let mut scratch = Scratch::default();
+    let mut obs = env.reset(pair_id, episode)?.to_vec();
+    let mut acc = EpisodeAccumulator::default();
+    let (mut steps, mut versions) = (Vec::new(), Vec::new());
+    loop {
+        if let Some(p) = follower.newer()? {
+            eprintln!("step {}: swapped to version {}", steps.len() + 1, p.version);
+            policy = p;
+        }
+        let a = policy.act_deterministic(&obs, &mut scratch);
+        let step = env.step(&Action {
+            move_: a.move_raw.map(f64::from),
+            site: SiteId(a.site as u16),
+        })?;
+        acc.push(&step.info);
+        steps.push(step.info);
+        versions.push(policy.version);
+        if step.terminated || step.truncated {
+            let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
+            return Ok((
+                acc.finish(pair_id, episode.shortest_m, outcome),
+                steps,
+                versions,
+            ));
+        }
+        obs.clear();
+        obs.extend_from_slice(env.observation());
+        if step_ms > 0 {
+            std::thread::sleep(Duration::from_millis(step_ms));
+        }
+    }
 }

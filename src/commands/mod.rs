@@ -1,8 +1,13 @@
 //! One module per subcommand.
 
+pub mod actor;
 pub mod cache;
 pub mod fly;
+pub mod learner;
 pub mod map;
+pub mod monitor;
+pub mod net;
+pub mod orchestrate;
 pub mod pairs;
 pub mod plan;
 pub mod radio;

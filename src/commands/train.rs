@@ -1,6 +1,8 @@
-//! `dupac train`: PPO in one process (issue 4): vectorised environments on worker threads, the
-//! burn update, metrics (JSONL + CSV + learning-curve PNG), periodic held-out evaluation,
-//! atomic checkpoints, `--resume`.
+//! `dupac train`: by default a learner and actor processes over Zenoh on this machine
+//! (`commands::orchestrate`, issue 5); with `--single-process`, PPO in one process (issue 4):
+//! vectorised environments on worker threads, the burn update. Both write the same run
+//! directory (metrics JSONL + CSV + learning-curve PNG, periodic held-out evaluation, atomic
+//! checkpoints, `--resume`), with the helpers here.
 
 use crate::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};
@@ -10,8 +12,8 @@ use dupac_actor::pairs::{Pair, eval_pairs, read_pairs_jsonl, training_pool, writ
 use dupac_actor::planner::Planner;
 use dupac_common::Config;
 use dupac_common::config::Association;
-use dupac_learner::checkpoint::{load_checkpoint, save_policy};
-use dupac_learner::train::{MetricsRow, Trainer, domain_stats, put_domain};
+use dupac_learner::checkpoint::{LoadedCheckpoint, load_checkpoint, save_policy};
+use dupac_learner::train::{Learner, MetricsRow, Trainer, domain_stats, put_domain};
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
 use dupac_radio::world::RadioWorld;
 use std::io::Write as _;
@@ -55,6 +57,13 @@ pub struct TrainArgs {
     pub checkpoint: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: DeviceArg,
+    /// Actor processes to start (default `distributed.actors`; 0 there = one per core).
+    #[arg(long, value_name = "N")]
+    pub actors: Option<usize>,
+    /// Train in this one process (environments on worker threads; bit-reproducible from
+    /// `train.seed`) instead of a learner and actor processes over Zenoh.
+    #[arg(long, conflicts_with = "actors")]
+    pub single_process: bool,
 }
 
 /// The burn device for `--device`.
@@ -117,43 +126,140 @@ pub fn spread(pairs: &[Pair], n: usize) -> Vec<Pair> {
     (0..n).map(|k| pairs[k * pairs.len() / n].clone()).collect()
 }
 
-pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
+/// The configuration of a training run: `--association` and `--out` applied.
+pub fn resolve_config(
+    global: &GlobalArgs,
+    association: Option<AssociationArg>,
+    out: Option<&PathBuf>,
+) -> Result<Config> {
     let mut cfg = global.config()?;
-    if let Some(a) = args.association {
+    if let Some(a) = association {
         cfg.env.association = match a {
             AssociationArg::Learned => Association::Learned,
             AssociationArg::A3 => Association::A3,
         };
     }
-    if let Some(out) = &args.out {
+    if let Some(out) = out {
         cfg.train.out_dir = out.clone();
     }
-    let out = cfg.train.out_dir.clone();
-    let ck_path = out.join("checkpoint.bin");
-    let resume_from = args
-        .resume
-        .then(|| args.checkpoint.clone().unwrap_or_else(|| ck_path.clone()));
-    let checkpoint = match &resume_from {
-        Some(p) => Some(load_checkpoint(p).with_context(|| format!("--resume {}", p.display()))?),
-        None => None,
-    };
-    if checkpoint.is_none() && ck_path.exists() {
+    Ok(cfg)
+}
+
+/// The checkpoint to resume from (`--resume [--checkpoint FILE]`), or an error when a run
+/// already lives in the output directory and `--resume` was not given.
+pub fn checkpoint_to_resume(
+    cfg: &Config,
+    resume: bool,
+    checkpoint: Option<&PathBuf>,
+) -> Result<Option<LoadedCheckpoint>> {
+    let ck_path = cfg.train.out_dir.join("checkpoint.bin");
+    if resume {
+        let p = checkpoint.cloned().unwrap_or(ck_path);
+        return Ok(Some(
+            load_checkpoint(&p).with_context(|| format!("--resume {}", p.display()))?,
+        ));
+    }
+    if ck_path.exists() {
         bail!(
             "{} exists: continue it with --resume, or choose another --out",
             ck_path.display()
         );
     }
-    let device = device(args.device)?;
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
+    Ok(None)
+}
 
-    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
-    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    let held_out = held_out_pairs(&cfg, &planner, global.quiet)?;
-    let eval_set = spread(&held_out, cfg.train.eval_pairs);
-    let pb = super::progress_bar(cfg.train.pool_size as u64, "training pairs", global.quiet);
+/// A human name of the method a configuration trains.
+pub fn method_name(cfg: &Config) -> &'static str {
+    match cfg.env.association {
+        Association::Learned => "DUPAC (learned association)",
+        _ => "base method (A3 association)",
+    }
+}
+
+/// The run directory: `config.toml`, `metrics.jsonl` (+ CSV), `checkpoint.bin`, `policy.bin`,
+/// `curves.png`. A resumed run keeps the rows up to its checkpoint and continues the curve.
+pub struct RunOutput {
+    pub out: PathBuf,
+    pub ck_path: PathBuf,
+    metrics_path: PathBuf,
+    rows: Vec<MetricsRow>,
+    metrics: std::fs::File,
+    title: String,
+}
+
+impl RunOutput {
+    pub fn open(cfg: &Config, start_update: u64, title: String) -> Result<RunOutput> {
+        let out = cfg.train.out_dir.clone();
+        std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+        write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
+        let metrics_path = out.join("metrics.jsonl");
+        let mut rows = read_rows(&metrics_path)?;
+        rows.retain(|r| r.get("update").copied().unwrap_or(0.0) <= start_update as f64);
+        write_rows(&metrics_path, &rows)?;
+        let metrics = std::fs::OpenOptions::new()
+            .append(true)
+            .create(true)
+            .open(&metrics_path)
+            .with_context(|| format!("opening {}", metrics_path.display()))?;
+        Ok(RunOutput {
+            ck_path: out.join("checkpoint.bin"),
+            out,
+            metrics_path,
+            rows,
+            metrics,
+            title,
+        })
+    }
+
+    /// Appends one metrics row.
+    pub fn push(&mut self, row: MetricsRow) -> Result<()> {
+        writeln!(self.metrics, "{}", serde_json::to_string(&row)?)
+            .with_context(|| format!("writing {}", self.metrics_path.display()))?;
+        self.rows.push(row);
+        Ok(())
+    }
+
+    /// Checkpoint, exported policy, CSV and curves, each written atomically.
+    pub fn checkpoint(&mut self, learner: &Learner) -> Result<()> {
+        self.metrics.flush().ok();
+        learner.save(&self.ck_path)?;
+        save_policy(&self.out.join("policy.bin"), &learner.policy())?;
+        write_csv(&self.out.join("metrics.csv"), &self.rows)?;
+        crate::curves::render_curves(&self.rows, &self.title, &self.out.join("curves.png"))?;
+        Ok(())
+    }
+
+    pub fn last(&self) -> MetricsRow {
+        self.rows.last().cloned().unwrap_or_default()
+    }
+}
+
+/// Is a held-out evaluation due after update `update`?
+pub fn eval_due(cfg: &Config, update: u64, last: bool) -> bool {
+    last || (cfg.train.eval_every > 0 && update.is_multiple_of(cfg.train.eval_every))
+}
+
+/// The closing line of a training run.
+pub fn summary_line(learner: &Learner, last: &MetricsRow) -> String {
+    let g = |k: &str| last.get(k).copied().unwrap_or(f64::NAN);
+    format!(
+        "done: {} updates, {} env steps, {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %",
+        learner.update,
+        learner.global_step,
+        learner.train_seconds,
+        100.0 * g("eval/success_rate"),
+        100.0 * g("eval/collision_rate"),
+        100.0 * g("eval/distance_overhead"),
+        g("eval/mean_rsrp_dbm"),
+        g("eval/pct_excellent"),
+    )
+}
+
+/// The training pool (`train.pool_size` pairs from `train.seed`).
+pub fn make_pool(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Vec<Pair>> {
+    let pb = super::progress_bar(cfg.train.pool_size as u64, "training pairs", quiet);
     let pool = training_pool(
-        &planner,
+        planner,
         &cfg.pairs,
         &cfg.env,
         cfg.train.pool_size,
@@ -164,7 +270,21 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     if pool.is_empty() {
         bail!("no training pairs could be drawn: the city has no free pairs of pairs.min_m..max_m");
     }
-    let pool = Arc::new(pool);
+    Ok(pool)
+}
+
+pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
+    if !args.single_process {
+        return super::orchestrate::run(global, args);
+    }
+    let cfg = resolve_config(global, args.association, args.out.as_ref())?;
+    let checkpoint = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
+    let device = device(args.device)?;
+    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let held_out = held_out_pairs(&cfg, &planner, global.quiet)?;
+    let eval_set = spread(&held_out, cfg.train.eval_pairs);
+    let pool = Arc::new(make_pool(&cfg, &planner, global.quiet)?);
 
     let mut trainer = match &checkpoint {
         Some(ck) => {
@@ -176,26 +296,17 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         }
         None => Trainer::new(cfg.clone(), world.clone(), rsrp.clone(), pool, &device)?,
     };
-    // Metrics: a resumed run keeps the rows up to its checkpoint and continues the curve.
-    let metrics_path = out.join("metrics.jsonl");
-    let mut rows = read_rows(&metrics_path)?;
-    rows.retain(|r| r.get("update").copied().unwrap_or(0.0) <= trainer.update as f64);
-    write_rows(&metrics_path, &rows)?;
-    let mut metrics = std::fs::OpenOptions::new()
-        .append(true)
-        .create(true)
-        .open(&metrics_path)
-        .with_context(|| format!("opening {}", metrics_path.display()))?;
-
+    let method = method_name(&cfg);
+    let mut out = RunOutput::open(
+        &cfg,
+        trainer.update,
+        format!("{method}, seed {}: {}", cfg.train.seed, world.city.name),
+    )?;
     let total = trainer.num_updates() * trainer.batch_size() as u64;
     let pb = super::progress_bar(total, "env steps", global.quiet);
     pb.set_position(trainer.global_step);
-    let method = match cfg.env.association {
-        Association::Learned => "DUPAC (learned association)",
-        _ => "base method (A3 association)",
-    };
     eprintln!(
-        "training {method}: {} updates × {} samples, {} envs, seed {}",
+        "training {method} in one process: {} updates × {} samples, {} envs, seed {}",
         trainer.num_updates(),
         trainer.batch_size(),
         cfg.train.num_envs,
@@ -205,54 +316,35 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         let report = trainer.iteration()?;
         let mut row = report.row;
         let last = trainer.done();
-        let eval_due =
-            cfg.train.eval_every > 0 && trainer.update.is_multiple_of(cfg.train.eval_every);
-        if eval_due || last {
+        if eval_due(&cfg, trainer.update, last) {
             let eps = trainer.evaluate(&eval_set)?;
             put_domain(&mut row, "eval", &domain_stats(&eps));
         }
-        writeln!(metrics, "{}", serde_json::to_string(&row)?)
-            .with_context(|| format!("writing {}", metrics_path.display()))?;
         pb.set_position(trainer.global_step);
-        pb.set_message(format!(
-            "ret {:.0} succ {:.0}%",
-            row.get("charts/episodic_return")
-                .copied()
-                .unwrap_or(f64::NAN),
-            100.0 * row.get("domain/success_rate").copied().unwrap_or(f64::NAN)
-        ));
-        rows.push(row.clone());
+        pb.set_message(progress_message(&row));
         if global.quiet {
             tracing::info!(?row, "update");
         }
+        out.push(row)?;
         if trainer.update.is_multiple_of(cfg.train.checkpoint_every) || last {
-            metrics.flush().ok();
-            trainer.save(&ck_path)?;
-            save_policy(&out.join("policy.bin"), &trainer.policy())?;
-            write_csv(&out.join("metrics.csv"), &rows)?;
-            crate::curves::render_curves(
-                &rows,
-                &format!("{method}, seed {}: {}", cfg.train.seed, world.city.name),
-                &out.join("curves.png"),
-            )?;
+            out.checkpoint(&trainer.learner)?;
         }
     }
     pb.finish_and_clear();
-    let last = rows.last().cloned().unwrap_or_default();
-    let g = |k: &str| last.get(k).copied().unwrap_or(f64::NAN);
-    println!(
-        "done: {} updates, {} env steps, {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %",
-        trainer.update,
-        trainer.global_step,
-        trainer.train_seconds,
-        100.0 * g("eval/success_rate"),
-        100.0 * g("eval/collision_rate"),
-        100.0 * g("eval/distance_overhead"),
-        g("eval/mean_rsrp_dbm"),
-        g("eval/pct_excellent"),
-    );
-    eprintln!("wrote {}", out.display());
+    println!("{}", summary_line(&trainer.learner, &out.last()));
+    eprintln!("wrote {}", out.out.display());
     Ok(ExitCode::SUCCESS)
+}
+
+/// The progress bar's message: return and success rate.
+pub fn progress_message(row: &MetricsRow) -> String {
+    format!(
+        "ret {:.0} succ {:.0}%",
+        row.get("charts/episodic_return")
+            .copied()
+            .unwrap_or(f64::NAN),
+        100.0 * row.get("domain/success_rate").copied().unwrap_or(f64::NAN)
+    )
 }
 
 fn read_rows(path: &Path) -> Result<Vec<MetricsRow>> {

@@ -4,26 +4,7 @@ use dupac_common::SiteId;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
 
-/// Why an episode ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Outcome {
-    /// Within `env.goal_radius_m` of the destination (terminated).
-    Goal,
-    /// The swept UAV sphere touched a building (terminated).
-    Collision,
-    /// Left the flight area laterally (terminated).
-    OutOfBounds,
-    /// Reached the time limit T (truncated: the learner bootstraps).
-    TimeLimit,
-}
-
-impl Outcome {
-    /// Terminated (a true terminal state) rather than truncated.
-    pub fn is_terminal(self) -> bool {
-        !matches!(self, Outcome::TimeLimit)
-    }
-}
+pub use dupac_common::msg::Outcome;
 
 /// One step's record (spec/env.md "Metrics").
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

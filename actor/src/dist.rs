@@ -1,0 +1,574 @@
+//! The actor's side of the Zenoh actor/learner system (issue 5).
+//!
+//! An actor joins a run, fetches the latest weights by query, announces itself with a
+//! liveliness token, steps `distributed.actor_envs` environments on its own thread pool (not on
+//! zenoh's runtime), and publishes one [`TrajectoryChunk`] per `distributed.chunk_steps` steps
+//! with `CongestionControl::Block` (the default `Drop` silently loses multi-MB messages).
+//! Weights arrive on a ring channel of 1 (only the newest matters) and are swapped between
+//! chunks. The actor refuses weights whose configuration fingerprint differs from its own,
+//! waits while no learner is alive, and follows a restarted learner (a new incarnation's
+//! weights replace the old ones even with a lower version).
+
+use crate::env::{Env, EnvError};
+use crate::pairs::Pair;
+use crate::rollout::{EnvTrajectory, RolloutError, Worker, stream_seed};
+use dupac_common::ActorId;
+use dupac_common::config::Config;
+use dupac_common::keys::{KeySpace, Role};
+use dupac_common::msg::{
+    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, StatsMsg, TrajectoryChunk,
+    WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
+};
+use dupac_common::policy::PolicyWeights;
+use dupac_radio::cache::RsrpSource;
+use dupac_radio::world::RadioWorld;
+use rayon::prelude::*;
+use std::collections::HashSet;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+use zenoh::handlers::{RingChannel, RingChannelHandler};
+use zenoh::qos::CongestionControl;
+use zenoh::sample::{Sample, SampleKind};
+
+/// Errors of an actor.
+#[derive(Debug, thiserror::Error)]
+pub enum ActorError {
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    #[error(transparent)]
+    Env(#[from] EnvError),
+    #[error(transparent)]
+    Rollout(#[from] RolloutError),
+    #[error(transparent)]
+    Codec(#[from] dupac_common::codec::CodecError),
+    #[error(
+        "refusing to act for this learner: {0}. Start the actor with the learner's configuration (the same city, radio, environment and pairs settings)"
+    )]
+    Refused(String),
+    #[error("cannot start the environment threads: {0}")]
+    Threads(String),
+}
+
+fn z(e: impl std::fmt::Display) -> ActorError {
+    ActorError::Zenoh(e.to_string())
+}
+
+/// How one actor process runs.
+#[derive(Debug, Clone)]
+pub struct ActorOptions {
+    pub id: ActorId,
+    /// Threads stepping the environments (≥ 1).
+    pub threads: usize,
+    /// Stop after this many chunks (0 = until the learner says stop).
+    pub max_chunks: u64,
+}
+
+/// What an actor did, for its exit message.
+#[derive(Debug, Clone, Default)]
+pub struct ActorReport {
+    pub chunks_sent: u64,
+    pub env_steps: u64,
+    pub swaps: u64,
+    /// Policy versions acted with, in order of first use (the hot-swaps).
+    pub versions: Vec<u64>,
+    /// Weight messages refused (wrong shape, non-finite).
+    pub refused_weights: u64,
+}
+
+/// The weights in use and where they came from.
+struct Current {
+    policy: Arc<PolicyWeights>,
+    incarnation: u64,
+    sent_unix_ms: u64,
+}
+
+/// Decodes and checks a weights message; a fingerprint or run mismatch is fatal (`Refused`).
+fn accept_weights(
+    bytes: &[u8],
+    expect: &ChunkExpect,
+    limit: usize,
+    origin: &str,
+) -> Result<Option<WeightsMsg>, ActorError> {
+    let w: WeightsMsg = match decode_msg(bytes, limit, origin) {
+        Ok(w) => w,
+        Err(e) => {
+            tracing::warn!("weights ignored: {e}");
+            return Ok(None);
+        }
+    };
+    match validate_weights(&w, expect) {
+        Ok(()) => Ok(Some(w)),
+        Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
+            Err(ActorError::Refused(r.detail))
+        }
+        Err(r) => {
+            tracing::warn!("weights ignored: {r}");
+            Ok(None)
+        }
+    }
+}
+
+/// Everything an actor holds on the Zenoh side.
+struct Wiring {
+    session: zenoh::Session,
+    keys: KeySpace,
+    weights: zenoh::pubsub::Subscriber<RingChannelHandler<Sample>>,
+    learners: Arc<Mutex<HashSet<String>>>,
+    /// Actors of the run with a liveliness token (this one included).
+    actors: Arc<Mutex<HashSet<String>>>,
+    stop: Arc<AtomicBool>,
+    traj_pub: zenoh::pubsub::Publisher<'static>,
+    stats_pub: zenoh::pubsub::Publisher<'static>,
+    _token: zenoh::liveliness::LivelinessToken,
+    _learner_sub: zenoh::pubsub::Subscriber<()>,
+    _actors_sub: zenoh::pubsub::Subscriber<()>,
+    _ctrl_sub: zenoh::pubsub::Subscriber<()>,
+}
+
+impl Wiring {
+    fn new(session: zenoh::Session, cfg: &Config, id: ActorId) -> Result<Wiring, ActorError> {
+        Wiring::with_role(session, cfg, id, Role::Actor)
+    }
+
+    fn new_pilot(session: zenoh::Session, cfg: &Config, id: ActorId) -> Result<Wiring, ActorError> {
+        Wiring::with_role(session, cfg, id, Role::Pilot)
+    }
+
+    fn with_role(
+        session: zenoh::Session,
+        cfg: &Config,
+        id: ActorId,
+        role: Role,
+    ) -> Result<Wiring, ActorError> {
+        let keys = KeySpace::new(&cfg.distributed.run);
+        let weights = session
+            .declare_subscriber(keys.weights())
+            .with(RingChannel::new(1))
+            .wait()
+            .map_err(z)?;
+        let learners: Arc<Mutex<HashSet<String>>> = Arc::default();
+        let learner_sub = {
+            let (learners, keys2) = (learners.clone(), keys.clone());
+            session
+                .liveliness()
+                .declare_subscriber(keys.alive_role(Role::Learner))
+                .history(true)
+                .callback(move |s| {
+                    let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
+                        return;
+                    };
+                    let Ok(mut l) = learners.lock() else { return };
+                    match s.kind() {
+                        SampleKind::Put => {
+                            tracing::info!(learner = id, "learner present");
+                            l.insert(id);
+                        }
+                        SampleKind::Delete => {
+                            tracing::warn!(learner = id, "learner gone");
+                            l.remove(&id);
+                        }
+                    }
+                })
+                .wait()
+                .map_err(z)?
+        };
+        let actors: Arc<Mutex<HashSet<String>>> = Arc::default();
+        let actors_sub = {
+            let (actors, keys2) = (actors.clone(), keys.clone());
+            session
+                .liveliness()
+                .declare_subscriber(keys.alive_role(Role::Actor))
+                .history(true)
+                .callback(move |s| {
+                    let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
+                        return;
+                    };
+                    let Ok(mut a) = actors.lock() else { return };
+                    match s.kind() {
+                        SampleKind::Put => a.insert(id),
+                        SampleKind::Delete => a.remove(&id),
+                    };
+                })
+                .wait()
+                .map_err(z)?
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let ctrl_sub = {
+            let (stop, limit) = (stop.clone(), cfg.distributed.max_message_bytes());
+            let key = keys.ctrl();
+            session
+                .declare_subscriber(keys.ctrl())
+                .callback(move |s| {
+                    match decode_msg::<ControlMsg>(&s.payload().to_bytes(), limit, &key) {
+                        Ok(m) if m.command == Command::Stop => {
+                            tracing::info!("the learner ended the run");
+                            stop.store(true, Ordering::Relaxed);
+                        }
+                        Ok(_) => {}
+                        Err(e) => tracing::warn!("control message ignored: {e}"),
+                    }
+                })
+                .wait()
+                .map_err(z)?
+        };
+        let traj_pub = session
+            .declare_publisher(keys.traj(id))
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(z)?;
+        let stats_pub = session
+            .declare_publisher(keys.stats_actor(id))
+            .congestion_control(CongestionControl::Drop)
+            .wait()
+            .map_err(z)?;
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive(role, &id.0.to_string()))
+            .wait()
+            .map_err(z)?;
+        Ok(Wiring {
+            session,
+            keys,
+            weights,
+            learners,
+            actors,
+            stop,
+            traj_pub,
+            stats_pub,
+            _token: token,
+            _learner_sub: learner_sub,
+            _actors_sub: actors_sub,
+            _ctrl_sub: ctrl_sub,
+        })
+    }
+
+    fn actors_alive(&self) -> usize {
+        self.actors.lock().map(|a| a.len()).unwrap_or(1).max(1)
+    }
+
+    fn learner_alive(&self) -> bool {
+        self.learners.lock().map(|l| !l.is_empty()).unwrap_or(false)
+    }
+
+    /// Asks the learner's queryable for its latest weights.
+    fn query_weights(
+        &self,
+        expect: &ChunkExpect,
+        limit: usize,
+    ) -> Result<Option<WeightsMsg>, ActorError> {
+        let replies = self
+            .session
+            .get(self.keys.weights())
+            .timeout(Duration::from_secs(2))
+            .wait()
+            .map_err(z)?;
+        let mut best: Option<WeightsMsg> = None;
+        while let Ok(reply) = replies.recv() {
+            if let Ok(sample) = reply.result()
+                && let Some(w) = accept_weights(
+                    &sample.payload().to_bytes(),
+                    expect,
+                    limit,
+                    &self.keys.weights(),
+                )?
+                && best
+                    .as_ref()
+                    .is_none_or(|b| w.policy.version > b.policy.version)
+            {
+                best = Some(w);
+            }
+        }
+        Ok(best)
+    }
+}
+
+/// Runs one actor until the learner stops the run, `stop` is set, or `max_chunks` chunks are
+/// sent. `fingerprint` is [`Config::env_fingerprint`] of this process's world.
+#[allow(clippy::too_many_arguments)]
+pub fn run_actor(
+    session: zenoh::Session,
+    cfg: &Config,
+    world: Arc<RadioWorld>,
+    rsrp: Arc<dyn RsrpSource + Send + Sync>,
+    pool: Arc<Vec<Pair>>,
+    fingerprint: u64,
+    opts: &ActorOptions,
+    stop: &AtomicBool,
+) -> Result<ActorReport, ActorError> {
+    let d = &cfg.distributed;
+    let limit = d.max_message_bytes();
+    let probe = Env::new(cfg, world.clone(), rsrp.clone())?;
+    let n_sites = match cfg.env.association {
+        dupac_common::config::Association::Learned => probe.num_sites(),
+        _ => 0,
+    };
+    let expect = ChunkExpect {
+        run_id: d.run.clone(),
+        incarnation: 0,
+        fingerprint,
+        obs_dim: probe.layout().len(),
+        n_sites,
+        max_envs: d.actor_envs,
+        max_steps: d.chunk_steps,
+    };
+    let wiring = Wiring::new(session, cfg, opts.id)?;
+    let threads = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads.max(1))
+        .thread_name(|k| format!("dupac-env-{k}"))
+        .build()
+        .map_err(|e| ActorError::Threads(e.to_string()))?;
+    // A restarted actor must not replay its earlier episodes: the salt differs per start.
+    let salt = unix_ms() ^ u64::from(std::process::id()).rotate_left(32);
+    let mut workers: Vec<Worker> = (0..d.actor_envs)
+        .map(|k| {
+            let env = Env::new(cfg, world.clone(), rsrp.clone())?;
+            let stream = (u64::from(opts.id.0) << 20) | k as u64;
+            Ok(Worker::new(
+                k as u32,
+                env,
+                pool.clone(),
+                stream_seed(cfg.train.seed, stream, salt),
+            )?)
+        })
+        .collect::<Result<_, ActorError>>()?;
+
+    let mut report = ActorReport::default();
+    let mut current: Option<Current> = None;
+    let mut seq = 0u64;
+    let mut episodes = 0u64;
+    let mut last_swap_latency_ms = f64::NAN;
+    let (mut last_stats, mut steps_at_stats) = (Instant::now(), 0u64);
+    let mut waiting_logged = false;
+    let batch = cfg.train.num_envs * cfg.train.num_steps;
+    let cap = |actors: usize| d.chunks_per_version(batch, actors);
+    let mut chunks_this_version = 0usize;
+    let mut last_key: Option<(u64, u64)> = None;
+    let stopped = || stop.load(Ordering::Relaxed) || wiring.stop.load(Ordering::Relaxed);
+    tracing::info!(actor = %opts.id, envs = d.actor_envs, "actor started; waiting for weights");
+    while !stopped() {
+        if opts.max_chunks > 0 && report.chunks_sent >= opts.max_chunks {
+            break;
+        }
+        // Newest published weights (ring channel of 1), swapped at the chunk boundary. An actor
+        // that has sent its share for this version waits for the next one.
+        let at_cap = current.is_some() && chunks_this_version >= cap(wiring.actors_alive());
+        let received = if at_cap {
+            wiring.weights.recv_timeout(Duration::from_millis(50))
+        } else {
+            wiring.weights.try_recv()
+        };
+        let mut incoming: Option<WeightsMsg> = None;
+        if let Ok(Some(sample)) = received {
+            incoming = accept_weights(
+                &sample.payload().to_bytes(),
+                &expect,
+                limit,
+                &wiring.keys.weights(),
+            )?;
+            if incoming.is_none() {
+                report.refused_weights += 1;
+            }
+        }
+        let learner_alive = wiring.learner_alive();
+        if current.is_none() || (!learner_alive && incoming.is_none()) {
+            // Joining, or the learner is gone: ask for weights (a restarted learner answers).
+            if learner_alive || current.is_none() {
+                if let Some(w) = wiring.query_weights(&expect, limit)? {
+                    incoming = Some(w);
+                }
+            }
+            if incoming.is_none() {
+                if !waiting_logged {
+                    tracing::info!(actor = %opts.id, "no learner answers; waiting");
+                    waiting_logged = true;
+                }
+                std::thread::sleep(Duration::from_millis(200));
+                continue;
+            }
+        }
+        if let Some(w) = incoming {
+            let newer = match &current {
+                None => true,
+                Some(c) => {
+                    w.header.learner_incarnation != c.incarnation
+                        || w.policy.version > c.policy.version
+                }
+            };
+            if newer {
+                if let Some(c) = &current
+                    && w.header.learner_incarnation != c.incarnation
+                {
+                    tracing::info!(
+                        actor = %opts.id,
+                        version = w.policy.version,
+                        "following a new learner incarnation"
+                    );
+                }
+                current = Some(Current {
+                    policy: Arc::new(w.policy),
+                    incarnation: w.header.learner_incarnation,
+                    sent_unix_ms: w.header.sent_unix_ms,
+                });
+                waiting_logged = false;
+            }
+        }
+        let Some(cur) = &current else { continue };
+        let version = cur.policy.version;
+        let swapped = last_key != Some((cur.incarnation, version));
+        if at_cap && !swapped {
+            continue;
+        }
+        if swapped {
+            last_key = Some((cur.incarnation, version));
+            chunks_this_version = 0;
+            // The first step acted with this version starts now.
+            last_swap_latency_ms = unix_ms().saturating_sub(cur.sent_unix_ms) as f64;
+            if !report.versions.is_empty() {
+                report.swaps += 1;
+            }
+            report.versions.push(version);
+            tracing::debug!(actor = %opts.id, version, latency_ms = last_swap_latency_ms, "acting with new weights");
+        }
+        let policy = cur.policy.clone();
+        let steps = d.chunk_steps;
+        let trajectories: Vec<EnvTrajectory> = threads.install(|| {
+            workers
+                .par_iter_mut()
+                .map(|w| w.collect(&policy, steps))
+                .collect::<Result<_, _>>()
+        })?;
+        let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
+        header.seq = seq;
+        header.policy_version = version;
+        let chunk = TrajectoryChunk {
+            header,
+            trajectories,
+        };
+        let n = chunk.samples() as u64;
+        episodes += chunk
+            .trajectories
+            .iter()
+            .map(|t| t.episodes.len() as u64)
+            .sum::<u64>();
+        let bytes = encode_msg(&chunk)?;
+        wiring.traj_pub.put(bytes).wait().map_err(z)?;
+        seq += 1;
+        chunks_this_version += 1;
+        report.chunks_sent += 1;
+        report.env_steps += n;
+
+        if last_stats.elapsed().as_secs_f64() >= d.stats_every_s {
+            let dt = last_stats.elapsed().as_secs_f64();
+            let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
+            header.policy_version = version;
+            header.seq = seq;
+            let stats = ActorStats {
+                header,
+                num_envs: d.actor_envs as u32,
+                env_steps: report.env_steps,
+                steps_per_s: (report.env_steps - steps_at_stats) as f64 / dt,
+                chunks_sent: report.chunks_sent,
+                swaps: report.swaps,
+                last_swap_latency_ms,
+                episodes,
+            };
+            if let Err(e) = wiring
+                .stats_pub
+                .put(encode_msg(&StatsMsg::Actor(stats))?)
+                .wait()
+            {
+                tracing::warn!("stats not sent: {e}");
+            }
+            last_stats = Instant::now();
+            steps_at_stats = report.env_steps;
+        }
+    }
+    let _ = wiring.session.close().wait();
+    Ok(report)
+}
+
+/// A pilot that follows a run's weights (`dupac fly --follow`): the newest published version,
+/// checked like an actor checks it, swapped in by the caller at a step boundary.
+pub struct Follower {
+    wiring: Wiring,
+    expect: ChunkExpect,
+    limit: usize,
+    current: Option<(u64, u64)>,
+}
+
+impl Follower {
+    /// Joins run `cfg.distributed.run` as a pilot; `obs_dim`/`n_sites` are what the flying
+    /// environment needs.
+    pub fn new(
+        session: zenoh::Session,
+        cfg: &Config,
+        fingerprint: u64,
+        obs_dim: usize,
+        n_sites: usize,
+    ) -> Result<Follower, ActorError> {
+        let d = &cfg.distributed;
+        let id = ActorId(u32::MAX - 1 - (std::process::id() % 1_000_000));
+        let wiring = Wiring::new_pilot(session, cfg, id)?;
+        Ok(Follower {
+            wiring,
+            expect: ChunkExpect {
+                run_id: d.run.clone(),
+                incarnation: 0,
+                fingerprint,
+                obs_dim,
+                n_sites,
+                max_envs: d.actor_envs,
+                max_steps: d.chunk_steps,
+            },
+            limit: d.max_message_bytes(),
+            current: None,
+        })
+    }
+
+    /// Waits (up to `timeout`) for the learner's current weights by query.
+    pub fn initial(&mut self, timeout: Duration) -> Result<Option<PolicyWeights>, ActorError> {
+        let t0 = Instant::now();
+        while t0.elapsed() < timeout {
+            if let Some(w) = self.wiring.query_weights(&self.expect, self.limit)? {
+                self.current = Some((w.header.learner_incarnation, w.policy.version));
+                return Ok(Some(w.policy));
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        Ok(None)
+    }
+
+    /// Newer weights than the ones in use, if any arrived.
+    pub fn newer(&mut self) -> Result<Option<PolicyWeights>, ActorError> {
+        let Ok(Some(sample)) = self.wiring.weights.try_recv() else {
+            return Ok(None);
+        };
+        let Some(w) = accept_weights(
+            &sample.payload().to_bytes(),
+            &self.expect,
+            self.limit,
+            &self.wiring.keys.weights(),
+        )?
+        else {
+            return Ok(None);
+        };
+        let key = (w.header.learner_incarnation, w.policy.version);
+        let newer = match self.current {
+            None => true,
+            Some((inc, v)) => key.0 != inc || key.1 > v,
+        };
+        if newer {
+            self.current = Some(key);
+            Ok(Some(w.policy))
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// The learner ended the run.
+    pub fn stopped(&self) -> bool {
+        self.wiring.stop.load(Ordering::Relaxed)
+    }
+}

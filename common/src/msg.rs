@@ -1,0 +1,678 @@
+//! The messages DUPAC processes exchange over Zenoh (issue 5), and their validation.
+//!
+//! Every message starts with a [`Header`]; the codec frames it with an 8-byte magic per kind and
+//! [`SCHEMA_VERSION`] ([`encode_msg`], [`decode_msg`]). Decoding is bounded by a size cap, and a
+//! decoded trajectory chunk is checked against what the learner expects ([`ChunkExpect`]) before
+//! anything reaches PPO: wrong run, incarnation, fingerprint, dimensions, non-finite numbers and
+//! stale policy versions are each a [`DropReason`], counted by the learner.
+
+use crate::codec::{self, CodecError};
+use crate::ids::ActorId;
+use crate::policy::{MOVE_DIM, PolicyWeights};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Version of every message layout below; bump on any change.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Why an episode ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Within `env.goal_radius_m` of the destination (terminated).
+    Goal,
+    /// The swept UAV sphere touched a building (terminated).
+    Collision,
+    /// Left the flight area laterally (terminated).
+    OutOfBounds,
+    /// Reached the time limit T (truncated: the learner bootstraps).
+    TimeLimit,
+}
+
+impl Outcome {
+    /// Terminated (a true terminal state) rather than truncated.
+    pub fn is_terminal(self) -> bool {
+        !matches!(self, Outcome::TimeLimit)
+    }
+}
+
+/// What one episode amounted to (spec/env.md "Metrics").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeSummary {
+    /// Id of the pair in its pool or file.
+    pub pair_id: u64,
+    pub outcome: Outcome,
+    /// Undiscounted sum of the raw rewards.
+    pub episodic_return: f64,
+    pub length: u32,
+    /// Distance flown L (m).
+    pub distance_flown_m: f64,
+    /// Shortest flyable path D of the pair (m).
+    pub shortest_m: f64,
+    /// Distance left to the destination at the end (m).
+    pub remaining_m: f64,
+    /// Mean serving RSRP over the steps (dBm).
+    pub mean_rsrp_dbm: f64,
+    /// Fractions of steps (= flight time) per serving-RSRP class.
+    pub frac_excellent: f64,
+    pub frac_mediocre: f64,
+    pub frac_poor: f64,
+    pub handovers: u32,
+    pub ping_pongs: u32,
+}
+
+impl EpisodeSummary {
+    /// Distance overhead over the shortest path, (L + remaining) / D − 1 (for a successful
+    /// episode remaining ≤ the goal radius).
+    pub fn overhead(&self) -> f64 {
+        (self.distance_flown_m + self.remaining_m) / self.shortest_m - 1.0
+    }
+
+    fn is_finite(&self) -> bool {
+        [
+            self.episodic_return,
+            self.distance_flown_m,
+            self.shortest_m,
+            self.remaining_m,
+            self.mean_rsrp_dbm,
+            self.frac_excellent,
+            self.frac_mediocre,
+            self.frac_poor,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+    }
+}
+
+/// One environment's steps of a rollout, time-ordered: what PPO needs.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct EnvTrajectory {
+    /// Environment (stream) index within its actor: reward scaling keeps one discounted return
+    /// per (actor, stream).
+    pub env: u32,
+    pub obs_dim: usize,
+    /// Raw (unnormalised) observations `[T × obs_dim]`.
+    pub obs: Vec<f32>,
+    /// Unclipped moves `[T × 3]`.
+    pub moves: Vec<f32>,
+    /// Chosen site per step (0 without a site head).
+    pub sites: Vec<u32>,
+    /// log μ(a|s) of the behaviour policy.
+    pub logprobs: Vec<f32>,
+    /// V(s) of the behaviour policy's critic.
+    pub values: Vec<f32>,
+    /// Raw rewards (scaling is the learner's).
+    pub rewards: Vec<f32>,
+    /// Episode ended in a terminal state (goal, collision, out of bounds).
+    pub terminated: Vec<bool>,
+    /// Episode cut by the time limit (the learner bootstraps).
+    pub truncated: Vec<bool>,
+    /// V(s_{t+1}) of the state each step reached (the final observation when the episode
+    /// ended; meaningless, 0, after a termination).
+    pub next_values: Vec<f32>,
+    /// The raw observation after the last step (the state the next chunk starts from): the
+    /// learner re-evaluates the last step's bootstrap value on it with its current critic.
+    pub bootstrap_obs: Vec<f32>,
+    /// Episodes that ended during this rollout.
+    pub episodes: Vec<EpisodeSummary>,
+}
+
+impl EnvTrajectory {
+    pub fn len(&self) -> usize {
+        self.rewards.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rewards.is_empty()
+    }
+}
+
+/// Common header of every message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// [`SCHEMA_VERSION`] of the sender.
+    pub schema_version: u32,
+    /// `distributed.run` of the sender.
+    pub run_id: String,
+    /// Random id of the learner process the data belongs to (changes on every learner start;
+    /// chunks acted with an earlier incarnation's weights are dropped).
+    pub learner_incarnation: u64,
+    /// The sending actor (`ActorId::LEARNER` for the learner).
+    pub actor: ActorId,
+    /// Per-sender sequence number (chunks: 0, 1, 2, …).
+    pub seq: u64,
+    /// Policy version the data was produced with (weights: the version carried).
+    pub policy_version: u64,
+    /// [`crate::Config::env_fingerprint`] of the sender.
+    pub config_fingerprint: u64,
+    /// Sender's wall clock at sending (ms since the Unix epoch): latency figures on one host.
+    pub sent_unix_ms: u64,
+}
+
+impl Header {
+    pub fn new(run_id: &str, incarnation: u64, actor: ActorId, fingerprint: u64) -> Header {
+        Header {
+            schema_version: SCHEMA_VERSION,
+            run_id: run_id.to_string(),
+            learner_incarnation: incarnation,
+            actor,
+            seq: 0,
+            policy_version: 0,
+            config_fingerprint: fingerprint,
+            sent_unix_ms: unix_ms(),
+        }
+    }
+}
+
+/// Milliseconds since the Unix epoch.
+pub fn unix_ms() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_millis() as u64)
+        .unwrap_or(0)
+}
+
+/// An actor's trajectories of one chunk: `actor_envs` environments × `chunk_steps` steps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrajectoryChunk {
+    pub header: Header,
+    pub trajectories: Vec<EnvTrajectory>,
+}
+
+impl TrajectoryChunk {
+    /// Samples (environment steps) in the chunk.
+    pub fn samples(&self) -> usize {
+        self.trajectories.iter().map(EnvTrajectory::len).sum()
+    }
+}
+
+/// New policy weights from the learner (also the reply of the weights queryable).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeightsMsg {
+    pub header: Header,
+    pub policy: PolicyWeights,
+}
+
+/// How an actor is seen by the learner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActorState {
+    /// Liveliness token present, data arriving.
+    Alive,
+    /// Liveliness token present, nothing received for `distributed.silent_after_s`.
+    Silent,
+    /// Liveliness token gone (process ended, crashed or cut off).
+    Left,
+}
+
+/// The learner's view of one actor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ActorRow {
+    pub actor: ActorId,
+    pub state: ActorState,
+    /// Accepted env steps per second over the last stats interval.
+    pub steps_per_s: f64,
+    /// Accepted env steps in total.
+    pub env_steps: u64,
+    pub chunks: u64,
+    /// Learner version minus the version of the actor's last chunk.
+    pub policy_lag: u64,
+    /// Seconds since its last chunk.
+    pub last_seen_s: f64,
+}
+
+/// The learner's periodic report (`dupac/<run>/stats/learner`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LearnerStats {
+    pub header: Header,
+    pub update: u64,
+    pub total_updates: u64,
+    pub global_step: u64,
+    pub updates_per_s: f64,
+    pub env_steps_per_s: f64,
+    pub accepted_chunks: u64,
+    /// Dropped messages by [`DropReason`] name.
+    pub drops: BTreeMap<String, u64>,
+    pub actors: Vec<ActorRow>,
+    /// The last update's metrics row (CleanRL names, `domain/*`, `eval/*`, `time/*`).
+    pub metrics: BTreeMap<String, f64>,
+    /// The run has reached `train.total_timesteps`.
+    pub done: bool,
+}
+
+/// An actor's periodic report (`dupac/<run>/stats/actor/<id>`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ActorStats {
+    pub header: Header,
+    pub num_envs: u32,
+    pub env_steps: u64,
+    pub steps_per_s: f64,
+    pub chunks_sent: u64,
+    /// Weight swaps so far, and the last one's latency: learner publish → first step acted
+    /// with the new version (ms, wall clocks of both hosts).
+    pub swaps: u64,
+    pub last_swap_latency_ms: f64,
+    pub episodes: u64,
+}
+
+/// Any stats message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum StatsMsg {
+    Learner(LearnerStats),
+    Actor(ActorStats),
+}
+
+/// Commands on `dupac/<run>/ctrl`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Command {
+    /// The run is over: actors and followers exit.
+    Stop,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControlMsg {
+    pub header: Header,
+    pub command: Command,
+}
+
+/// One kind of message: its codec magic and name.
+pub trait Message: Serialize + serde::de::DeserializeOwned {
+    const MAGIC: &'static [u8; 8];
+    const NAME: &'static str;
+}
+
+impl Message for TrajectoryChunk {
+    const MAGIC: &'static [u8; 8] = b"DUPACTRJ";
+    const NAME: &'static str = "trajectory chunk";
+}
+impl Message for WeightsMsg {
+    const MAGIC: &'static [u8; 8] = b"DUPACWTS";
+    const NAME: &'static str = "weights";
+}
+impl Message for StatsMsg {
+    const MAGIC: &'static [u8; 8] = b"DUPACSTA";
+    const NAME: &'static str = "stats";
+}
+impl Message for ControlMsg {
+    const MAGIC: &'static [u8; 8] = b"DUPACCTL";
+    const NAME: &'static str = "control";
+}
+
+/// Encodes a message (magic + [`SCHEMA_VERSION`] + bincode body).
+pub fn encode_msg<M: Message>(msg: &M) -> Result<Vec<u8>, CodecError> {
+    codec::encode(M::MAGIC, SCHEMA_VERSION, msg, M::NAME)
+}
+
+/// Decodes a message of at most `limit` bytes; `origin` (the key expression) names it in errors.
+pub fn decode_msg<M: Message>(bytes: &[u8], limit: usize, origin: &str) -> Result<M, CodecError> {
+    codec::decode(
+        M::MAGIC,
+        SCHEMA_VERSION,
+        bytes,
+        limit,
+        &format!("{} on {origin}", M::NAME),
+    )
+}
+
+/// Why a received message was not used. Counted by name in [`LearnerStats::drops`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DropReason {
+    /// Larger than `distributed.max_message_mib`.
+    TooLarge,
+    /// Not a message of this kind, or a body that does not decode.
+    Garbage,
+    /// Another [`SCHEMA_VERSION`].
+    Schema,
+    /// Another `distributed.run`.
+    WrongRun,
+    /// Another environment/radio configuration.
+    Fingerprint,
+    /// Acted with the weights of an earlier learner process.
+    Incarnation,
+    /// Acted with a policy more than `distributed.max_policy_lag` versions old.
+    Stale,
+    /// Sizes or dimensions that do not match the configuration.
+    Dimensions,
+    /// A NaN or infinity.
+    NonFinite,
+    /// The receive queue was full (the oldest chunk was dropped).
+    Overflow,
+}
+
+impl DropReason {
+    pub const ALL: [DropReason; 10] = [
+        DropReason::TooLarge,
+        DropReason::Garbage,
+        DropReason::Schema,
+        DropReason::WrongRun,
+        DropReason::Fingerprint,
+        DropReason::Incarnation,
+        DropReason::Stale,
+        DropReason::Dimensions,
+        DropReason::NonFinite,
+        DropReason::Overflow,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DropReason::TooLarge => "too_large",
+            DropReason::Garbage => "garbage",
+            DropReason::Schema => "schema",
+            DropReason::WrongRun => "wrong_run",
+            DropReason::Fingerprint => "fingerprint",
+            DropReason::Incarnation => "incarnation",
+            DropReason::Stale => "stale",
+            DropReason::Dimensions => "dimensions",
+            DropReason::NonFinite => "non_finite",
+            DropReason::Overflow => "overflow",
+        }
+    }
+
+    /// The reason a decoding error stands for.
+    pub fn of_codec(e: &CodecError) -> DropReason {
+        match e {
+            CodecError::TooLarge { .. } => DropReason::TooLarge,
+            CodecError::Version { .. } => DropReason::Schema,
+            _ => DropReason::Garbage,
+        }
+    }
+}
+
+impl fmt::Display for DropReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A rejected message: the reason and what exactly was wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejection {
+    pub reason: DropReason,
+    pub detail: String,
+}
+
+impl fmt::Display for Rejection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.reason, self.detail)
+    }
+}
+
+/// What the learner accepts.
+#[derive(Debug, Clone)]
+pub struct ChunkExpect {
+    pub run_id: String,
+    pub incarnation: u64,
+    pub fingerprint: u64,
+    pub obs_dim: usize,
+    /// Site logits of the policy (0: base method, every site index must be 0… any < 65536).
+    pub n_sites: usize,
+    /// Most environments and steps per environment in one chunk.
+    pub max_envs: usize,
+    pub max_steps: usize,
+}
+
+fn reject(reason: DropReason, detail: impl Into<String>) -> Rejection {
+    Rejection {
+        reason,
+        detail: detail.into(),
+    }
+}
+
+/// Checks the header of any message from this run.
+pub fn check_header(h: &Header, x: &ChunkExpect) -> Result<(), Rejection> {
+    if h.schema_version != SCHEMA_VERSION {
+        return Err(reject(
+            DropReason::Schema,
+            format!("schema {} (this build: {SCHEMA_VERSION})", h.schema_version),
+        ));
+    }
+    if h.run_id != x.run_id {
+        return Err(reject(
+            DropReason::WrongRun,
+            format!("run {:?}, expected {:?}", h.run_id, x.run_id),
+        ));
+    }
+    if h.config_fingerprint != x.fingerprint {
+        return Err(reject(
+            DropReason::Fingerprint,
+            format!(
+                "configuration fingerprint {:016x}, the learner's is {:016x}",
+                h.config_fingerprint, x.fingerprint
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Validates a decoded chunk's header, sizes, dimensions and numbers (not its staleness, which
+/// depends on the learner's version at use).
+pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_header(&c.header, x)?;
+    if c.header.learner_incarnation != x.incarnation {
+        return Err(reject(
+            DropReason::Incarnation,
+            format!(
+                "acted with weights of learner incarnation {:016x}, this one is {:016x}",
+                c.header.learner_incarnation, x.incarnation
+            ),
+        ));
+    }
+    let dims = |d: String| reject(DropReason::Dimensions, d);
+    if c.trajectories.is_empty() || c.trajectories.len() > x.max_envs {
+        return Err(dims(format!(
+            "{} environments (1..={} allowed)",
+            c.trajectories.len(),
+            x.max_envs
+        )));
+    }
+    for (k, tr) in c.trajectories.iter().enumerate() {
+        let t = tr.len();
+        let at = |what: &str| format!("trajectory {k}: {what}");
+        if t == 0 || t > x.max_steps {
+            return Err(dims(at(&format!(
+                "{t} steps (1..={} allowed)",
+                x.max_steps
+            ))));
+        }
+        if tr.obs_dim != x.obs_dim {
+            return Err(dims(at(&format!(
+                "observation size {}, expected {}",
+                tr.obs_dim, x.obs_dim
+            ))));
+        }
+        let want = [
+            ("obs", tr.obs.len(), t * x.obs_dim),
+            ("moves", tr.moves.len(), t * MOVE_DIM),
+            ("sites", tr.sites.len(), t),
+            ("logprobs", tr.logprobs.len(), t),
+            ("values", tr.values.len(), t),
+            ("terminated", tr.terminated.len(), t),
+            ("truncated", tr.truncated.len(), t),
+            ("next_values", tr.next_values.len(), t),
+            ("bootstrap_obs", tr.bootstrap_obs.len(), x.obs_dim),
+        ];
+        for (name, got, expected) in want {
+            if got != expected {
+                return Err(dims(at(&format!(
+                    "{name} has {got} values, expected {expected}"
+                ))));
+            }
+        }
+        let max_site = x.n_sites.max(1) as u32;
+        if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
+            return Err(dims(at(&format!("site {s} outside 0..{max_site}"))));
+        }
+        if tr.episodes.len() > t {
+            return Err(dims(at(&format!(
+                "{} episodes in {t} steps",
+                tr.episodes.len()
+            ))));
+        }
+        let finite = [
+            ("obs", &tr.obs),
+            ("moves", &tr.moves),
+            ("logprobs", &tr.logprobs),
+            ("values", &tr.values),
+            ("rewards", &tr.rewards),
+            ("next_values", &tr.next_values),
+            ("bootstrap_obs", &tr.bootstrap_obs),
+        ];
+        for (name, v) in finite {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(reject(
+                    DropReason::NonFinite,
+                    at(&format!("{name}[{i}] = {}", v[i])),
+                ));
+            }
+        }
+        if tr.episodes.iter().any(|e| !e.is_finite()) {
+            return Err(reject(DropReason::NonFinite, at("episode summary")));
+        }
+    }
+    Ok(())
+}
+
+/// Checks received weights against the actor's expectations (fingerprint, run, shapes,
+/// finiteness).
+pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_header(&w.header, x)?;
+    let p = &w.policy;
+    if p.obs_dim != x.obs_dim || p.n_sites != x.n_sites {
+        return Err(reject(
+            DropReason::Dimensions,
+            format!(
+                "policy for {} observations and {} sites, expected {} and {}",
+                p.obs_dim, p.n_sites, x.obs_dim, x.n_sites
+            ),
+        ));
+    }
+    p.validate()
+        .map_err(|e| reject(DropReason::Dimensions, e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn expect() -> ChunkExpect {
+        ChunkExpect {
+            run_id: "r".into(),
+            incarnation: 7,
+            fingerprint: 9,
+            obs_dim: 2,
+            n_sites: 3,
+            max_envs: 4,
+            max_steps: 8,
+        }
+    }
+
+    fn chunk() -> TrajectoryChunk {
+        let mut h = Header::new("r", 7, ActorId(1), 9);
+        h.policy_version = 3;
+        TrajectoryChunk {
+            header: h,
+            trajectories: vec![EnvTrajectory {
+                env: 0,
+                obs_dim: 2,
+                obs: vec![0.0; 4],
+                moves: vec![0.0; 6],
+                sites: vec![0, 2],
+                logprobs: vec![-1.0; 2],
+                values: vec![0.5; 2],
+                rewards: vec![1.0; 2],
+                terminated: vec![false, true],
+                truncated: vec![false; 2],
+                next_values: vec![0.5, 0.0],
+                bootstrap_obs: vec![0.0; 2],
+                episodes: vec![],
+            }],
+        }
+    }
+
+    #[test]
+    fn a_valid_chunk_round_trips_and_passes() {
+        let c = chunk();
+        let bytes = encode_msg(&c).expect("encode");
+        let d: TrajectoryChunk = decode_msg(&bytes, 1 << 20, "k").expect("decode");
+        assert_eq!(d, c);
+        assert_eq!(validate_chunk(&d, &expect()), Ok(()));
+    }
+
+    #[test]
+    fn every_defect_has_its_reason() {
+        let x = expect();
+        let reason = |f: &dyn Fn(&mut TrajectoryChunk)| {
+            let mut c = chunk();
+            f(&mut c);
+            validate_chunk(&c, &x).map_err(|r| r.reason)
+        };
+        assert_eq!(
+            reason(&|c| c.header.run_id = "x".into()),
+            Err(DropReason::WrongRun)
+        );
+        assert_eq!(
+            reason(&|c| c.header.schema_version = 0),
+            Err(DropReason::Schema)
+        );
+        assert_eq!(
+            reason(&|c| c.header.config_fingerprint = 1),
+            Err(DropReason::Fingerprint)
+        );
+        assert_eq!(
+            reason(&|c| c.header.learner_incarnation = 1),
+            Err(DropReason::Incarnation)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].obs.push(0.0)),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].sites[1] = 3),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].obs_dim = 3),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories = vec![c.trajectories[0].clone(); 5]),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].rewards[0] = f32::NAN),
+            Err(DropReason::NonFinite)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].bootstrap_obs[1] = f32::INFINITY),
+            Err(DropReason::NonFinite)
+        );
+    }
+
+    #[test]
+    fn decoding_names_garbage_schema_and_size() {
+        let bytes = encode_msg(&chunk()).expect("encode");
+        let e = decode_msg::<TrajectoryChunk>(b"not a message at all", 1 << 20, "k")
+            .expect_err("garbage");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+        let mut old = bytes.clone();
+        old[8..12].copy_from_slice(&0u32.to_le_bytes());
+        let e = decode_msg::<TrajectoryChunk>(&old, 1 << 20, "k").expect_err("schema");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Schema);
+        let e = decode_msg::<TrajectoryChunk>(&bytes, 16, "k").expect_err("size");
+        assert_eq!(DropReason::of_codec(&e), DropReason::TooLarge);
+        let mut cut = bytes.clone();
+        cut.truncate(bytes.len() - 3);
+        let e = decode_msg::<TrajectoryChunk>(&cut, 1 << 20, "k").expect_err("cut");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+        // A message of another kind is not a chunk.
+        let w = encode_msg(&ControlMsg {
+            header: Header::new("r", 7, ActorId::LEARNER, 9),
+            command: Command::Stop,
+        })
+        .expect("encode");
+        let e = decode_msg::<TrajectoryChunk>(&w, 1 << 20, "k").expect_err("kind");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+    }
+}

@@ -1,0 +1,540 @@
+//! The learner's side of the Zenoh actor/learner system (issue 5).
+//!
+//! * A receive thread drains `dupac/<run>/traj/*` continuously (never behind a PPO update: a
+//!   blocked `Block` sender gets its transport closed after 5 s), rejects oversized messages
+//!   unread, decodes and validates the rest ([`dupac_common::msg::validate_chunk`]) and queues
+//!   them; a full queue drops its oldest chunk (`overflow`).
+//! * [`LearnerNode::next_batch`] takes queued chunks until the batch (`train.num_envs ×
+//!   train.num_steps` samples) is full, dropping data more than `distributed.max_policy_lag`
+//!   versions old (`stale`).
+//! * Weights are published with `CongestionControl::Block` and high priority, and served by a
+//!   queryable for actors that join late; a liveliness token announces the learner; a
+//!   liveliness subscriber tracks actors (joined, left, silent).
+//! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`.
+
+use dupac_common::ActorId;
+use dupac_common::config::Config;
+use dupac_common::keys::{KeySpace, Role};
+use dupac_common::msg::{
+    ActorRow, ActorState, ChunkExpect, Command, ControlMsg, DropReason, Header, LearnerStats,
+    StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_chunk,
+};
+use dupac_common::policy::PolicyWeights;
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::SampleKind;
+
+/// Errors of the learner node.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    #[error(transparent)]
+    Codec(#[from] dupac_common::codec::CodecError),
+}
+
+fn z(e: impl std::fmt::Display) -> NodeError {
+    NodeError::Zenoh(e.to_string())
+}
+
+/// A chunk that passed validation, waiting for the PPO loop.
+#[derive(Debug)]
+pub struct Received {
+    pub chunk: TrajectoryChunk,
+    pub at: Instant,
+}
+
+/// What the receive thread and the PPO loop share.
+#[derive(Default)]
+struct Inbox {
+    queue: Mutex<VecDeque<Received>>,
+    ready: Condvar,
+    drops: Mutex<BTreeMap<DropReason, u64>>,
+}
+
+impl Inbox {
+    fn drop_one(&self, reason: DropReason) {
+        if let Ok(mut d) = self.drops.lock() {
+            *d.entry(reason).or_insert(0) += 1;
+        }
+    }
+}
+
+/// The learner's view of one actor.
+#[derive(Debug, Clone)]
+struct ActorInfo {
+    state: ActorState,
+    env_steps: u64,
+    chunks: u64,
+    last_version: u64,
+    last_seen: Option<Instant>,
+    steps_at_last_stats: u64,
+}
+
+impl ActorInfo {
+    fn new() -> ActorInfo {
+        ActorInfo {
+            state: ActorState::Alive,
+            env_steps: 0,
+            chunks: 0,
+            last_version: 0,
+            last_seen: None,
+            steps_at_last_stats: 0,
+        }
+    }
+}
+
+type ActorTable = Arc<Mutex<BTreeMap<ActorId, ActorInfo>>>;
+
+/// The learner's Zenoh presence: subscriptions, publishers, queryable, liveliness.
+pub struct LearnerNode {
+    session: zenoh::Session,
+    keys: KeySpace,
+    expect: ChunkExpect,
+    max_policy_lag: u64,
+    silent_after: Duration,
+    stats_every_s: f64,
+    inbox: Arc<Inbox>,
+    actors: ActorTable,
+    latest_weights: Arc<Mutex<Option<Vec<u8>>>>,
+    weights_pub: zenoh::pubsub::Publisher<'static>,
+    stats_pub: zenoh::pubsub::Publisher<'static>,
+    _token: zenoh::liveliness::LivelinessToken,
+    _queryable: zenoh::query::Queryable<()>,
+    _alive_sub: zenoh::pubsub::Subscriber<()>,
+    receiver: Option<std::thread::JoinHandle<()>>,
+    closing: Arc<AtomicBool>,
+    accepted_chunks: u64,
+    stats_seq: u64,
+    last_stats: Instant,
+    updates_at_last_stats: u64,
+    steps_at_last_stats: u64,
+}
+
+/// Chunks taken for one batch.
+pub struct BatchChunks {
+    pub chunks: Vec<TrajectoryChunk>,
+    /// Time spent waiting for data (s).
+    pub wait_s: f64,
+}
+
+impl LearnerNode {
+    /// Joins the run on `session` as its learner. `incarnation` is random per process start;
+    /// `fingerprint` is [`Config::env_fingerprint`].
+    pub fn start(
+        session: zenoh::Session,
+        cfg: &Config,
+        obs_dim: usize,
+        n_sites: usize,
+        fingerprint: u64,
+        incarnation: u64,
+    ) -> Result<LearnerNode, NodeError> {
+        let d = &cfg.distributed;
+        let keys = KeySpace::new(&d.run);
+        let expect = ChunkExpect {
+            run_id: d.run.clone(),
+            incarnation,
+            fingerprint,
+            obs_dim,
+            n_sites,
+            max_envs: d.actor_envs.max(cfg.train.num_envs),
+            max_steps: d.chunk_steps.max(cfg.train.num_steps),
+        };
+        let inbox = Arc::new(Inbox::default());
+        let closing = Arc::new(AtomicBool::new(false));
+        let actors: ActorTable = Arc::default();
+
+        // Receive thread: a FIFO large enough that zenoh's reception never waits on us for long.
+        let sub = session
+            .declare_subscriber(keys.traj_all())
+            .with(zenoh::handlers::FifoChannel::new(d.queue_chunks.max(16)))
+            .wait()
+            .map_err(z)?;
+        let receiver = {
+            let (inbox, closing, expect, keys) =
+                (inbox.clone(), closing.clone(), expect.clone(), keys.clone());
+            let (limit, cap) = (d.max_message_bytes(), d.queue_chunks);
+            std::thread::Builder::new()
+                .name("dupac-recv".into())
+                .spawn(move || {
+                    receive_loop(sub, &inbox, &closing, &expect, &keys, limit, cap);
+                })
+                .map_err(|e| NodeError::Zenoh(format!("cannot start the receive thread: {e}")))?
+        };
+
+        let latest_weights: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+        let queryable = {
+            let latest = latest_weights.clone();
+            let key = keys.weights();
+            session
+                .declare_queryable(keys.weights())
+                .callback(move |query| {
+                    let bytes = latest.lock().ok().and_then(|w| w.clone());
+                    if let Some(b) = bytes
+                        && let Err(e) = query.reply(key.clone(), b).wait()
+                    {
+                        tracing::warn!("weights query: cannot reply: {e}");
+                    }
+                })
+                .wait()
+                .map_err(z)?
+        };
+        let weights_pub = session
+            .declare_publisher(keys.weights())
+            .congestion_control(CongestionControl::Block)
+            .priority(Priority::InteractiveHigh)
+            .wait()
+            .map_err(z)?;
+        let stats_pub = session
+            .declare_publisher(keys.stats_learner())
+            .congestion_control(CongestionControl::Drop)
+            .wait()
+            .map_err(z)?;
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive(Role::Learner, &format!("{incarnation:016x}")))
+            .wait()
+            .map_err(z)?;
+        let alive_sub = {
+            let (actors, keys2) = (actors.clone(), keys.clone());
+            session
+                .liveliness()
+                .declare_subscriber(keys.alive_role(Role::Actor))
+                .history(true)
+                .callback(move |sample| {
+                    let Some((_, id)) = keys2.parse_alive(sample.key_expr().as_str()) else {
+                        return;
+                    };
+                    let Ok(id) = id.parse::<u32>() else { return };
+                    let id = ActorId(id);
+                    let Ok(mut t) = actors.lock() else { return };
+                    match sample.kind() {
+                        SampleKind::Put => {
+                            tracing::info!(actor = %id, "actor joined");
+                            t.entry(id).or_insert_with(ActorInfo::new).state = ActorState::Alive;
+                        }
+                        SampleKind::Delete => {
+                            tracing::warn!(actor = %id, "actor left");
+                            t.entry(id).or_insert_with(ActorInfo::new).state = ActorState::Left;
+                        }
+                    }
+                })
+                .wait()
+                .map_err(z)?
+        };
+        Ok(LearnerNode {
+            session,
+            keys,
+            expect,
+            max_policy_lag: d.max_policy_lag,
+            silent_after: Duration::from_secs_f64(d.silent_after_s),
+            stats_every_s: d.stats_every_s,
+            inbox,
+            actors,
+            latest_weights,
+            weights_pub,
+            stats_pub,
+            _token: token,
+            _queryable: queryable,
+            _alive_sub: alive_sub,
+            receiver: Some(receiver),
+            closing,
+            accepted_chunks: 0,
+            stats_seq: 0,
+            last_stats: Instant::now(),
+            updates_at_last_stats: 0,
+            steps_at_last_stats: 0,
+        })
+    }
+
+    fn header(&self, version: u64) -> Header {
+        let mut h = Header::new(
+            &self.expect.run_id,
+            self.expect.incarnation,
+            ActorId::LEARNER,
+            self.expect.fingerprint,
+        );
+        h.policy_version = version;
+        h
+    }
+
+    /// Publishes `policy` (and keeps it for the queryable). Returns the encoded size.
+    pub fn publish_weights(&self, policy: &PolicyWeights) -> Result<usize, NodeError> {
+        let msg = WeightsMsg {
+            header: self.header(policy.version),
+            policy: policy.clone(),
+        };
+        let bytes = encode_msg(&msg)?;
+        let n = bytes.len();
+        if let Ok(mut w) = self.latest_weights.lock() {
+            *w = Some(bytes.clone());
+        }
+        self.weights_pub.put(bytes).wait().map_err(z)?;
+        Ok(n)
+    }
+
+    /// Takes queued chunks until `samples` samples for policy `version` are gathered, or
+    /// `stop` is set (then `None`). Chunks older than `version − max_policy_lag`, or from a
+    /// version the learner has not published, are dropped (`stale`). While waiting, `idle` is
+    /// called every `distributed.stats_every_s` (to keep monitors informed).
+    pub fn next_batch(
+        &mut self,
+        version: u64,
+        samples: usize,
+        stop: &AtomicBool,
+        idle: &mut dyn FnMut(&mut LearnerNode),
+    ) -> Option<BatchChunks> {
+        let t0 = Instant::now();
+        let mut chunks = Vec::new();
+        let mut have = 0usize;
+        while have < samples {
+            if stop.load(Ordering::Relaxed) {
+                return None;
+            }
+            if self.since_stats_s() >= self.stats_every_s {
+                idle(self);
+            }
+            let next = {
+                let Ok(mut q) = self.inbox.queue.lock() else {
+                    return None;
+                };
+                if q.is_empty() {
+                    q = match self.inbox.ready.wait_timeout(q, Duration::from_millis(100)) {
+                        Ok((q, _)) => q,
+                        Err(_) => return None,
+                    };
+                }
+                q.pop_front()
+            };
+            let Some(r) = next else { continue };
+            let c = r.chunk;
+            let v = c.header.policy_version;
+            if v > version || version - v > self.max_policy_lag {
+                self.inbox.drop_one(DropReason::Stale);
+                tracing::debug!(
+                    actor = %c.header.actor,
+                    chunk_version = v,
+                    version,
+                    "stale chunk dropped"
+                );
+                continue;
+            }
+            let n = c.samples();
+            if let Ok(mut t) = self.actors.lock() {
+                let a = t.entry(c.header.actor).or_insert_with(ActorInfo::new);
+                a.env_steps += n as u64;
+                a.chunks += 1;
+                a.last_version = v;
+                a.last_seen = Some(r.at);
+            }
+            self.accepted_chunks += 1;
+            have += n;
+            chunks.push(c);
+        }
+        Some(BatchChunks {
+            chunks,
+            wait_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Drops counted so far, by reason name.
+    pub fn drops(&self) -> BTreeMap<String, u64> {
+        let d = self
+            .inbox
+            .drops
+            .lock()
+            .map(|d| d.clone())
+            .unwrap_or_default();
+        d.into_iter()
+            .map(|(k, v)| (k.as_str().to_string(), v))
+            .collect()
+    }
+
+    /// The actor table as monitors see it (silent actors marked).
+    pub fn actor_rows(&mut self, version: u64) -> Vec<ActorRow> {
+        let dt = self.last_stats.elapsed().as_secs_f64().max(1e-9);
+        let Ok(mut t) = self.actors.lock() else {
+            return Vec::new();
+        };
+        t.iter_mut()
+            .map(|(id, a)| {
+                let last_seen_s = a
+                    .last_seen
+                    .map_or(f64::INFINITY, |s| s.elapsed().as_secs_f64());
+                let state = match a.state {
+                    ActorState::Alive | ActorState::Silent
+                        if last_seen_s > self.silent_after.as_secs_f64() =>
+                    {
+                        ActorState::Silent
+                    }
+                    ActorState::Silent => ActorState::Alive,
+                    s => s,
+                };
+                let steps_per_s = (a.env_steps - a.steps_at_last_stats) as f64 / dt;
+                a.steps_at_last_stats = a.env_steps;
+                ActorRow {
+                    actor: *id,
+                    state,
+                    steps_per_s,
+                    env_steps: a.env_steps,
+                    chunks: a.chunks,
+                    policy_lag: version.saturating_sub(a.last_version),
+                    last_seen_s: if last_seen_s.is_finite() {
+                        last_seen_s
+                    } else {
+                        -1.0
+                    },
+                }
+            })
+            .collect()
+    }
+
+    /// Actors whose liveliness token is present.
+    pub fn alive_actors(&self) -> usize {
+        self.actors
+            .lock()
+            .map(|t| t.values().filter(|a| a.state != ActorState::Left).count())
+            .unwrap_or(0)
+    }
+
+    /// Publishes the learner's stats.
+    pub fn publish_stats(
+        &mut self,
+        update: u64,
+        total_updates: u64,
+        global_step: u64,
+        metrics: &BTreeMap<String, f64>,
+        done: bool,
+    ) -> Result<LearnerStats, NodeError> {
+        let dt = self.last_stats.elapsed().as_secs_f64().max(1e-9);
+        let actors = self.actor_rows(update);
+        let mut header = self.header(update);
+        header.seq = self.stats_seq;
+        self.stats_seq += 1;
+        let stats = LearnerStats {
+            header,
+            update,
+            total_updates,
+            global_step,
+            updates_per_s: (update.saturating_sub(self.updates_at_last_stats)) as f64 / dt,
+            env_steps_per_s: (global_step.saturating_sub(self.steps_at_last_stats)) as f64 / dt,
+            accepted_chunks: self.accepted_chunks,
+            drops: self.drops(),
+            actors,
+            metrics: metrics
+                .iter()
+                .filter(|(_, v)| v.is_finite())
+                .map(|(k, v)| (k.clone(), *v))
+                .collect(),
+            done,
+        };
+        self.last_stats = Instant::now();
+        self.updates_at_last_stats = update;
+        self.steps_at_last_stats = global_step;
+        let bytes = encode_msg(&StatsMsg::Learner(stats.clone()))?;
+        self.stats_pub.put(bytes).wait().map_err(z)?;
+        Ok(stats)
+    }
+
+    /// Tells actors and followers that the run is over.
+    pub fn send_stop(&self, version: u64) -> Result<(), NodeError> {
+        let msg = ControlMsg {
+            header: self.header(version),
+            command: Command::Stop,
+        };
+        self.session
+            .put(self.keys.ctrl(), encode_msg(&msg)?)
+            .congestion_control(CongestionControl::Block)
+            .priority(Priority::InteractiveHigh)
+            .wait()
+            .map_err(z)
+    }
+
+    /// Seconds since the last stats message.
+    pub fn since_stats_s(&self) -> f64 {
+        self.last_stats.elapsed().as_secs_f64()
+    }
+
+    /// Stops the receive thread and closes the session.
+    pub fn close(mut self) {
+        self.closing.store(true, Ordering::Relaxed);
+        let _ = self.session.close().wait();
+        if let Some(h) = self.receiver.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+/// The receive thread: bytes → size cap → decode → validate → queue.
+fn receive_loop(
+    sub: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    inbox: &Inbox,
+    closing: &AtomicBool,
+    expect: &ChunkExpect,
+    keys: &KeySpace,
+    limit: usize,
+    cap: usize,
+) {
+    while !closing.load(Ordering::Relaxed) {
+        let sample = match sub.recv_timeout(Duration::from_millis(200)) {
+            Ok(Some(s)) => s,
+            Ok(None) => continue,
+            Err(_) => break, // subscriber gone: the session closed
+        };
+        let key = sample.key_expr().as_str().to_string();
+        let payload = sample.payload();
+        if payload.len() > limit {
+            inbox.drop_one(DropReason::TooLarge);
+            tracing::warn!(
+                key,
+                len = payload.len(),
+                limit,
+                "oversized message dropped unread"
+            );
+            continue;
+        }
+        let bytes = payload.to_bytes();
+        let chunk: TrajectoryChunk = match decode_msg(&bytes, limit, &key) {
+            Ok(c) => c,
+            Err(e) => {
+                inbox.drop_one(DropReason::of_codec(&e));
+                tracing::warn!("{e}");
+                continue;
+            }
+        };
+        if keys.actor_of_traj(&key) != Some(chunk.header.actor) {
+            inbox.drop_one(DropReason::Garbage);
+            tracing::warn!(key, actor = %chunk.header.actor, "chunk published on another actor's key");
+            continue;
+        }
+        if let Err(r) = validate_chunk(&chunk, expect) {
+            inbox.drop_one(r.reason);
+            tracing::warn!(key, "chunk rejected: {r}");
+            continue;
+        }
+        let Ok(mut q) = inbox.queue.lock() else { break };
+        q.push_back(Received {
+            chunk,
+            at: Instant::now(),
+        });
+        if q.len() > cap {
+            q.pop_front();
+            inbox.drop_one(DropReason::Overflow);
+        }
+        drop(q);
+        inbox.ready.notify_one();
+    }
+}
+
+/// A random 64-bit incarnation id (time and process id through SplitMix64).
+pub fn new_incarnation() -> u64 {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0);
+    dupac_actor::rollout::stream_seed(t, u64::from(std::process::id()), unix_ms())
+}

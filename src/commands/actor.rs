@@ -1,0 +1,84 @@
+//! `dupac actor`: one actor process of a Zenoh run (issue 5): simulates UAV episodes with the
+//! newest weights and publishes trajectory chunks to the learner.
+
+use super::net::{ConnectArgs, stop_flag};
+use super::train::{make_pool, world_and_cache};
+use crate::GlobalArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use dupac_actor::dist::{ActorOptions, run_actor};
+use dupac_actor::pairs::read_pairs_jsonl;
+use dupac_actor::planner::Planner;
+use dupac_common::ActorId;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+#[derive(Args, Debug)]
+pub struct ActorArgs {
+    /// This actor's id within the run (unique per run; default: from the process id).
+    #[arg(long)]
+    pub id: Option<u32>,
+    /// Threads stepping the environments (default: one per `distributed.actor_envs`, at most
+    /// the cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Stop after this many chunks (default: until the learner ends the run).
+    #[arg(long, default_value_t = 0)]
+    pub max_chunks: u64,
+    /// Training pairs file (JSON Lines, as `dupac train` writes `train_pool.jsonl`); default:
+    /// drawn from `train.seed` like the learner's pool.
+    #[arg(long, value_name = "FILE")]
+    pub pool: Option<PathBuf>,
+    /// `learned` (DUPAC) or `a3` (base method); must match the learner's.
+    #[arg(long, value_enum)]
+    pub association: Option<super::train::AssociationArg>,
+    #[command(flatten)]
+    pub net: ConnectArgs,
+}
+
+pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
+    let stop = stop_flag()?;
+    let cfg = super::train::resolve_config(global, args.association, None)?;
+    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    let fingerprint = cfg.env_fingerprint(world.fingerprint());
+    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let pool = match &args.pool {
+        Some(p) => read_pairs_jsonl(p, &planner, &cfg.pairs)
+            .with_context(|| format!("--pool {}", p.display()))?,
+        None => make_pool(&cfg, &planner, global.quiet)?,
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let opts = ActorOptions {
+        id: ActorId(args.id.unwrap_or(std::process::id())),
+        threads: args
+            .threads
+            .unwrap_or(cfg.distributed.actor_envs.min(cores))
+            .max(1),
+        max_chunks: args.max_chunks,
+    };
+    let session = args.net.open_retrying(&stop)?;
+    eprintln!(
+        "actor {} of run {:?}: {} environments on {} threads, fingerprint {fingerprint:016x}",
+        opts.id, cfg.distributed.run, cfg.distributed.actor_envs, opts.threads
+    );
+    let report = run_actor(
+        session,
+        &cfg,
+        world,
+        rsrp,
+        Arc::new(pool),
+        fingerprint,
+        &opts,
+        &stop,
+    )?;
+    let (first, last) = (
+        report.versions.first().copied().unwrap_or(0),
+        report.versions.last().copied().unwrap_or(0),
+    );
+    println!(
+        "actor {}: {} chunks, {} env steps, {} weight swaps; acted with versions {first}..={last}",
+        opts.id, report.chunks_sent, report.env_steps, report.swaps,
+    );
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,200 @@
+//! `dupac monitor`: a read-only view of a run from any machine (issue 5): policy version,
+//! updates/s, env steps/s in total and per actor, policy lag, drops by reason, training and
+//! domain metrics; a refreshing table on the terminal and, with `--jsonl`, every stats message
+//! as a JSON line.
+
+use super::net::{ConnectArgs, stop_flag};
+use crate::GlobalArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use dupac_common::ActorId;
+use dupac_common::keys::{KeySpace, Role};
+use dupac_common::msg::{ActorStats, LearnerStats, StatsMsg, decode_msg};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+#[derive(Args, Debug)]
+pub struct MonitorArgs {
+    /// Append every stats message to this file as one JSON object per line.
+    #[arg(long, value_name = "FILE")]
+    pub jsonl: Option<PathBuf>,
+    /// Leave after this many seconds (default: until Ctrl-C or the run ends).
+    #[arg(long, value_name = "S")]
+    pub duration_s: Option<f64>,
+    /// Print the table once per refresh as plain text instead of redrawing the terminal.
+    #[arg(long)]
+    pub plain: bool,
+    #[command(flatten)]
+    pub net: ConnectArgs,
+}
+
+fn metric(s: &LearnerStats, k: &str) -> f64 {
+    s.metrics.get(k).copied().unwrap_or(f64::NAN)
+}
+
+/// The table a monitor shows.
+pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorStats>) -> String {
+    let mut t = String::new();
+    match learner {
+        None => {
+            let _ = writeln!(t, "waiting for the learner's stats …");
+        }
+        Some(s) => {
+            let _ = writeln!(
+                t,
+                "run {:?}  policy v{} ({}/{} updates{})  {:.2} updates/s  {:.0} env steps/s  {} env steps",
+                s.header.run_id,
+                s.update,
+                s.update,
+                s.total_updates,
+                if s.done { ", done" } else { "" },
+                s.updates_per_s,
+                s.env_steps_per_s,
+                s.global_step
+            );
+            let _ = writeln!(
+                t,
+                "return {:.1}  success {:.1} %  collision {:.1} %  RSRP {:.1} dBm  excellent/mediocre/poor {:.0}/{:.0}/{:.0} %  handovers {:.1}/km",
+                metric(s, "charts/episodic_return"),
+                100.0 * metric(s, "domain/success_rate"),
+                100.0 * metric(s, "domain/collision_rate"),
+                metric(s, "domain/mean_rsrp_dbm"),
+                metric(s, "domain/pct_excellent"),
+                metric(s, "domain/pct_mediocre"),
+                metric(s, "domain/pct_poor"),
+                metric(s, "domain/handovers_per_km"),
+            );
+            let _ = writeln!(
+                t,
+                "update time: wait {:.3} s  ppo {:.3} s  publish {:.4} s   chunks accepted {}",
+                metric(s, "time/wait_s"),
+                metric(s, "time/ppo_s"),
+                metric(s, "time/publish_s"),
+                s.accepted_chunks
+            );
+            let drops: Vec<String> = s.drops.iter().map(|(k, v)| format!("{k} {v}")).collect();
+            let _ = writeln!(
+                t,
+                "dropped: {}",
+                if drops.is_empty() {
+                    "none".to_string()
+                } else {
+                    drops.join(", ")
+                }
+            );
+            let _ = writeln!(
+                t,
+                "{:>8} {:>8} {:>12} {:>12} {:>8} {:>5} {:>10} {:>8} {:>12}",
+                "actor",
+                "state",
+                "steps/s",
+                "env steps",
+                "chunks",
+                "lag",
+                "last seen",
+                "swaps",
+                "swap ms"
+            );
+            for a in &s.actors {
+                let own = actors.get(&a.actor);
+                let _ = writeln!(
+                    t,
+                    "{:>8} {:>8} {:>12.0} {:>12} {:>8} {:>5} {:>9.1}s {:>8} {:>12.1}",
+                    a.actor.to_string(),
+                    format!("{:?}", a.state).to_lowercase(),
+                    a.steps_per_s,
+                    a.env_steps,
+                    a.chunks,
+                    a.policy_lag,
+                    a.last_seen_s,
+                    own.map_or(0, |o| o.swaps),
+                    own.map_or(f64::NAN, |o| o.last_swap_latency_ms),
+                );
+            }
+        }
+    }
+    t
+}
+
+pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
+    let stop = stop_flag()?;
+    let cfg = global.config()?;
+    let keys = KeySpace::new(&cfg.distributed.run);
+    let limit = cfg.distributed.max_message_bytes();
+    let session = args.net.open_retrying(&stop)?;
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive(Role::Monitor, &session.zid().to_string()))
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+    let sub = session
+        .declare_subscriber(keys.stats_all())
+        .with(zenoh::handlers::FifoChannel::new(1024))
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+    let mut jsonl = match &args.jsonl {
+        Some(p) => Some(
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(p)
+                .with_context(|| format!("opening {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let start = Instant::now();
+    let mut learner: Option<LearnerStats> = None;
+    let mut actors: BTreeMap<ActorId, ActorStats> = BTreeMap::new();
+    let mut last_draw = Instant::now() - Duration::from_secs(10);
+    let interactive =
+        !args.plain && !global.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
+    loop {
+        if stop.load(Ordering::Relaxed)
+            || args
+                .duration_s
+                .is_some_and(|d| start.elapsed().as_secs_f64() >= d)
+        {
+            break;
+        }
+        if let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(200)) {
+            let key = sample.key_expr().as_str().to_string();
+            match decode_msg::<StatsMsg>(&sample.payload().to_bytes(), limit, &key) {
+                Ok(msg) => {
+                    if let Some(f) = &mut jsonl {
+                        writeln!(f, "{}", serde_json::to_string(&msg)?)
+                            .context("writing --jsonl")?;
+                    }
+                    match msg {
+                        StatsMsg::Learner(s) => learner = Some(s),
+                        StatsMsg::Actor(a) => {
+                            actors.insert(a.header.actor, a);
+                        }
+                    }
+                }
+                Err(e) => tracing::warn!("stats ignored: {e}"),
+            }
+        }
+        if last_draw.elapsed() >= Duration::from_secs(1) {
+            let table = render(learner.as_ref(), &actors);
+            if interactive {
+                // Clear the screen and home the cursor, then draw.
+                print!("\x1b[2J\x1b[H{table}");
+            } else if !global.quiet {
+                println!("{table}");
+            }
+            std::io::stdout().flush().ok();
+            last_draw = Instant::now();
+        }
+        if learner.as_ref().is_some_and(|l| l.done) && args.duration_s.is_none() {
+            break;
+        }
+    }
+    let _ = session.close().wait();
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,119 @@
+//! The connection arguments every networked subcommand shares (like zenoh's own tools), the
+//! Ctrl-C flag, and `dupac router`.
+
+use crate::GlobalArgs;
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use dupac_common::net::{ConnectOpts, Mode};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The node's role in the Zenoh network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    Peer,
+    Client,
+    Router,
+}
+
+/// Where and how to join the Zenoh network (zenoh's defaults without any: peer mode with
+/// multicast scouting).
+#[derive(Args, Debug, Clone, Default)]
+pub struct ConnectArgs {
+    /// Zenoh JSON5 configuration file (TLS, access control, …); the flags below override it.
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+    /// Zenoh mode of this process.
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
+    /// Endpoint to connect to, e.g. `tcp/10.0.0.1:7447` (repeatable).
+    #[arg(short = 'e', long, value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// Endpoint to listen on, e.g. `tcp/0.0.0.0:7447` (repeatable).
+    #[arg(short = 'l', long, value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// Turn multicast scouting off.
+    #[arg(long)]
+    pub no_multicast_scouting: bool,
+}
+
+impl ConnectArgs {
+    pub fn opts(&self) -> ConnectOpts {
+        ConnectOpts {
+            config: self.zenoh_config.clone(),
+            mode: self.mode.map(|m| match m {
+                ModeArg::Peer => Mode::Peer,
+                ModeArg::Client => Mode::Client,
+                ModeArg::Router => Mode::Router,
+            }),
+            connect: self.connect.clone(),
+            listen: self.listen.clone(),
+            no_multicast_scouting: self.no_multicast_scouting,
+        }
+    }
+
+    /// Opens the session, retrying every second until `stop` while the endpoint is not up yet
+    /// (a client started before its router).
+    pub fn open_retrying(&self, stop: &AtomicBool) -> Result<zenoh::Session> {
+        let opts = self.opts();
+        let mut logged = false;
+        loop {
+            match opts.open() {
+                Ok(s) => return Ok(s),
+                Err(dupac_common::net::NetError::Open(e)) if !stop.load(Ordering::Relaxed) => {
+                    if !logged {
+                        tracing::warn!("cannot join the zenoh network yet ({e}); retrying");
+                        logged = true;
+                    }
+                    std::thread::sleep(std::time::Duration::from_secs(1));
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+}
+
+/// A flag set by Ctrl-C (SIGINT) and SIGTERM.
+pub fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    ctrlc::set_handler(move || {
+        if f.swap(true, Ordering::Relaxed) {
+            // A second Ctrl-C: leave at once.
+            std::process::exit(130);
+        }
+    })
+    .context("installing the Ctrl-C handler")?;
+    Ok(flag)
+}
+
+#[derive(Args, Debug)]
+pub struct RouterArgs {
+    #[command(flatten)]
+    pub net: ConnectArgs,
+}
+
+/// `dupac router`: a Zenoh router in this process (what `zenohd` does, without its plugins),
+/// for multi-machine runs where no `zenohd` is installed.
+pub fn run_router(_global: &GlobalArgs, args: &RouterArgs) -> Result<ExitCode> {
+    let stop = stop_flag()?;
+    let mut net = args.net.clone();
+    net.mode = Some(ModeArg::Router);
+    if net.listen.is_empty() && net.zenoh_config.is_none() {
+        net.listen = vec!["tcp/0.0.0.0:7447".into()];
+    }
+    let session = net.opts().open()?;
+    eprintln!(
+        "router {} listening on {}",
+        session.zid(),
+        net.listen.join(", ")
+    );
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    use zenoh::Wait;
+    let _ = session.close().wait();
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,211 @@
+//! `dupac train` (default): the learner and N actor processes on this machine over loopback
+//! Zenoh (issue 5). The learner is the Zenoh router of the run (listening on a free loopback
+//! port, multicast scouting off); actors join as clients. This process prepares what every
+//! child needs once (RSRP cache, held-out pairs, training pool), starts the children, shows a
+//! progress bar from the learner's stats, forwards Ctrl-C (the learner writes its checkpoint)
+//! and reaps the children.
+
+use super::net::{ConnectArgs, ModeArg, stop_flag};
+use super::train::{
+    DeviceArg, TrainArgs, checkpoint_to_resume, held_out_pairs, make_pool, resolve_config,
+    world_and_cache,
+};
+use crate::GlobalArgs;
+use crate::io::write_atomic;
+use anyhow::{Context, Result, bail};
+use dupac_actor::pairs::write_pairs_jsonl;
+use dupac_actor::planner::Planner;
+use dupac_common::keys::KeySpace;
+use dupac_common::msg::{StatsMsg, decode_msg};
+use std::path::Path;
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// A free TCP port on the loopback interface.
+fn free_port() -> Result<u16> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").context("finding a free loopback port")?;
+    Ok(l.local_addr()?.port())
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: kill(2) with a pid we spawned and still own (not yet reaped).
+    unsafe {
+        libc::kill(child.id() as i32, sig);
+    }
+}
+
+/// Common arguments of every child: the resolved configuration file, quiet, verbosity.
+fn child(exe: &Path, config: &Path, verbose: u8) -> Command {
+    let mut c = Command::new(exe);
+    c.arg("--config").arg(config).arg("--quiet");
+    for _ in 0..verbose {
+        c.arg("-v");
+    }
+    c.stdin(Stdio::null());
+    c
+}
+
+pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
+    let stop = stop_flag()?;
+    let cfg = resolve_config(global, args.association, args.out.as_ref())?;
+    // Fail early, before the children do.
+    let _ = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
+    let out = cfg.train.out_dir.clone();
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let config_path = out.join("config.toml");
+    write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;
+
+    // Everything the children would otherwise each compute (and race on): built once here.
+    let (world, _rsrp) = world_and_cache(&cfg, global.quiet)?;
+    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    held_out_pairs(&cfg, &planner, global.quiet)?;
+    let pool_path = out.join("train_pool.jsonl");
+    let pool = make_pool(&cfg, &planner, global.quiet)?;
+    write_pairs_jsonl(&pool_path, &pool)?;
+    drop((planner, pool));
+    drop(world);
+
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let n_actors = match args.actors.unwrap_or(cfg.distributed.actors) {
+        0 => cores,
+        n => n,
+    };
+    let port = free_port()?;
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let exe = std::env::current_exe().context("locating the dupac binary")?;
+    let verbose = global.verbose;
+
+    let mut learner_cmd = child(&exe, &config_path, verbose);
+    learner_cmd
+        .arg("learner")
+        .arg("--out")
+        .arg(&out)
+        .args(["--mode", "router", "--listen", &endpoint])
+        .arg("--no-multicast-scouting")
+        .arg("--device")
+        .arg(match args.device {
+            DeviceArg::Cpu => "cpu",
+            DeviceArg::Cuda => "cuda",
+            DeviceArg::Wgpu => "wgpu",
+        });
+    if args.resume {
+        learner_cmd.arg("--resume");
+        if let Some(ck) = &args.checkpoint {
+            learner_cmd.arg("--checkpoint").arg(ck);
+        }
+    }
+    let mut learner = learner_cmd.spawn().context("starting the learner")?;
+    let mut actors: Vec<Child> = Vec::new();
+    for k in 0..n_actors {
+        let mut a = child(&exe, &config_path, verbose);
+        a.arg("actor")
+            .args(["--id", &k.to_string()])
+            .arg("--threads")
+            .arg(
+                (cfg.distributed
+                    .actor_envs
+                    .min(cores / n_actors.min(cores))
+                    .max(1))
+                .to_string(),
+            )
+            .arg("--pool")
+            .arg(&pool_path)
+            .args(["--mode", "client", "--connect", &endpoint])
+            .arg("--no-multicast-scouting")
+            // Each actor steps its environments on its own threads; keep rayon's global pool
+            // (used by nothing hot in an actor) small.
+            .env("RAYON_NUM_THREADS", "1");
+        actors.push(a.spawn().with_context(|| format!("starting actor {k}"))?);
+    }
+    eprintln!(
+        "run {:?}: learner (router on {endpoint}) and {n_actors} actors; Ctrl-C stops with a checkpoint",
+        cfg.distributed.run
+    );
+
+    // Progress from the learner's stats.
+    let watch = ConnectArgs {
+        mode: Some(ModeArg::Client),
+        connect: vec![endpoint.clone()],
+        no_multicast_scouting: true,
+        ..ConnectArgs::default()
+    };
+    let total = cfg.train.total_timesteps;
+    let pb = super::progress_bar(total, "env steps", global.quiet);
+    let keys = KeySpace::new(&cfg.distributed.run);
+    let session = watch.open_retrying(&stop).ok();
+    let sub = session.as_ref().and_then(|s| {
+        s.declare_subscriber(keys.stats_learner())
+            .with(zenoh::handlers::RingChannel::new(1))
+            .wait()
+            .ok()
+    });
+    let limit = cfg.distributed.max_message_bytes();
+    let mut forwarded = false;
+    let status = loop {
+        if let Some(st) = learner.try_wait().context("waiting for the learner")? {
+            break st;
+        }
+        if stop.load(Ordering::Relaxed) && !forwarded {
+            // Ctrl-C in a terminal reaches the children too; a signal to this process alone
+            // is forwarded.
+            signal(&learner, libc::SIGINT);
+            for a in &actors {
+                signal(a, libc::SIGINT);
+            }
+            forwarded = true;
+        }
+        if let Some(sub) = &sub
+            && let Ok(Some(s)) = sub.recv_timeout(Duration::from_millis(250))
+            && let Ok(StatsMsg::Learner(st)) =
+                decode_msg::<StatsMsg>(&s.payload().to_bytes(), limit, "stats")
+        {
+            pb.set_position(st.global_step);
+            let alive = st
+                .actors
+                .iter()
+                .filter(|a| a.state == dupac_common::msg::ActorState::Alive)
+                .count();
+            pb.set_message(format!(
+                "v{} {:.0} sps {alive} actors",
+                st.update, st.env_steps_per_s
+            ));
+        } else if sub.is_none() {
+            std::thread::sleep(Duration::from_millis(250));
+        }
+        for (k, a) in actors.iter_mut().enumerate() {
+            if let Ok(Some(st)) = a.try_wait()
+                && !st.success()
+                && !stop.load(Ordering::Relaxed)
+            {
+                tracing::warn!("actor {k} exited with {st}");
+            }
+        }
+    };
+    pb.finish_and_clear();
+    if let Some(s) = session {
+        let _ = s.close().wait();
+    }
+    // Actors leave on the learner's Stop; give them a moment, then reap.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    for a in &mut actors {
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = a.try_wait() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        if let Ok(None) = a.try_wait() {
+            signal(a, libc::SIGTERM);
+            std::thread::sleep(Duration::from_millis(200));
+            let _ = a.kill();
+        }
+        let _ = a.wait();
+    }
+    if !status.success() {
+        bail!("the learner exited with {status}");
+    }
+    eprintln!("wrote {}", out.display());
+    Ok(ExitCode::SUCCESS)
+}
