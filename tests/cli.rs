@@ -532,7 +532,12 @@ fn train_resume_and_fly_on_a_small_city() {
     let again = run(&["--single-process", "--set", "train.total_timesteps=1024"]);
     assert!(!again.status.success());
     assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"));
-    let resumed = run(&["--single-process", "--resume", "--set", "train.total_timesteps=2048"]);
+    let resumed = run(&[
+        "--single-process",
+        "--resume",
+        "--set",
+        "train.total_timesteps=2048",
+    ]);
     assert!(
         resumed.status.success(),
         "{}",

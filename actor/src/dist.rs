@@ -345,6 +345,7 @@ pub fn run_actor(
     let cap = |actors: usize| d.chunks_per_version(batch, actors);
     let mut chunks_this_version = 0usize;
     let mut last_key: Option<(u64, u64)> = None;
+    let mut last_weights_at = Instant::now();
     let stopped = || stop.load(Ordering::Relaxed) || wiring.stop.load(Ordering::Relaxed);
     tracing::info!(actor = %opts.id, envs = d.actor_envs, "actor started; waiting for weights");
     while !stopped() {
@@ -372,12 +373,16 @@ pub fn run_actor(
             }
         }
         let learner_alive = wiring.learner_alive();
+        // Waiting long at the cap means a publication was missed (a learner that restarted
+        // while this actor reconnected): ask the queryable, which always has the latest.
+        if incoming.is_none() && at_cap && last_weights_at.elapsed() > Duration::from_secs(1) {
+            incoming = wiring.query_weights(&expect, limit)?;
+            last_weights_at = Instant::now();
+        }
         if current.is_none() || (!learner_alive && incoming.is_none()) {
             // Joining, or the learner is gone: ask for weights (a restarted learner answers).
-            if learner_alive || current.is_none() {
-                if let Some(w) = wiring.query_weights(&expect, limit)? {
-                    incoming = Some(w);
-                }
+            if let Some(w) = wiring.query_weights(&expect, limit)? {
+                incoming = Some(w);
             }
             if incoming.is_none() {
                 if !waiting_logged {
@@ -397,6 +402,7 @@ pub fn run_actor(
                 }
             };
             if newer {
+                last_weights_at = Instant::now();
                 if let Some(c) = &current
                     && w.header.learner_incarnation != c.incarnation
                 {

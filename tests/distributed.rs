@@ -1,0 +1,595 @@
+//! End-to-end tests of the Zenoh actor/learner system (issue 5): real `dupac learner` and
+//! `dupac actor` processes over loopback TCP, a real Zenoh session in the test to watch the
+//! learner's stats and to play a rogue publisher. Each test uses its own run name and port, so
+//! they run in parallel.
+
+use dupac_common::ActorId;
+use dupac_common::keys::KeySpace;
+use dupac_common::msg::{
+    ActorState, EnvTrajectory, Header, LearnerStats, StatsMsg, TrajectoryChunk, WeightsMsg,
+    decode_msg, encode_msg,
+};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// A small procedural city with short pairs: a run of many updates per second.
+fn write_config(dir: &Path, run: &str, total_timesteps: u64) -> PathBuf {
+    let text = format!(
+        r#"
+[scenario]
+city = "procedural"
+n_sites = 8
+[scenario.procedural]
+size_m = 500
+n_sites = 8
+[cache]
+horizontal_m = 10
+vertical_m = 10
+path = "{dir}/rsrp.bin"
+[pairs]
+min_m = 40
+max_m = 70
+eval_bins_m = [50, 60]
+eval_per_bin = 4
+bin_tolerance = 0.1
+eval_file = "{dir}/eval.jsonl"
+[train]
+num_envs = 4
+num_steps = 64
+pool_size = 50
+checkpoint_every = 2
+eval_every = 1000
+eval_pairs = 8
+total_timesteps = {total_timesteps}
+[ppo]
+num_minibatches = 2
+hidden = [32, 32]
+[distributed]
+run = "{run}"
+actor_envs = 2
+chunk_steps = 32
+max_message_mib = 1.0
+stats_every_s = 0.2
+silent_after_s = 3.0
+"#,
+        dir = dir.display()
+    );
+    let path = dir.join("config.toml");
+    std::fs::write(&path, text).expect("write config");
+    path
+}
+
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    l.local_addr().expect("addr").port()
+}
+
+/// Child processes killed when the test ends, whatever happens.
+struct Procs {
+    dir: PathBuf,
+    config: PathBuf,
+    endpoint: String,
+    children: Vec<(String, Child)>,
+}
+
+impl Drop for Procs {
+    fn drop(&mut self) {
+        for (_, c) in &mut self.children {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+impl Procs {
+    fn new(dir: &Path, run: &str, total: u64) -> Procs {
+        let config = write_config(dir, run, total);
+        // The RSRP cache once, before any process would build it.
+        let st = Command::new(env!("CARGO_BIN_EXE_dupac"))
+            .args([
+                "--config",
+                config.to_str().expect("utf8"),
+                "-q",
+                "cache",
+                "build",
+            ])
+            .status()
+            .expect("cache build");
+        assert!(st.success(), "cache build failed");
+        Procs {
+            dir: dir.to_path_buf(),
+            config,
+            endpoint: format!("tcp/127.0.0.1:{}", free_port()),
+            children: Vec::new(),
+        }
+    }
+
+    fn spawn(&mut self, name: &str, args: &[&str]) {
+        let log = |ext: &str| {
+            std::fs::File::create(self.dir.join(format!("{name}.{ext}"))).expect("log file")
+        };
+        let child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+            .arg("--config")
+            .arg(&self.config)
+            .arg("-q")
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(log("out"))
+            .stderr(log("err"))
+            .spawn()
+            .expect("spawn dupac");
+        self.children.push((name.to_string(), child));
+    }
+
+    fn learner(&mut self, name: &str, extra: &[&str]) {
+        let out = self.dir.join("run").display().to_string();
+        let ep = self.endpoint.clone();
+        let mut a = vec![
+            "learner",
+            "--out",
+            &out,
+            "--mode",
+            "router",
+            "--listen",
+            &ep,
+            "--no-multicast-scouting",
+        ];
+        a.extend_from_slice(extra);
+        self.spawn(name, &a);
+    }
+
+    fn actor(&mut self, id: u32) {
+        let ep = self.endpoint.clone();
+        let id_s = id.to_string();
+        self.spawn(
+            &format!("actor{id}"),
+            &[
+                "actor",
+                "--id",
+                &id_s,
+                "--threads",
+                "1",
+                "--mode",
+                "client",
+                "--connect",
+                &ep,
+                "--no-multicast-scouting",
+            ],
+        );
+    }
+
+    fn child(&mut self, name: &str) -> &mut Child {
+        &mut self
+            .children
+            .iter_mut()
+            .find(|(n, _)| n == name)
+            .expect("no such child")
+            .1
+    }
+
+    /// Sends a signal and waits for the process to exit (at most 30 s).
+    fn signal_and_wait(&mut self, name: &str, sig: &str) -> std::process::ExitStatus {
+        let pid = self.child(name).id().to_string();
+        let st = Command::new("kill")
+            .args([sig, &pid])
+            .status()
+            .expect("kill");
+        assert!(st.success());
+        let t0 = Instant::now();
+        loop {
+            if let Some(st) = self.child(name).try_wait().expect("wait") {
+                return st;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(30),
+                "{name} did not exit after {sig}; {}",
+                self.logs()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    fn read(&self, name: &str) -> String {
+        std::fs::read_to_string(self.dir.join(name)).unwrap_or_default()
+    }
+
+    /// Every process's stderr tail, for failure messages.
+    fn logs(&self) -> String {
+        let mut s = String::new();
+        for (n, _) in &self.children {
+            let err = self.read(&format!("{n}.err"));
+            let tail: Vec<&str> = err.lines().rev().take(15).collect();
+            s.push_str(&format!(
+                "\n--- {n} stderr (last lines, reversed):\n{}",
+                tail.join("\n")
+            ));
+        }
+        s
+    }
+}
+
+/// The test's own Zenoh client: the learner's stats (newest only), and a rogue publisher.
+struct Watcher {
+    session: zenoh::Session,
+    keys: KeySpace,
+    stats: zenoh::pubsub::Subscriber<zenoh::handlers::RingChannelHandler<zenoh::sample::Sample>>,
+}
+
+impl Watcher {
+    fn new(endpoint: &str, run: &str) -> Watcher {
+        let mut c = zenoh::Config::default();
+        c.insert_json5("mode", "\"client\"").expect("mode");
+        c.insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+            .expect("connect");
+        c.insert_json5("scouting/multicast/enabled", "false")
+            .expect("scouting");
+        // The learner may not listen yet: retry for a while.
+        let t0 = Instant::now();
+        let session = loop {
+            match zenoh::open(c.clone()).wait() {
+                Ok(s) => break s,
+                Err(e) => {
+                    assert!(
+                        t0.elapsed() < Duration::from_secs(60),
+                        "cannot connect: {e}"
+                    );
+                    std::thread::sleep(Duration::from_millis(200));
+                }
+            }
+        };
+        let keys = KeySpace::new(run);
+        let stats = session
+            .declare_subscriber(keys.stats_learner())
+            .with(zenoh::handlers::RingChannel::new(1))
+            .wait()
+            .expect("subscribe");
+        Watcher {
+            session,
+            keys,
+            stats,
+        }
+    }
+
+    /// Waits (at most `secs`) for learner stats satisfying `ok`.
+    fn wait_for(
+        &self,
+        procs: &Procs,
+        what: &str,
+        secs: u64,
+        ok: impl Fn(&LearnerStats) -> bool,
+    ) -> LearnerStats {
+        let t0 = Instant::now();
+        let mut last = None;
+        while t0.elapsed() < Duration::from_secs(secs) {
+            if let Ok(Some(s)) = self.stats.recv_timeout(Duration::from_millis(200))
+                && let Ok(StatsMsg::Learner(st)) =
+                    decode_msg::<StatsMsg>(&s.payload().to_bytes(), 1 << 26, "stats")
+            {
+                if ok(&st) {
+                    return st;
+                }
+                last = Some(st);
+            }
+        }
+        panic!(
+            "timed out waiting for {what}; last stats: {:?}{}",
+            last.map(|s| (s.update, s.drops, s.actors)),
+            procs.logs()
+        );
+    }
+
+    fn weights(&self) -> WeightsMsg {
+        let replies = self
+            .session
+            .get(self.keys.weights())
+            .timeout(Duration::from_secs(5))
+            .wait()
+            .expect("query");
+        let reply = replies.recv().expect("a weights reply");
+        let sample = reply.result().expect("ok reply");
+        decode_msg(&sample.payload().to_bytes(), 1 << 26, "weights").expect("weights decode")
+    }
+
+    fn publish(&self, actor: u32, bytes: Vec<u8>) {
+        self.session
+            .put(self.keys.traj(ActorId(actor)), bytes)
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .wait()
+            .expect("put");
+    }
+}
+
+fn drops(s: &LearnerStats, reason: &str) -> u64 {
+    s.drops.get(reason).copied().unwrap_or(0)
+}
+
+/// A well-formed chunk for the learner that `w` came from, acted with `version`.
+fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk {
+    let (d, t) = (w.policy.obs_dim, 4usize);
+    let mut h = Header::new(
+        &w.header.run_id,
+        w.header.learner_incarnation,
+        ActorId(actor),
+        w.header.config_fingerprint,
+    );
+    h.policy_version = version;
+    TrajectoryChunk {
+        header: h,
+        trajectories: vec![EnvTrajectory {
+            env: 0,
+            obs_dim: d,
+            obs: vec![0.1; t * d],
+            moves: vec![0.0; t * 3],
+            sites: vec![0; t],
+            logprobs: vec![-3.0; t],
+            values: vec![0.0; t],
+            rewards: vec![0.0; t],
+            terminated: vec![false; t],
+            truncated: vec![false; t],
+            next_values: vec![0.0; t],
+            bootstrap_obs: vec![0.1; d],
+            episodes: vec![],
+        }],
+    }
+}
+
+/// A learner and two actors train; actors swap to new weights as they come (hot-swap); an
+/// actor killed with SIGKILL is seen leaving through liveliness and training goes on with the
+/// other; a rogue publisher's garbage, wrong schema, oversized, wrong-dimension, non-finite,
+/// stale and wrong-incarnation chunks are each rejected and counted, with no effect on the
+/// run; a pilot follows the live weights; Ctrl-C makes the learner write its checkpoint.
+#[test]
+fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-a";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    p.learner("learner", &[]);
+    p.actor(0);
+    p.actor(1);
+    let w = Watcher::new(&p.endpoint, run);
+
+    // Both actors deliver data and the policy version advances.
+    let both = |s: &LearnerStats| {
+        s.update >= 5
+            && [0, 1].iter().all(|&id| {
+                s.actors
+                    .iter()
+                    .any(|a| a.actor == ActorId(id) && a.chunks > 0 && a.state == ActorState::Alive)
+            })
+    };
+    let s0 = w.wait_for(&p, "two actors and 5 updates", 120, both);
+    assert_eq!(
+        s0.drops.values().sum::<u64>() - drops(&s0, "stale") - drops(&s0, "overflow"),
+        0,
+        "no message of a real actor is rejected: {:?}",
+        s0.drops
+    );
+
+    // A pilot follows the live weights mid-flight.
+    let fly_out = dir.path().join("fly");
+    let (fo, ep) = (fly_out.display().to_string(), p.endpoint.clone());
+    p.spawn(
+        "pilot",
+        &[
+            "fly",
+            "--follow",
+            "--step-ms",
+            "150",
+            "--pair",
+            "0",
+            "--out",
+            &fo,
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+            "--no-multicast-scouting",
+        ],
+    );
+
+    // kill -9 one actor: the learner notices through liveliness and keeps training.
+    let st = p.signal_and_wait("actor1", "-KILL");
+    assert!(!st.success());
+    let left = w.wait_for(&p, "actor 1 seen leaving", 30, |s| {
+        s.actors
+            .iter()
+            .any(|a| a.actor == ActorId(1) && a.state == ActorState::Left)
+    });
+    let after = w.wait_for(&p, "5 more updates with one actor", 60, |s| {
+        s.update >= left.update + 5
+    });
+    let a0 = after
+        .actors
+        .iter()
+        .find(|a| a.actor == ActorId(0))
+        .expect("actor 0");
+    assert_eq!(a0.state, ActorState::Alive);
+
+    // The rogue publisher: one message of every kind of defect.
+    let weights = w.weights();
+    let now = weights.policy.version;
+    let good = |v: u64| valid_chunk(&weights, 99, v);
+    w.publish(99, b"certainly not a trajectory chunk".to_vec());
+    let mut old_schema = encode_msg(&good(now)).expect("encode");
+    old_schema[8..12].copy_from_slice(&999u32.to_le_bytes());
+    w.publish(99, old_schema);
+    w.publish(99, vec![0u8; 2 << 20]); // 2 MiB > distributed.max_message_mib = 1
+    let mut dims = good(now);
+    dims.trajectories[0].obs.pop();
+    w.publish(99, encode_msg(&dims).expect("encode"));
+    let mut nan = good(now);
+    nan.trajectories[0].rewards[2] = f32::NAN;
+    w.publish(99, encode_msg(&nan).expect("encode"));
+    let mut inc = good(now);
+    inc.header.learner_incarnation ^= 1;
+    w.publish(99, encode_msg(&inc).expect("encode"));
+    let stale_before = drops(&after, "stale");
+    w.publish(99, encode_msg(&good(0)).expect("encode")); // version 0: stale by now
+    let counted = w.wait_for(&p, "every rogue message counted", 30, |s| {
+        [
+            "garbage",
+            "schema",
+            "too_large",
+            "dimensions",
+            "non_finite",
+            "incarnation",
+        ]
+        .iter()
+        .all(|r| drops(s, r) >= 1)
+            && drops(s, "stale") > stale_before
+    });
+    // Training continues after the garbage.
+    w.wait_for(&p, "updates after the rogue messages", 60, |s| {
+        s.update >= counted.update + 3
+    });
+    assert!(
+        p.child("learner").try_wait().expect("wait").is_none(),
+        "learner alive"
+    );
+
+    // The pilot flew with more than one version (hot-swap mid-flight).
+    let t0 = Instant::now();
+    let pilot_done = loop {
+        if let Some(st) = p.child("pilot").try_wait().expect("wait") {
+            break st;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "pilot did not land{}",
+            p.logs()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(pilot_done.success(), "pilot failed{}", p.logs());
+    let versions = std::fs::read_to_string(fly_out.join("versions.csv")).expect("versions.csv");
+    let used: std::collections::BTreeSet<&str> = versions
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(1))
+        .collect();
+    assert!(
+        used.len() >= 2,
+        "the pilot never swapped weights: {versions}"
+    );
+
+    // Ctrl-C: the learner writes a checkpoint and exits cleanly; the actor reports swaps.
+    let st = p.signal_and_wait("learner", "-INT");
+    assert!(st.success(), "learner exit {st}{}", p.logs());
+    assert!(p.read("learner.err").contains("checkpoint written"));
+    assert!(dir.path().join("run/checkpoint.bin").exists());
+    let st = p.signal_and_wait("actor0", "-INT");
+    assert!(st.success(), "actor exit {st}{}", p.logs());
+    let out = p.read("actor0.out");
+    let swaps: u64 = out
+        .split(" weight swaps")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no summary line: {out}"));
+    assert!(
+        swaps >= 10,
+        "actor 0 swapped weights only {swaps} times: {out}"
+    );
+}
+
+/// The learner killed with SIGKILL and restarted with `--resume`: versions continue from the
+/// checkpoint (not from 0), and the actor reconnects and carries on by itself.
+#[test]
+fn a_restarted_learner_continues_its_versions_and_the_actor_reconnects() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-b";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    p.learner("learner1", &[]);
+    p.actor(0);
+    let w = Watcher::new(&p.endpoint, run);
+    w.wait_for(&p, "10 updates", 120, |s| s.update >= 10);
+    let st = p.signal_and_wait("learner1", "-KILL");
+    assert!(!st.success());
+    let ck = dupac_learner::checkpoint::load_checkpoint(&dir.path().join("run/checkpoint.bin"))
+        .expect("a valid checkpoint survives the kill");
+    let saved = ck.meta.update;
+    assert!(saved >= 10);
+
+    p.learner("learner2", &["--resume"]);
+    let w2 = Watcher::new(&p.endpoint, run);
+    let first = w2.wait_for(&p, "the resumed learner's stats", 60, |_| true);
+    assert!(
+        first.update >= saved,
+        "versions restarted: {} after a checkpoint at {saved}",
+        first.update
+    );
+    // The same actor process delivers data to the new learner.
+    let later = w2.wait_for(&p, "training resumed with the old actor", 60, |s| {
+        s.update >= saved + 10
+            && s.actors
+                .iter()
+                .any(|a| a.actor == ActorId(0) && a.chunks > 0)
+    });
+    assert!(later.update >= saved + 10);
+    assert!(
+        p.child("actor0").try_wait().expect("wait").is_none(),
+        "the actor survived the learner restart"
+    );
+    let rows = std::fs::read_to_string(dir.path().join("run/metrics.jsonl")).expect("metrics");
+    let updates: Vec<u64> = rows
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
+                .as_f64()
+                .expect("update") as u64
+        })
+        .collect();
+    assert!(
+        updates.windows(2).all(|w| w[1] == w[0] + 1),
+        "the learning curve continues without gaps or repeats"
+    );
+    p.signal_and_wait("learner2", "-INT");
+}
+
+/// `dupac train`, the one-command run: learner and two actor processes over loopback, to the
+/// end of a small budget; the run directory is complete and the actors were reaped.
+#[test]
+fn dupac_train_runs_learner_and_actors_to_the_end() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let config = write_config(dir.path(), "e2e-c", 256 * 12);
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        .arg("--config")
+        .arg(&config)
+        .args(["-q", "train", "--actors", "2", "--out"])
+        .arg(&out)
+        .output()
+        .expect("dupac train");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("done: 12 updates"), "{stdout}");
+    assert_eq!(
+        stdout.matches("actor ").count(),
+        2,
+        "both actors reported: {stdout}"
+    );
+    for f in [
+        "checkpoint.bin",
+        "policy.bin",
+        "metrics.jsonl",
+        "curves.png",
+        "train_pool.jsonl",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let rows = std::fs::read_to_string(out.join("metrics.jsonl")).expect("metrics");
+    assert_eq!(rows.lines().count(), 12);
+    let last: serde_json::Value =
+        serde_json::from_str(rows.lines().last().expect("row")).expect("json");
+    for k in [
+        "time/wait_s",
+        "time/ppo_s",
+        "time/publish_s",
+        "losses/approx_kl",
+        "dist/dropped_stale",
+    ] {
+        assert!(last.get(k).is_some(), "{k} missing");
+    }
+}
