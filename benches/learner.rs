@@ -89,6 +89,7 @@ fn benches(c: &mut Criterion) {
         values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        is_weights: Vec::new(),
     };
     let cfg = dupac_common::config::PpoConfig {
         update_epochs: 1,

@@ -274,6 +274,7 @@ fn small_batch(seed: u64, n: usize) -> Batch {
         values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        is_weights: Vec::new(),
     }
 }
 
