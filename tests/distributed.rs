@@ -349,6 +349,22 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     p.actor(0);
     p.actor(1);
     let w = Watcher::new(&p.endpoint, run);
+    let jsonl = dir.path().join("monitor.jsonl");
+    let (js, ep) = (jsonl.display().to_string(), p.endpoint.clone());
+    p.spawn(
+        "monitor",
+        &[
+            "monitor",
+            "--plain",
+            "--jsonl",
+            &js,
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+            "--no-multicast-scouting",
+        ],
+    );
 
     // Both actors deliver data and the policy version advances.
     let both = |s: &LearnerStats| {
@@ -472,6 +488,30 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     assert!(
         used.len() >= 2,
         "the pilot never swapped weights: {versions}"
+    );
+
+    // The monitor streamed the learner's and the actors' stats, drops included.
+    let st = p.signal_and_wait("monitor", "-INT");
+    assert!(st.success(), "monitor exit {st}{}", p.logs());
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&jsonl)
+        .expect("monitor jsonl")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json line"))
+        .collect();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l["Learner"]["drops"]["garbage"].as_u64() >= Some(1)),
+        "the monitor saw the drops"
+    );
+    assert!(
+        lines.iter().any(|l| l["Actor"]["swaps"].as_u64() >= Some(1)
+            && l["Actor"]["last_swap_latency_ms"].as_f64().is_some()),
+        "the monitor saw actor stats"
+    );
+    assert!(
+        p.read("monitor.out").contains("policy v"),
+        "the table was printed"
     );
 
     // Ctrl-C: the learner writes a checkpoint and exits cleanly; the actor reports swaps.

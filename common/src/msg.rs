@@ -437,7 +437,7 @@ pub fn check_header(h: &Header, x: &ChunkExpect) -> Result<(), Rejection> {
         return Err(reject(
             DropReason::Fingerprint,
             format!(
-                "configuration fingerprint {:016x}, the learner's is {:016x}",
+                "configuration fingerprint {:016x} in the message, {:016x} in this process",
                 h.config_fingerprint, x.fingerprint
             ),
         ));

@@ -626,3 +626,113 @@ fn make_workers(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OBS: usize = 5;
+    const SITES: usize = 4;
+
+    fn learner() -> Learner {
+        let mut cfg = Config::default();
+        cfg.ppo.hidden = vec![8];
+        cfg.ppo.normalize_reward = false;
+        cfg.ppo.normalize_obs = false;
+        Learner::new(cfg, OBS, SITES, &burn::tensor::Device::flex())
+    }
+
+    /// A 3-step trajectory acted with `policy`, behaviour log-probs shifted by `lp_shift`.
+    fn traj(policy: &PolicyWeights, lp_shift: f32) -> EnvTrajectory {
+        let t = 3;
+        let obs: Vec<f32> = (0..t * OBS).map(|i| (i as f32 * 0.37).sin()).collect();
+        let moves: Vec<f32> = (0..t * MOVE_DIM).map(|i| (i as f32 * 0.11).cos()).collect();
+        let sites = vec![0, 3, 1];
+        let mut s = Scratch::default();
+        let logprobs = (0..t)
+            .map(|k| {
+                let mut m = [0.0; MOVE_DIM];
+                m.copy_from_slice(&moves[k * MOVE_DIM..(k + 1) * MOVE_DIM]);
+                policy.logprob(&obs[k * OBS..(k + 1) * OBS], &m, sites[k], &mut s) + lp_shift
+            })
+            .collect();
+        EnvTrajectory {
+            env: 0,
+            obs_dim: OBS,
+            obs,
+            moves,
+            sites,
+            logprobs,
+            values: vec![0.5, 0.25, 0.125],
+            rewards: vec![1.0, -1.0, 2.0],
+            terminated: vec![false; t],
+            truncated: vec![false; t],
+            // The actor's last bootstrap is deliberately wrong: the learner re-evaluates it.
+            next_values: vec![0.25, 0.125, 123.0],
+            bootstrap_obs: vec![0.3; OBS],
+            episodes: vec![],
+        }
+    }
+
+    #[test]
+    fn data_of_the_current_version_is_plain_ppo() {
+        let mut l = learner();
+        let p = l.policy();
+        let tr = traj(&p, 0.0);
+        let b = l.assemble(
+            &p,
+            &[Segment {
+                actor: ActorId(0),
+                behaviour_version: p.version,
+                traj: &tr,
+            }],
+        );
+        assert_eq!(
+            b.logprobs, tr.logprobs,
+            "behaviour log-probs are the old ones"
+        );
+        assert!(b.is_weights.is_empty(), "no importance weights");
+        // The last step bootstraps from V(bootstrap_obs) of the current critic.
+        let v_boot = p.value(&tr.bootstrap_obs, &mut Scratch::default());
+        let gamma = l.cfg.ppo.gamma as f32;
+        let delta_last = 2.0 + gamma * v_boot - 0.125;
+        assert!(
+            (b.advantages[2] - delta_last).abs() < 1e-5,
+            "{} vs {delta_last}",
+            b.advantages[2]
+        );
+        assert!((b.returns[2] - (delta_last + 0.125)).abs() < 1e-5);
+    }
+
+    #[test]
+    fn older_data_gets_proximal_log_probs_and_capped_importance_weights() {
+        let mut l = learner();
+        let mut p = l.policy();
+        p.version = 7;
+        // μ = π_prox · e^−0.5 → weight e^0.5; μ = π_prox · e^−3 → e^3 capped at 2.
+        let (near, far) = (traj(&p, -0.5), traj(&p, -3.0));
+        let seg = |traj| Segment {
+            actor: ActorId(1),
+            behaviour_version: 6,
+            traj,
+        };
+        let b = l.assemble(&p, &[seg(&near), seg(&far)]);
+        for k in 0..3 {
+            assert!(
+                (b.logprobs[k] - (near.logprobs[k] + 0.5)).abs() < 1e-5,
+                "proximal log-prob"
+            );
+            assert!(
+                (b.is_weights[k] - 0.5f32.exp()).abs() < 1e-4,
+                "{}",
+                b.is_weights[k]
+            );
+            assert!(
+                (b.is_weights[3 + k] - 2.0).abs() < 1e-6,
+                "capped: {}",
+                b.is_weights[3 + k]
+            );
+        }
+        assert_eq!(l.off_policy_samples, 6);
+    }
+}

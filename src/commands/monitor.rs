@@ -124,6 +124,15 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
 
 pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
+    if let Some(d) = args.duration_s {
+        // Bounds connecting too.
+        let s = stop.clone();
+        let d = Duration::from_secs_f64(d.max(0.0));
+        std::thread::spawn(move || {
+            std::thread::sleep(d);
+            s.store(true, Ordering::Relaxed);
+        });
+    }
     let cfg = global.config()?;
     let keys = KeySpace::new(&cfg.distributed.run);
     let limit = cfg.distributed.max_message_bytes();
@@ -185,7 +194,7 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
             if interactive {
                 // Clear the screen and home the cursor, then draw.
                 print!("\x1b[2J\x1b[H{table}");
-            } else if !global.quiet {
+            } else {
                 println!("{table}");
             }
             std::io::stdout().flush().ok();

@@ -105,11 +105,12 @@ pub fn run_router(_global: &GlobalArgs, args: &RouterArgs) -> Result<ExitCode> {
         net.listen = vec!["tcp/0.0.0.0:7447".into()];
     }
     let session = net.opts().open()?;
-    eprintln!(
-        "router {} listening on {}",
-        session.zid(),
+    let listen = if net.listen.is_empty() {
+        "the endpoints of --zenoh-config".to_string()
+    } else {
         net.listen.join(", ")
-    );
+    };
+    eprintln!("router {} listening on {listen}", session.zid());
     while !stop.load(Ordering::Relaxed) {
         std::thread::sleep(std::time::Duration::from_millis(200));
     }

@@ -1,0 +1,377 @@
+#!/usr/bin/env bash
+# A multi-host DUPAC run on one machine: every process gets its own network namespace (its own
+# interfaces, addresses and ports, like a separate host), and the namespaces are wired to one
+# Ethernet bridge, so all traffic crosses a real (virtual) network over TCP:
+#
+#     namespace    address        process
+#     <p>-r        10.77.0.1/24   dupac router  (listens on tcp/0.0.0.0:7447)
+#     <p>-l        10.77.0.2/24   dupac learner (client of tcp/10.77.0.1:7447)
+#     <p>-a1       10.77.0.3/24   dupac actor --id 1 (client)
+#     <p>-a2       10.77.0.4/24   dupac actor --id 2 (client)
+#     <p>-m        10.77.0.5/24   dupac monitor (client, read-only)
+#     <p>-sw       -              the bridge `br0` and the host ends of the veth pairs
+#
+# (<p> is `dupac<pid>`, so concurrent runs do not collide; nothing is added to the machine's
+# own network namespace.) Every process uses the deploy/zenoh/*.json5 file of its role with
+# `--connect tcp/10.77.0.1:7447 --no-multicast-scouting`, and all share one tiny DUPAC config
+# (procedural 500 m city, 16 PPO updates of 256 steps). The script waits for the learner to
+# finish, then checks:
+#   - the learner exited 0 within the timeout;
+#   - metrics.jsonl has one row per update (total_timesteps / (num_envs * num_steps)) and the
+#     last row is that update;
+#   - both actors exited 0 and printed their summary line, acting with a final version > 0;
+#   - the learner's namespace really received traffic over its veth;
+#   - the router left cleanly on SIGINT;
+# and prints PASS or FAIL. Namespaces and processes are removed on exit, failure included.
+#
+# Usage: deploy/netns/run.sh [path/to/dupac]
+#   default binary: target/release/dupac of this repository, or target/debug/dupac when that
+#   one is missing or newer.
+# Environment:
+#   DUPAC_NETNS_TIMEOUT=120      seconds the learner may take
+#   DUPAC_NETNS_TIMESTEPS=4096   train.total_timesteps (a multiple of 256)
+#   DUPAC_NETNS_DELAY_MS=0       one-way delay added with netem on every host's link (needs tc)
+#   DUPAC_NETNS_KEEP=1           keep the work directory (logs, run output) after a PASS
+# Exit status: 0 PASS, 1 FAIL, 2 usage error, 77 skipped (not root, no `ip`, no namespaces).
+
+set -uo pipefail
+
+SCRIPT_DIR=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+REPO=$(cd "$SCRIPT_DIR/../.." && pwd)
+ZENOH_DIR="$SCRIPT_DIR/../zenoh"
+
+TIMEOUT=${DUPAC_NETNS_TIMEOUT:-120}
+TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-4096}
+DELAY_MS=${DUPAC_NETNS_DELAY_MS:-0}
+NUM_ENVS=4
+NUM_STEPS=64
+SUBNET=10.77.0
+ROUTER_IP=$SUBNET.1
+ENDPOINT="tcp/$ROUTER_IP:7447"
+
+log() { printf '[netns %5.1fs] %s\n' "$(elapsed)" "$*"; }
+T0=$(date +%s.%N)
+elapsed() { awk -v a="$T0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
+skip() {
+    RESULT=SKIP
+    echo "SKIP: $*"
+    echo "(the netns rehearsal needs root, iproute2's \`ip\` and network namespace support)"
+    exit 77
+}
+die() {
+    echo "error: $*" >&2
+    exit 2
+}
+
+# ---------------------------------------------------------------- arguments and preconditions
+case "${1:-}" in
+    -h | --help)
+        sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+        exit 0
+        ;;
+esac
+[ $# -le 1 ] || die "usage: $0 [path/to/dupac]"
+if [ $# -eq 1 ]; then
+    BIN=$1
+else
+    # target/release/dupac, unless target/debug/dupac is newer (a stale release build would
+    # fail with config keys it does not know).
+    BIN=$REPO/target/release/dupac
+    if [ ! -x "$BIN" ] || [ "$REPO/target/debug/dupac" -nt "$BIN" ]; then
+        BIN=$REPO/target/debug/dupac
+    fi
+fi
+[ -x "$BIN" ] || die "no dupac binary at $BIN (build with \`cargo build --release\` or pass its path)"
+BIN=$(cd "$(dirname "$BIN")" && pwd)/$(basename "$BIN")
+for f in router learner actor monitor; do
+    [ -f "$ZENOH_DIR/$f.json5" ] || die "missing $ZENOH_DIR/$f.json5"
+done
+if ! [[ "$TIMESTEPS" =~ ^[0-9]+$ ]] || [ "$TIMESTEPS" -eq 0 ] ||
+    [ $((TIMESTEPS % (NUM_ENVS * NUM_STEPS))) -ne 0 ]; then
+    die "DUPAC_NETNS_TIMESTEPS must be a positive multiple of $((NUM_ENVS * NUM_STEPS))"
+fi
+[[ "$TIMEOUT" =~ ^[0-9]+$ ]] || die "DUPAC_NETNS_TIMEOUT must be a number of seconds"
+[[ "$DELAY_MS" =~ ^[0-9]+$ ]] || die "DUPAC_NETNS_DELAY_MS must be a number of milliseconds"
+
+[ "$(uname -s)" = Linux ] || skip "network namespaces are Linux-only (this is $(uname -s))"
+[ "$(id -u)" -eq 0 ] || skip "not root (uid $(id -u)); run with sudo"
+IP=$(command -v ip || true)
+[ -n "$IP" ] || for p in /usr/sbin/ip /sbin/ip /usr/bin/ip; do [ -x "$p" ] && IP=$p && break; done
+[ -n "$IP" ] || skip "iproute2's \`ip\` command is not installed"
+if [ "$DELAY_MS" -gt 0 ]; then
+    TC=$(command -v tc || true)
+    [ -n "$TC" ] || [ ! -x /usr/sbin/tc ] || TC=/usr/sbin/tc
+    [ -n "$TC" ] || skip "DUPAC_NETNS_DELAY_MS needs tc (iproute2)"
+fi
+
+# ---------------------------------------------------------------- state and cleanup
+P="dupac$$"
+NS_SW="$P-sw"
+HOSTS=(r l a1 a2 m) # router, learner, actor 1, actor 2, monitor
+CREATED_NS=()
+declare -A PID    # process name -> pid
+declare -A REAPED # process name -> 1 once waited for (its pid is no longer ours)
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/dupac-netns.XXXXXX") || die "mktemp failed"
+RESULT=FAIL
+
+alive() { [ -z "${REAPED[$1]:-}" ] && kill -0 "${PID[$1]}" 2>/dev/null; }
+
+# shellcheck disable=SC2317 # invoked by the EXIT trap
+cleanup() {
+    local pid ns name running=()
+    trap - EXIT INT TERM
+    # Our processes not reaped yet first (TERM, then KILL after 5 s), then anything left
+    # in our namespaces (only what we started can be there), then the namespaces themselves.
+    for name in "${!PID[@]}"; do
+        [ -n "${REAPED[$name]:-}" ] || running+=("$name")
+    done
+    for name in "${running[@]}"; do kill -TERM "${PID[$name]}" 2>/dev/null; done
+    for _ in $(seq 50); do
+        local alive=0
+        for name in "${running[@]}"; do alive "$name" && alive=1; done
+        [ "$alive" -eq 0 ] && break
+        sleep 0.1
+    done
+    for name in "${running[@]}"; do
+        if alive "$name"; then
+            echo "$name (pid ${PID[$name]}) still running 5 s after SIGTERM: SIGKILL"
+            kill -KILL "${PID[$name]}" 2>/dev/null
+        fi
+        wait "${PID[$name]}" 2>/dev/null
+    done
+    for ns in "${CREATED_NS[@]}"; do
+        for pid in $("$IP" netns pids "$ns" 2>/dev/null); do kill -KILL "$pid" 2>/dev/null; done
+    done
+    for ns in "${CREATED_NS[@]}"; do "$IP" netns del "$ns" 2>/dev/null; done
+    if [ "$RESULT" != FAIL ] && [ -z "${DUPAC_NETNS_KEEP:-}" ]; then
+        rm -rf "$WORK"
+    else
+        echo "work directory kept: $WORK"
+    fi
+}
+trap cleanup EXIT
+trap 'echo "interrupted"; exit 130' INT TERM
+
+# ---------------------------------------------------------------- the network
+# Any failure here is the machine's (no namespace support in a container, no bridge module):
+# reported as a skip with the error, before any dupac process has started.
+setup_error() { skip "cannot build the namespaces: $*"; }
+addns() {
+    local out
+    out=$("$IP" netns add "$1" 2>&1) || setup_error "ip netns add $1: $out"
+    CREATED_NS+=("$1")
+}
+ipn() {
+    local out
+    out=$("$IP" "$@" 2>&1) || setup_error "ip $*: $out"
+}
+
+addns "$NS_SW"
+ipn -n "$NS_SW" link add br0 type bridge
+ipn -n "$NS_SW" link set br0 up
+k=1
+for h in "${HOSTS[@]}"; do
+    ns="$P-$h"
+    addns "$ns"
+    # One veth pair per host: `eth0` inside the host, `v-<h>` on the bridge.
+    ipn -n "$NS_SW" link add "v-$h" type veth peer name eth0 netns "$ns"
+    ipn -n "$NS_SW" link set "v-$h" master br0
+    ipn -n "$NS_SW" link set "v-$h" up
+    ipn -n "$ns" link set lo up
+    ipn -n "$ns" addr add "$SUBNET.$k/24" dev eth0
+    ipn -n "$ns" link set eth0 up
+    if [ "$DELAY_MS" -gt 0 ]; then
+        out=$("$IP" netns exec "$ns" "$TC" qdisc add dev eth0 root netem delay "${DELAY_MS}ms" 2>&1) ||
+            setup_error "tc netem on $ns: $out"
+    fi
+    k=$((k + 1))
+done
+delay=""
+[ "$DELAY_MS" -eq 0 ] || delay=", netem delay $DELAY_MS ms on every link"
+log "namespaces ${CREATED_NS[*]} on bridge br0 ($SUBNET.0/24)$delay"
+
+# ---------------------------------------------------------------- the run's files
+CONFIG=$WORK/run.toml
+OUT=$WORK/learner-out
+cat >"$CONFIG" <<EOF
+# Written by deploy/netns/run.sh: the one DUPAC config every process of the rehearsal uses.
+[scenario]
+city = "procedural"
+n_sites = 8
+[scenario.procedural]
+size_m = 500
+n_sites = 8
+[cache]
+horizontal_m = 10
+vertical_m = 10
+path = "$WORK/rsrp.bin"
+[pairs]
+min_m = 40
+max_m = 70
+eval_bins_m = [50, 60]
+eval_per_bin = 4
+bin_tolerance = 0.1
+eval_file = "$WORK/eval.jsonl"
+[train]
+num_envs = $NUM_ENVS
+num_steps = $NUM_STEPS
+pool_size = 50
+checkpoint_every = 2
+eval_every = 5
+eval_pairs = 8
+total_timesteps = $TIMESTEPS
+[ppo]
+num_minibatches = 2
+hidden = [32, 32]
+[distributed]
+run = "netns-$$"
+actor_envs = 2
+chunk_steps = 32
+EOF
+UPDATES=$((TIMESTEPS / (NUM_ENVS * NUM_STEPS)))
+
+# The RSRP cache and the held-out pairs once, before the processes that would race on them.
+if ! "$BIN" --config "$CONFIG" -q cache build >"$WORK/prepare.log" 2>&1 ||
+    ! "$BIN" --config "$CONFIG" -q pairs >>"$WORK/prepare.log" 2>&1; then
+    echo "FAIL: preparing the RSRP cache / held-out pairs:"
+    cat "$WORK/prepare.log"
+    exit 1
+fi
+log "config $CONFIG ($UPDATES updates), cache and pairs built; binary $BIN"
+
+# ---------------------------------------------------------------- the processes
+# start NAME HOST ARGS...: runs dupac in namespace <p>-HOST, output in $WORK/NAME.log.
+start() {
+    local name=$1 host=$2
+    shift 2
+    "$IP" netns exec "$P-$host" "$BIN" "$@" >"$WORK/$name.log" 2>&1 </dev/null &
+    PID[$name]=$!
+}
+# wait_exit NAME SECONDS: waits for NAME to exit; sets RC (124 if still running).
+wait_exit() {
+    local name=$1 deadline
+    deadline=$(($(date +%s%N) / 1000000 + $2 * 1000))
+    while alive "$name" && [ $(($(date +%s%N) / 1000000)) -lt "$deadline" ]; do sleep 0.1; done
+    if alive "$name"; then
+        RC=124
+    else
+        wait "${PID[$name]}"
+        RC=$?
+        REAPED[$name]=1
+    fi
+}
+
+NET=(--connect "$ENDPOINT" --no-multicast-scouting)
+start router r router --zenoh-config "$ZENOH_DIR/router.json5" --no-multicast-scouting
+# The router is up when the learner's namespace can open a TCP connection to it.
+up=0
+for _ in $(seq 100); do
+    alive router || break
+    if "$IP" netns exec "$P-l" bash -c "exec 3<>/dev/tcp/$ROUTER_IP/7447" 2>/dev/null; then
+        up=1
+        break
+    fi
+    sleep 0.1
+done
+if [ $up -eq 0 ]; then
+    echo "FAIL: the router is not reachable at $ENDPOINT from the learner's namespace"
+    echo "--- router.log"
+    tail -n 30 "$WORK/router.log"
+    exit 1
+fi
+log "router up at $ENDPOINT (reached from $P-l)"
+
+# Without --duration-s the monitor leaves when the learner's stats say the run is done.
+start monitor m --config "$CONFIG" -q monitor --plain --jsonl "$WORK/monitor.jsonl" \
+    --zenoh-config "$ZENOH_DIR/monitor.json5" "${NET[@]}"
+T_LEARNER=$(date +%s.%N)
+start learner l --config "$CONFIG" -q learner --out "$OUT" \
+    --zenoh-config "$ZENOH_DIR/learner.json5" "${NET[@]}"
+start actor1 a1 --config "$CONFIG" -q actor --id 1 \
+    --zenoh-config "$ZENOH_DIR/actor.json5" "${NET[@]}"
+start actor2 a2 --config "$CONFIG" -q actor --id 2 \
+    --zenoh-config "$ZENOH_DIR/actor.json5" "${NET[@]}"
+log "learner, 2 actors and a monitor started; waiting up to ${TIMEOUT} s for the learner"
+
+# ---------------------------------------------------------------- checks
+FAILS=()
+REPORT=()
+check() { # check OK|FAIL message
+    REPORT+=("$1  $2")
+    [ "$1" = ok ] || FAILS+=("$2")
+}
+
+wait_exit learner "$TIMEOUT"
+LEARNER_RC=$RC
+LEARNER_S=$(awk -v a="$T_LEARNER" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
+ACTOR_WAIT=30
+if [ "$LEARNER_RC" -eq 124 ]; then
+    check FAIL "learner still running after ${TIMEOUT} s"
+    # Stop it the way an operator would (SIGINT: checkpoint, exit) so that the checks below
+    # see what it wrote; actors wait for a learner that sent no Stop, so do not wait long.
+    log "learner timed out after ${LEARNER_S} s; sending it SIGINT"
+    kill -INT "${PID[learner]}" 2>/dev/null
+    wait_exit learner 15
+    ACTOR_WAIT=2
+else
+    [ "$LEARNER_RC" -eq 0 ] && s=ok || s=FAIL
+    check "$s" "learner exited with $LEARNER_RC after ${LEARNER_S} s"
+    log "learner done (exit $LEARNER_RC, ${LEARNER_S} s)"
+fi
+
+rows=0
+last=none
+if [ -f "$OUT/metrics.jsonl" ]; then
+    rows=$(grep -c '"update":' "$OUT/metrics.jsonl")
+    last=$(tail -n 1 "$OUT/metrics.jsonl" | grep -o '"update":[0-9.]*' | cut -d: -f2)
+    last=${last%.0}
+fi
+[ "$rows" -eq "$UPDATES" ] && [ "$last" = "$UPDATES" ] && s=ok || s=FAIL
+check "$s" "metrics.jsonl: $rows update rows (expected $UPDATES), last update $last"
+for f in checkpoint.bin policy.bin metrics.csv config.toml; do
+    [ -s "$OUT/$f" ] && s=ok || s=FAIL
+    check "$s" "learner wrote $f"
+done
+
+for a in 1 2; do
+    wait_exit "actor$a" $ACTOR_WAIT
+    line=$(grep -E "^actor $a: " "$WORK/actor$a.log" | tail -n 1)
+    ver=$(sed -nE 's/.*acted with versions [0-9]+\.\.=([0-9]+).*/\1/p' <<<"$line")
+    [ "$RC" -eq 0 ] && s=ok || s=FAIL
+    check "$s" "actor $a exited with $RC$([ "$RC" -eq 124 ] && echo " (still running $ACTOR_WAIT s after the learner)")"
+    [ -n "$ver" ] && [ "$ver" -gt 0 ] && s=ok || s=FAIL
+    check "$s" "actor $a summary: ${line:-<none>}"
+done
+
+rx=$("$IP" netns exec "$P-l" cat /sys/class/net/eth0/statistics/rx_bytes 2>/dev/null || echo 0)
+tx=$("$IP" netns exec "$P-l" cat /sys/class/net/eth0/statistics/tx_bytes 2>/dev/null || echo 0)
+[ "$rx" -gt 0 ] && [ "$tx" -gt 0 ] && s=ok || s=FAIL
+check "$s" "learner's eth0 carried $((rx / 1024)) KiB in, $((tx / 1024)) KiB out"
+
+# The monitor ends with the run; how many stats it saw depends on timing: informative only
+# (it is killed at cleanup if it missed the learner's last stats).
+wait_exit monitor $((ACTOR_WAIT < 10 ? ACTOR_WAIT : 10))
+mon=0
+[ -f "$WORK/monitor.jsonl" ] && mon=$(wc -l <"$WORK/monitor.jsonl")
+REPORT+=("info  monitor received $mon stats messages (exit $RC)")
+
+kill -INT "${PID[router]}" 2>/dev/null
+wait_exit router 10
+[ "$RC" -eq 0 ] && s=ok || s=FAIL
+check "$s" "router exited with $RC on SIGINT"
+
+# ---------------------------------------------------------------- summary
+echo
+echo "== DUPAC netns rehearsal: router, learner, 2 actors, monitor in separate namespaces =="
+for r in "${REPORT[@]}"; do echo "  $r"; done
+if [ ${#FAILS[@]} -eq 0 ]; then
+    RESULT=PASS
+    echo "PASS ($(elapsed) s in all)"
+    exit 0
+fi
+echo "FAIL: ${#FAILS[@]} check(s) failed"
+for name in router learner actor1 actor2 monitor; do
+    echo "--- tail of $WORK/$name.log"
+    tail -n 25 "$WORK/$name.log" 2>/dev/null
+done
+exit 1
