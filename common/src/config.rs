@@ -677,10 +677,11 @@ pub struct DistributedConfig {
     /// Steps per environment in one trajectory chunk.
     pub chunk_steps: usize,
     /// Chunks an actor publishes per policy version before it waits for the next one (0 =
-    /// its share of a learner batch plus one: ⌈train.num_envs × train.num_steps /
-    /// (actor_envs × chunk_steps × actors alive)⌉ + 1).
-    /// Actors faster than the learner would otherwise mostly produce data that is dropped as
-    /// stale, and take the learner's cores to do it.
+    /// its share of a learner batch: ⌈train.num_envs × train.num_steps / (actor_envs ×
+    /// chunk_steps × actors alive)⌉). Actors faster than the learner would otherwise mostly
+    /// produce data that is dropped as stale, on cores the learner needs. On dedicated actor
+    /// hosts, one more than the share keeps actors busy during updates (that data arrives one
+    /// version old and is trained with the decoupled correction).
     pub max_chunks_per_version: usize,
     /// Oldest policy accepted: data from version `v − max_policy_lag` or newer trains version
     /// `v`; older data is dropped and counted (`stale`).
@@ -727,7 +728,7 @@ impl DistributedConfig {
             return self.max_chunks_per_version;
         }
         let per_actor = (self.actor_envs * self.chunk_steps * actors.max(1)).max(1);
-        batch_samples.div_ceil(per_actor) + 1
+        batch_samples.div_ceil(per_actor)
     }
 
     /// The message size cap in bytes.

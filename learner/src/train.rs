@@ -405,9 +405,38 @@ impl Learner {
             ..Batch::default()
         };
         let mut norm = vec![0.0f32; self.obs_dim];
-        let mut scratch = Scratch::default();
         let mut any_off_policy = false;
-        for seg in segments {
+        // The network evaluations (proximal log-probs of older data, last bootstraps) are
+        // independent per segment: in parallel.
+        let obs_dim = self.obs_dim;
+        let evals: Vec<(Option<Vec<f32>>, Option<f32>)> = segments
+            .par_iter()
+            .map(|seg| {
+                let tr = seg.traj;
+                let n = tr.len();
+                let mut scratch = Scratch::default();
+                let off_policy =
+                    seg.behaviour_version != policy.version && dist.decoupled_correction;
+                let prox = off_policy.then(|| {
+                    tr.obs
+                        .chunks_exact(obs_dim)
+                        .enumerate()
+                        .map(|(t, row)| {
+                            let mut m = [0.0f32; MOVE_DIM];
+                            m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
+                            policy.logprob(row, &m, tr.sites[t], &mut scratch)
+                        })
+                        .collect()
+                });
+                let boot = (n > 0
+                    && !tr.terminated[n - 1]
+                    && !tr.truncated[n - 1]
+                    && tr.bootstrap_obs.len() == obs_dim)
+                    .then(|| policy.value(&tr.bootstrap_obs, &mut scratch));
+                (prox, boot)
+            })
+            .collect();
+        for (seg, (prox, boot)) in segments.iter().zip(evals) {
             let tr = seg.traj;
             let n = tr.len();
             let rewards: Vec<f32> = tr
@@ -418,12 +447,8 @@ impl Learner {
             // The last step's bootstrap, re-evaluated with the current critic (identical for
             // data of the current version; better for older data).
             let mut next_values = tr.next_values.clone();
-            if n > 0
-                && !tr.terminated[n - 1]
-                && !tr.truncated[n - 1]
-                && tr.bootstrap_obs.len() == self.obs_dim
-            {
-                next_values[n - 1] = policy.value(&tr.bootstrap_obs, &mut scratch);
+            if let Some(v) = boot {
+                next_values[n - 1] = v;
             }
             let (adv, ret) = gae(
                 Trajectory {
@@ -436,27 +461,26 @@ impl Learner {
                 gamma,
                 lambda,
             );
-            let off_policy = seg.behaviour_version != policy.version && dist.decoupled_correction;
-            for (t, row) in tr.obs.chunks_exact(self.obs_dim).enumerate() {
+            for row in tr.obs.chunks_exact(self.obs_dim) {
                 policy.obs_norm.apply(row, &mut norm);
                 batch.obs.extend_from_slice(&norm);
-                if off_policy {
-                    let mut m = [0.0f32; MOVE_DIM];
-                    m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
-                    let prox = policy.logprob(row, &m, tr.sites[t], &mut scratch);
-                    let w = (f64::from(prox) - f64::from(tr.logprobs[t]))
-                        .exp()
-                        .min(dist.max_importance_weight);
-                    batch.logprobs.push(prox);
-                    batch.is_weights.push(w as f32);
-                } else {
-                    batch.logprobs.push(tr.logprobs[t]);
-                    batch.is_weights.push(1.0);
-                }
             }
-            if off_policy {
-                any_off_policy = true;
-                self.off_policy_samples += n as u64;
+            match &prox {
+                Some(prox) => {
+                    any_off_policy = true;
+                    self.off_policy_samples += n as u64;
+                    for (&p, &b) in prox.iter().zip(&tr.logprobs) {
+                        let w = (f64::from(p) - f64::from(b))
+                            .exp()
+                            .min(dist.max_importance_weight);
+                        batch.logprobs.push(p);
+                        batch.is_weights.push(w as f32);
+                    }
+                }
+                None => {
+                    batch.logprobs.extend_from_slice(&tr.logprobs);
+                    batch.is_weights.extend(std::iter::repeat_n(1.0, n));
+                }
             }
             batch.moves.extend_from_slice(&tr.moves);
             batch.sites.extend(tr.sites.iter().map(|&s| i64::from(s)));
