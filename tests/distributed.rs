@@ -633,3 +633,126 @@ fn dupac_train_runs_learner_and_actors_to_the_end() {
         assert!(last.get(k).is_some(), "{k} missing");
     }
 }
+
+/// An actor whose environment configuration differs from the learner's refuses to act, with a
+/// message that says why; the learner trains on with the matching actor.
+#[test]
+fn an_actor_with_another_configuration_is_refused() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-d";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    p.learner("learner", &[]);
+    p.actor(0);
+    let ep = p.endpoint.clone();
+    p.spawn(
+        "odd",
+        &[
+            "--set",
+            "env.goal_radius_m=9.5",
+            "actor",
+            "--id",
+            "5",
+            "--threads",
+            "1",
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+            "--no-multicast-scouting",
+        ],
+    );
+    let t0 = Instant::now();
+    let st = loop {
+        if let Some(st) = p.child("odd").try_wait().expect("wait") {
+            break st;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the odd actor kept running{}",
+            p.logs()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(!st.success());
+    let err = p.read("odd.err");
+    assert!(
+        err.contains("refusing to act") && err.contains("fingerprint"),
+        "{err}"
+    );
+    let w = Watcher::new(&p.endpoint, run);
+    let s = w.wait_for(&p, "training with the matching actor", 60, |s| {
+        s.update >= 5
+            && s.actors
+                .iter()
+                .filter(|a| a.actor == ActorId(5))
+                .all(|a| a.chunks == 0 && a.state == ActorState::Left)
+    });
+    assert_eq!(
+        drops(&s, "fingerprint"),
+        0,
+        "the refused actor sent nothing"
+    );
+    p.signal_and_wait("learner", "-INT");
+}
+
+/// Ctrl-C (SIGINT) to `dupac train` itself: the learner writes its checkpoint, every child is
+/// reaped, and the command exits cleanly; `--resume` then continues the curve.
+#[test]
+fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let config = write_config(dir.path(), "e2e-e", 256 * 100_000);
+    let out = dir.path().join("run");
+    let mut train = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        .arg("--config")
+        .arg(&config)
+        .args(["-q", "train", "--actors", "2", "--out"])
+        .arg(&out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dupac train");
+    // Signal the orchestrator only, as a service manager would; it forwards the signal.
+    let metrics = out.join("metrics.jsonl");
+    let t0 = Instant::now();
+    while std::fs::read_to_string(&metrics).map_or(0, |m| m.lines().count()) < 5 {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let pid = train.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .expect("kill")
+            .success()
+    );
+    let t0 = Instant::now();
+    let st = loop {
+        if let Some(st) = train.try_wait().expect("wait") {
+            break st;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "dupac train did not stop"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut train.stderr.take().expect("stderr"), &mut err)
+        .expect("stderr");
+    assert!(st.success(), "exit {st}: {err}");
+    let ck = dupac_learner::checkpoint::load_checkpoint(&out.join("checkpoint.bin"))
+        .expect("checkpoint");
+    assert!(ck.meta.update >= 5);
+    // No process of this run is left.
+    let left = Command::new("pgrep")
+        .args(["-f", &out.display().to_string()])
+        .output()
+        .expect("pgrep");
+    assert!(
+        String::from_utf8_lossy(&left.stdout).trim().is_empty(),
+        "orphans: {}",
+        String::from_utf8_lossy(&left.stdout)
+    );
+}
