@@ -134,13 +134,9 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let total = cfg.train.total_timesteps;
     let pb = super::progress_bar(total, "env steps", global.quiet);
     let keys = KeySpace::new(&cfg.distributed.run);
-    let session = watch.open_retrying(&stop).ok();
-    let sub = session.as_ref().and_then(|s| {
-        s.declare_subscriber(keys.stats_learner())
-            .with(zenoh::handlers::RingChannel::new(1))
-            .wait()
-            .ok()
-    });
+    // Connected lazily: the learner may still be starting, or may fail before it listens.
+    let mut session: Option<zenoh::Session> = None;
+    let mut sub = None;
     let limit = cfg.distributed.max_message_bytes();
     let mut forwarded = false;
     let status = loop {
@@ -155,6 +151,18 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
                 signal(a, libc::SIGINT);
             }
             forwarded = true;
+        }
+        if session.is_none() {
+            if let Ok(s) = watch.opts().open() {
+                sub = s
+                    .declare_subscriber(keys.stats_learner())
+                    .with(zenoh::handlers::RingChannel::new(1))
+                    .wait()
+                    .ok();
+                session = Some(s);
+            } else {
+                std::thread::sleep(Duration::from_millis(250));
+            }
         }
         if let Some(sub) = &sub
             && let Ok(Some(s)) = sub.recv_timeout(Duration::from_millis(250))
@@ -171,8 +179,6 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
                 "v{} {:.0} sps {alive} actors",
                 st.update, st.env_steps_per_s
             ));
-        } else if sub.is_none() {
-            std::thread::sleep(Duration::from_millis(250));
         }
         for (k, a) in actors.iter_mut().enumerate() {
             if let Ok(Some(st)) = a.try_wait()
