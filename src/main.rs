@@ -109,9 +109,10 @@ fn main() -> ExitCode {
 }
 
 fn init_tracing(verbose: u8) {
+    // Zenoh's own retry warnings repeat every second while a peer is down; DUPAC says it once.
     let default = match verbose {
-        0 => "warn",
-        1 => "info",
+        0 => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
+        1 => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
         _ => "debug",
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()

@@ -52,6 +52,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let cfg = resolve_config(global, args.association, args.out.as_ref())?;
     // Fail early, before the children do.
     let _ = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
+    super::train::device(args.device)?;
     let out = cfg.train.out_dir.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let config_path = out.join("config.toml");
