@@ -392,7 +392,7 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
             "fly",
             "--follow",
             "--step-ms",
-            "150",
+            "300",
             "--pair",
             "0",
             "--out",
