@@ -177,14 +177,19 @@ impl Procs {
             .status()
             .expect("kill");
         assert!(st.success());
+        self.wait_exit(name, 30)
+    }
+
+    /// Waits for the process to exit, at most `secs`.
+    fn wait_exit(&mut self, name: &str, secs: u64) -> std::process::ExitStatus {
         let t0 = Instant::now();
         loop {
             if let Some(st) = self.child(name).try_wait().expect("wait") {
                 return st;
             }
             assert!(
-                t0.elapsed() < Duration::from_secs(30),
-                "{name} did not exit after {sig}; {}",
+                t0.elapsed() < Duration::from_secs(secs),
+                "{name} did not exit within {secs} s; {}",
                 self.logs()
             );
             std::thread::sleep(Duration::from_millis(50));
@@ -466,18 +471,7 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     );
 
     // The pilot flew with more than one version (hot-swap mid-flight).
-    let t0 = Instant::now();
-    let pilot_done = loop {
-        if let Some(st) = p.child("pilot").try_wait().expect("wait") {
-            break st;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(120),
-            "pilot did not land{}",
-            p.logs()
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let pilot_done = p.wait_exit("pilot", 120);
     assert!(pilot_done.success(), "pilot failed{}", p.logs());
     let versions = std::fs::read_to_string(fly_out.join("versions.csv")).expect("versions.csv");
     let used: std::collections::BTreeSet<&str> = versions
@@ -661,18 +655,7 @@ fn an_actor_with_another_configuration_is_refused() {
             "--no-multicast-scouting",
         ],
     );
-    let t0 = Instant::now();
-    let st = loop {
-        if let Some(st) = p.child("odd").try_wait().expect("wait") {
-            break st;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "the odd actor kept running{}",
-            p.logs()
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let st = p.wait_exit("odd", 60);
     assert!(!st.success());
     let err = p.read("odd.err");
     assert!(
@@ -755,4 +738,25 @@ fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
         "orphans: {}",
         String::from_utf8_lossy(&left.stdout)
     );
+    // `--resume` continues the curve to a budget 3 updates past the checkpoint.
+    let target = ck.meta.update + 3;
+    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        .arg("--config")
+        .arg(&config)
+        .args(["-q", "train", "--actors", "1", "--resume", "--out"])
+        .arg(&out)
+        .args(["--set", &format!("train.total_timesteps={}", 256 * target)])
+        .output()
+        .expect("dupac train --resume");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = std::fs::read_to_string(&metrics).expect("metrics");
+    let updates: Vec<u64> = rows
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
+                .as_f64()
+                .expect("update") as u64
+        })
+        .collect();
+    assert_eq!(updates, (1..=target).collect::<Vec<_>>());
 }

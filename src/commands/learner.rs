@@ -5,8 +5,8 @@
 
 use super::net::{ConnectArgs, stop_flag};
 use super::train::{
-    AssociationArg, DeviceArg, RunOutput, checkpoint_to_resume, device, eval_due, held_out_pairs,
-    method_name, progress_message, resolve_config, spread, summary_line, world_and_cache,
+    RunArgs, RunOutput, checkpoint_to_resume, device, eval_due, held_out_pairs, method_name,
+    progress_message, resolve_config, spread, summary_line, world_and_cache,
 };
 use crate::GlobalArgs;
 use anyhow::Result;
@@ -18,36 +18,25 @@ use dupac_learner::dist::{LearnerNode, new_incarnation};
 use dupac_learner::train::{
     Learner, Segment, Timings, domain_stats, evaluate, policy_shape, put_domain,
 };
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct LearnerArgs {
-    /// `learned` (DUPAC) or `a3` (base method); default `env.association`.
-    #[arg(long, value_enum)]
-    pub association: Option<AssociationArg>,
-    /// Output directory (default `train.out_dir`).
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
-    /// Continue the run in `--out` from its checkpoint: versions continue, so actors' data is
-    /// not judged stale.
-    #[arg(long)]
-    pub resume: bool,
-    #[arg(long, value_name = "FILE", requires = "resume")]
-    pub checkpoint: Option<PathBuf>,
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub device: DeviceArg,
+    /// `--resume` continues the version counter too, so actors' data is not judged stale.
+    #[command(flatten)]
+    pub run: RunArgs,
     #[command(flatten)]
     pub net: ConnectArgs,
 }
 
 pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
-    let cfg = resolve_config(global, args.association, args.out.as_ref())?;
-    let checkpoint = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
-    let device = device(args.device)?;
+    let run = &args.run;
+    let cfg = resolve_config(global, run.association, run.out.as_ref())?;
+    let checkpoint = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
+    let device = device(run.device)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
     let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;

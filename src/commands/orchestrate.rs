@@ -49,10 +49,11 @@ fn child(exe: &Path, config: &Path, verbose: u8) -> Command {
 
 pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
-    let cfg = resolve_config(global, args.association, args.out.as_ref())?;
+    let run = &args.run;
+    let cfg = resolve_config(global, run.association, run.out.as_ref())?;
     // Fail early, before the children do.
-    let _ = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
-    super::train::device(args.device)?;
+    let _ = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
+    super::train::device(run.device)?;
     let out = cfg.train.out_dir.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let config_path = out.join("config.toml");
@@ -86,14 +87,14 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         .args(["--mode", "router", "--listen", &endpoint])
         .arg("--no-multicast-scouting")
         .arg("--device")
-        .arg(match args.device {
+        .arg(match run.device {
             DeviceArg::Cpu => "cpu",
             DeviceArg::Cuda => "cuda",
             DeviceArg::Wgpu => "wgpu",
         });
-    if args.resume {
+    if run.resume {
         learner_cmd.arg("--resume");
-        if let Some(ck) = &args.checkpoint {
+        if let Some(ck) = &run.checkpoint {
             learner_cmd.arg("--checkpoint").arg(ck);
         }
     }

@@ -41,8 +41,9 @@ pub enum DeviceArg {
     Wgpu,
 }
 
-#[derive(Args, Debug)]
-pub struct TrainArgs {
+/// What every training process (`dupac train`, `dupac learner`) takes.
+#[derive(Args, Debug, Clone)]
+pub struct RunArgs {
     /// `learned` (DUPAC) or `a3` (base method); default `env.association`.
     #[arg(long, value_enum)]
     pub association: Option<AssociationArg>,
@@ -57,6 +58,12 @@ pub struct TrainArgs {
     pub checkpoint: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: DeviceArg,
+}
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    #[command(flatten)]
+    pub run: RunArgs,
     /// Actor processes to start (default `distributed.actors`; 0 there = one per core).
     #[arg(long, value_name = "N")]
     pub actors: Option<usize>,
@@ -277,9 +284,10 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     if !args.single_process {
         return super::orchestrate::run(global, args);
     }
-    let cfg = resolve_config(global, args.association, args.out.as_ref())?;
-    let checkpoint = checkpoint_to_resume(&cfg, args.resume, args.checkpoint.as_ref())?;
-    let device = device(args.device)?;
+    let run = &args.run;
+    let cfg = resolve_config(global, run.association, run.out.as_ref())?;
+    let checkpoint = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
+    let device = device(run.device)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
     let held_out = held_out_pairs(&cfg, &planner, global.quiet)?;
