@@ -306,6 +306,19 @@ impl Watcher {
     }
 }
 
+/// The `update` column of a run's metrics.
+fn metric_updates(path: &Path) -> Vec<u64> {
+    std::fs::read_to_string(path)
+        .expect("metrics")
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
+                .as_f64()
+                .expect("update") as u64
+        })
+        .collect()
+}
+
 fn drops(s: &LearnerStats, reason: &str) -> u64 {
     s.drops.get(reason).copied().unwrap_or(0)
 }
@@ -566,15 +579,7 @@ fn a_restarted_learner_continues_its_versions_and_the_actor_reconnects() {
         p.child("actor0").try_wait().expect("wait").is_none(),
         "the actor survived the learner restart"
     );
-    let rows = std::fs::read_to_string(dir.path().join("run/metrics.jsonl")).expect("metrics");
-    let updates: Vec<u64> = rows
-        .lines()
-        .map(|l| {
-            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
-                .as_f64()
-                .expect("update") as u64
-        })
-        .collect();
+    let updates = metric_updates(&dir.path().join("run/metrics.jsonl"));
     assert!(
         updates.windows(2).all(|w| w[1] == w[0] + 1),
         "the learning curve continues without gaps or repeats"
@@ -749,14 +754,6 @@ fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
         .output()
         .expect("dupac train --resume");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rows = std::fs::read_to_string(&metrics).expect("metrics");
-    let updates: Vec<u64> = rows
-        .lines()
-        .map(|l| {
-            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
-                .as_f64()
-                .expect("update") as u64
-        })
-        .collect();
+    let updates = metric_updates(&metrics);
     assert_eq!(updates, (1..=target).collect::<Vec<_>>());
 }

@@ -148,52 +148,8 @@ impl Wiring {
             .with(RingChannel::new(1))
             .wait()
             .map_err(z)?;
-        let learners: Arc<Mutex<HashSet<String>>> = Arc::default();
-        let learner_sub = {
-            let (learners, keys2) = (learners.clone(), keys.clone());
-            session
-                .liveliness()
-                .declare_subscriber(keys.alive_role(Role::Learner))
-                .history(true)
-                .callback(move |s| {
-                    let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
-                        return;
-                    };
-                    let Ok(mut l) = learners.lock() else { return };
-                    match s.kind() {
-                        SampleKind::Put => {
-                            tracing::info!(learner = id, "learner present");
-                            l.insert(id);
-                        }
-                        SampleKind::Delete => {
-                            tracing::warn!(learner = id, "learner gone");
-                            l.remove(&id);
-                        }
-                    }
-                })
-                .wait()
-                .map_err(z)?
-        };
-        let actors: Arc<Mutex<HashSet<String>>> = Arc::default();
-        let actors_sub = {
-            let (actors, keys2) = (actors.clone(), keys.clone());
-            session
-                .liveliness()
-                .declare_subscriber(keys.alive_role(Role::Actor))
-                .history(true)
-                .callback(move |s| {
-                    let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
-                        return;
-                    };
-                    let Ok(mut a) = actors.lock() else { return };
-                    match s.kind() {
-                        SampleKind::Put => a.insert(id),
-                        SampleKind::Delete => a.remove(&id),
-                    };
-                })
-                .wait()
-                .map_err(z)?
-        };
+        let (learners, learner_sub) = track_alive(&session, &keys, Role::Learner, true)?;
+        let (actors, actors_sub) = track_alive(&session, &keys, Role::Actor, false)?;
         let stop = Arc::new(AtomicBool::new(false));
         let ctrl_sub = {
             let (stop, limit) = (stop.clone(), cfg.distributed.max_message_bytes());
@@ -282,6 +238,47 @@ impl Wiring {
         }
         Ok(best)
     }
+}
+
+/// The ids of the processes of `role` whose liveliness token is present, kept current by a
+/// liveliness subscriber (with history: tokens declared before it count); `log` reports joins
+/// and departures.
+#[allow(clippy::type_complexity)]
+fn track_alive(
+    session: &zenoh::Session,
+    keys: &KeySpace,
+    role: Role,
+    log: bool,
+) -> Result<(Arc<Mutex<HashSet<String>>>, zenoh::pubsub::Subscriber<()>), ActorError> {
+    let present: Arc<Mutex<HashSet<String>>> = Arc::default();
+    let (set, keys2) = (present.clone(), keys.clone());
+    let sub = session
+        .liveliness()
+        .declare_subscriber(keys.alive_role(role))
+        .history(true)
+        .callback(move |s| {
+            let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
+                return;
+            };
+            let Ok(mut set) = set.lock() else { return };
+            match s.kind() {
+                SampleKind::Put => {
+                    if log {
+                        tracing::info!(%role, id, "present");
+                    }
+                    set.insert(id);
+                }
+                SampleKind::Delete => {
+                    if log {
+                        tracing::warn!(%role, id, "gone");
+                    }
+                    set.remove(&id);
+                }
+            }
+        })
+        .wait()
+        .map_err(z)?;
+    Ok((present, sub))
 }
 
 /// Runs one actor until the learner stops the run, `stop` is set, or `max_chunks` chunks are

@@ -56,10 +56,12 @@ pub struct FlyArgs {
 pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let mut cfg = super::train::resolve_config(global, args.association, None)?;
     let mut follower = None;
+    let mut built = None;
     let policy = match &args.policy {
         Some(path) if !args.follow => load_policy(path)?,
         _ => {
             let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+            built = Some((world.clone(), rsrp.clone()));
             let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
             let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
             let stop = super::net::stop_flag()?;
@@ -95,7 +97,11 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         || "the followed weights".to_string(),
         |p| p.display().to_string(),
     );
-    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    // The radio world does not depend on the association: one build serves both paths.
+    let (world, rsrp) = match built {
+        Some(wr) => wr,
+        None => world_and_cache(&cfg, global.quiet)?,
+    };
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
     let file = args
         .pairs
