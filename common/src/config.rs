@@ -23,6 +23,13 @@ pub enum ConfigError {
     Override { arg: String, message: String },
     #[error("config key `{key}`: {message}")]
     Invalid { key: String, message: String },
+    /// [`ConfigError::Invalid`] found in a file (`origin`, with its `--set` overrides if any).
+    #[error("config file {origin}: key `{key}`: {message}")]
+    InvalidIn {
+        origin: String,
+        key: String,
+        message: String,
+    },
 }
 
 /// The whole configuration of a DUPAC run.
@@ -61,14 +68,21 @@ pub enum BuildingDetail {
     Outlines,
 }
 
-/// A lon/lat box (WGS84 degrees).
+/// A lon/lat box (WGS84 degrees). Each bound defaults to the Midtown flight area's, so that one
+/// bound can be set alone (`--set scenario.area.lat_max_deg=40.76`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct LonLatBox {
     pub lon_min_deg: f64,
     pub lon_max_deg: f64,
     pub lat_min_deg: f64,
     pub lat_max_deg: f64,
+}
+
+impl Default for LonLatBox {
+    fn default() -> Self {
+        ScenarioConfig::default().area
+    }
 }
 
 impl LonLatBox {
@@ -342,6 +356,27 @@ impl Default for CacheConfig {
     }
 }
 
+/// Scaling of obstacle-sensor distances into [0, 1] (see [`ObservationConfig::sensor_scale`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SensorScale {
+    /// d / range (spec/env.md "Observation").
+    Linear,
+    /// ln(1 + d / 1 m) / ln(1 + range / 1 m).
+    Log,
+}
+
+impl SensorScale {
+    /// Scales a sensed distance `d_m` (≤ `range_m`) into [0, 1]; 1 = nothing in range.
+    pub fn scale(self, d_m: f64, range_m: f64) -> f64 {
+        let d = d_m.clamp(0.0, range_m);
+        match self {
+            SensorScale::Linear => d / range_m,
+            SensorScale::Log => (1.0 + d).ln() / (1.0 + range_m).ln(),
+        }
+    }
+}
+
 /// How the serving GBS is chosen (spec/env.md "Association").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -413,6 +448,10 @@ pub struct ObservationConfig {
     pub rsrp_serving: bool,
     /// Obstacle sensor range (m).
     pub sensor_range_m: f64,
+    /// How a sensed distance d is scaled into [0, 1] (c_t and the fan): `linear` = d / range
+    /// (spec/env.md), `log` = ln(1 + d / 1 m) / ln(1 + range / 1 m), which resolves the last
+    /// metres before a wall (a departure from the spec for the collision study of issue 4).
+    pub sensor_scale: SensorScale,
     /// Scale of distances to the goal (m): goal vector / this.
     pub goal_scale_m: f64,
     /// RSRP normalisation: (RSRP − centre) / scale.
@@ -428,6 +467,7 @@ impl Default for ObservationConfig {
             rsrp_all: true,
             rsrp_serving: true,
             sensor_range_m: 50.0,
+            sensor_scale: SensorScale::Linear,
             goal_scale_m: 800.0,
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
@@ -765,24 +805,66 @@ impl Config {
     }
 
     /// Parses a TOML string (`origin` names it in errors), applies `--set` overrides, validates.
+    /// An error of the file names its line and key; one an override causes names the override.
     pub fn from_toml_str(text: &str, origin: &str, sets: &[String]) -> Result<Config, ConfigError> {
-        let mut value: toml::Table = toml::from_str(text).map_err(|e| ConfigError::Parse {
+        let parse_err = |e: toml::de::Error| ConfigError::Parse {
             path: origin.to_string(),
             message: e.to_string(),
-        })?;
-        for arg in sets {
-            apply_override(&mut value, arg)?;
+        };
+        // Deserialised from the text itself (not from a parsed table) so that errors carry the
+        // line and column.
+        let mut config: Config = toml::from_str(text).map_err(parse_err)?;
+        if !sets.is_empty() {
+            let mut value: toml::Table = toml::from_str(text).map_err(parse_err)?;
+            // The override after which the configuration stopped deserialising (and why); later
+            // overrides may complete it again (e.g. the bounds of `scenario.area` one by one).
+            let mut broken_by: Option<(&String, toml::de::Error)> = None;
+            for arg in sets {
+                apply_override(&mut value, arg)?;
+                match Config::deserialize(toml::Value::Table(value.clone())) {
+                    Ok(c) => {
+                        config = c;
+                        broken_by = None;
+                    }
+                    Err(e) => {
+                        broken_by.get_or_insert((arg, e));
+                    }
+                }
+            }
+            if let Some((arg, e)) = broken_by {
+                return Err(ConfigError::Override {
+                    arg: arg.clone(),
+                    message: e.to_string(),
+                });
+            }
         }
-        let config: Config =
-            Config::deserialize(toml::Value::Table(value)).map_err(|e| ConfigError::Parse {
-                path: if sets.is_empty() {
-                    origin.to_string()
-                } else {
-                    format!("{origin} (with --set overrides)")
-                },
-                message: e.to_string(),
-            })?;
-        config.validate()?;
+        config.validate().map_err(|e| match e {
+            ConfigError::Invalid { key, message } => {
+                // The last override that sets the key (or a table holding it) is to blame.
+                let set_key = |arg: &String| {
+                    arg.split_once('=').is_some_and(|(k, _)| {
+                        let k = k.trim();
+                        key == k || key.strip_prefix(k).is_some_and(|r| r.starts_with('.'))
+                    })
+                };
+                match sets.iter().rev().find(|a| set_key(a)) {
+                    Some(arg) => ConfigError::Override {
+                        arg: arg.clone(),
+                        message: format!("key `{key}`: {message}"),
+                    },
+                    None => ConfigError::InvalidIn {
+                        origin: if sets.is_empty() {
+                            origin.to_string()
+                        } else {
+                            format!("{origin} (with --set overrides)")
+                        },
+                        key,
+                        message,
+                    },
+                }
+            }
+            other => other,
+        })?;
         Ok(config)
     }
 
@@ -1099,7 +1181,12 @@ impl Config {
         if t.num_steps == 0 {
             return Err(bad("train.num_steps", "must be >= 1"));
         }
-        let batch = t.num_envs * t.num_steps;
+        let Some(batch) = t.num_envs.checked_mul(t.num_steps) else {
+            return Err(bad(
+                "train.num_steps",
+                "train.num_envs × train.num_steps overflows",
+            ));
+        };
         if !batch.is_multiple_of(pp.num_minibatches) || batch < pp.num_minibatches {
             return Err(bad(
                 "ppo.num_minibatches",
@@ -1200,6 +1287,23 @@ fn apply_override(root: &mut toml::Table, arg: &str) -> Result<(), ConfigError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sensor_scales_map_the_range_onto_unit_interval() {
+        for scale in [SensorScale::Linear, SensorScale::Log] {
+            assert_eq!(scale.scale(0.0, 50.0), 0.0);
+            assert!((scale.scale(50.0, 50.0) - 1.0).abs() < 1e-12);
+            assert!(
+                (scale.scale(80.0, 50.0) - 1.0).abs() < 1e-12,
+                "beyond range = free"
+            );
+            assert!(scale.scale(2.0, 50.0) < scale.scale(3.0, 50.0), "monotone");
+        }
+        assert!((SensorScale::Linear.scale(5.0, 50.0) - 0.1).abs() < 1e-12);
+        // The log scale spends a quarter of [0, 1] on the first 2 m (linear: 4 %).
+        let log2 = SensorScale::Log.scale(2.0, 50.0);
+        assert!((log2 - 3f64.ln() / 51f64.ln()).abs() < 1e-12 && log2 > 0.25);
+    }
 
     #[test]
     fn defaults_are_the_papers() {

@@ -89,7 +89,7 @@ impl ObsLayout {
         push(
             OBSTACLE_DISTANCE,
             1,
-            "c_t: nearest obstacle along the sensor fan / sensor_range_m (1 = none in range)",
+            "c_t: nearest obstacle along the sensor fan, scaled by sensor_scale (1 = none in range)",
         );
         push(
             OBSTACLE_DIRECTION,
@@ -100,7 +100,7 @@ impl ObsLayout {
             push(
                 SENSOR_FAN,
                 SENSOR_DIRECTIONS.len(),
-                "distance along each SENSOR_DIRECTIONS ray / sensor_range_m (1 = free)",
+                "distance along each SENSOR_DIRECTIONS ray, scaled by sensor_scale (1 = free)",
             );
         }
         push(SERVING_ONE_HOT, n_sites, "one-hot of the serving GBS id");

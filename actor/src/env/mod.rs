@@ -419,6 +419,7 @@ impl Env {
     /// (c_t normalised, index of the nearest ray or `None`).
     fn sense(&self, fan: &mut [f32; 26]) -> (f32, Option<usize>) {
         let range = self.cfg.observation.sensor_range_m;
+        let scale = self.cfg.observation.sensor_scale;
         let mut best = (1.0f32, None);
         for (i, d) in self.sensor_dirs.iter().enumerate() {
             let v = match self
@@ -427,7 +428,7 @@ impl Env {
                 .mesh
                 .ray_distance_m(self.position_m, *d, range)
             {
-                Some(t) => (t / range) as f32,
+                Some(t) => scale.scale(t, range) as f32,
                 None => 1.0,
             };
             fan[i] = v;

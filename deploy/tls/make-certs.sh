@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Makes a private certificate authority and the certificates of one DUPAC run, plus ready-to-use
+# Zenoh configs with mutual TLS and access control (issue 7, docs/reliability.md).
+#
+#   deploy/tls/make-certs.sh OUT_DIR [--router-host NAME_OR_IP]... [--days N]
+#
+# OUT_DIR receives:
+#   ca.pem, ca.key                   the run's private CA (keep ca.key off the run's hosts)
+#   router.pem, router.key           CN dupac-router; subjectAltName: localhost, 127.0.0.1 and
+#                                    every --router-host (the names actors use in tls/HOST:7447)
+#   learner.pem/.key                 CN dupac-learner  (may publish weights, stats, Stop)
+#   actor.pem/.key                   CN dupac-actor    (may publish trajectories and actor stats)
+#   monitor.pem/.key                 CN dupac-monitor  (reads only: monitors and pilots)
+#   router.json5, learner.json5,     deploy/zenoh/secure/*.json5 with this directory's absolute
+#   actor.json5, monitor.json5       path and the first --router-host filled in
+#
+# Keys are ECDSA P-256 (PKCS#8 PEM), certificates X.509 v3 signed by the CA, valid --days (365).
+# Copy to each host only what its role needs: ca.pem + that role's .pem/.key + its .json5.
+# Needs openssl ≥ 1.1.1.
+set -euo pipefail
+
+usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+[ $# -ge 1 ] || usage
+OUT=$1; shift
+HOSTS=()
+DAYS=365
+while [ $# -gt 0 ]; do
+  case $1 in
+    --router-host) HOSTS+=("$2"); shift 2 ;;
+    --days) DAYS=$2; shift 2 ;;
+    -h|--help) usage ;;
+    *) echo "make-certs.sh: unknown argument '$1'" >&2; usage ;;
+  esac
+done
+command -v openssl >/dev/null || { echo "make-certs.sh: openssl not found" >&2; exit 1; }
+HERE=$(cd "$(dirname "$0")" && pwd)
+TEMPLATES="$HERE/../zenoh/secure"
+mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
+umask 077
+
+key() { openssl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$1" 2>/dev/null; }
+
+key "$OUT/ca.key"
+openssl req -x509 -new -key "$OUT/ca.key" -sha256 -days "$DAYS" -subj "/CN=dupac-run-ca" \
+  -addext "basicConstraints=critical,CA:TRUE" -addext "keyUsage=critical,keyCertSign,cRLSign" \
+  -out "$OUT/ca.pem"
+
+# leaf NAME CN EXT_USAGE [SAN]
+leaf() {
+  local name=$1 cn=$2 usage=$3 san=${4:-}
+  key "$OUT/$name.key"
+  openssl req -new -key "$OUT/$name.key" -subj "/CN=$cn" -out "$OUT/$name.csr"
+  {
+    echo "basicConstraints=critical,CA:FALSE"
+    echo "keyUsage=critical,digitalSignature,keyEncipherment"
+    echo "extendedKeyUsage=$usage"
+    [ -n "$san" ] && echo "subjectAltName=$san"
+  } >"$OUT/$name.ext"
+  openssl x509 -req -in "$OUT/$name.csr" -CA "$OUT/ca.pem" -CAkey "$OUT/ca.key" \
+    -CAcreateserial -days "$DAYS" -sha256 -extfile "$OUT/$name.ext" -out "$OUT/$name.pem" 2>/dev/null
+  rm -f "$OUT/$name.csr" "$OUT/$name.ext"
+}
+
+SAN="DNS:localhost,IP:127.0.0.1"
+for h in "${HOSTS[@]+"${HOSTS[@]}"}"; do
+  if [[ $h =~ ^[0-9.]+$ || $h == *:* ]]; then SAN="$SAN,IP:$h"; else SAN="$SAN,DNS:$h"; fi
+done
+# The router is a server to every process and a client of none; the others are clients.
+leaf router dupac-router serverAuth,clientAuth "$SAN"
+leaf learner dupac-learner clientAuth
+leaf actor dupac-actor clientAuth
+leaf monitor dupac-monitor clientAuth
+rm -f "$OUT/ca.srl"
+
+ROUTER_HOST=${HOSTS[0]:-localhost}
+for role in router learner actor monitor; do
+  sed -e "s|CERTS_DIR|$OUT|g" -e "s|ROUTER_HOST|$ROUTER_HOST|g" "$TEMPLATES/$role.json5" >"$OUT/$role.json5"
+done
+chmod 644 "$OUT"/*.pem "$OUT"/*.json5
+echo "certificates and configs of the run in $OUT (router reachable as: localhost 127.0.0.1 ${HOSTS[*]+"${HOSTS[*]}"})"

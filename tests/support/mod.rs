@@ -1,0 +1,359 @@
+//! Helpers of the end-to-end tests of real `dupac` processes over Zenoh (tests/distributed.rs,
+//! tests/security.rs, tests/faults.rs): a small procedural run config, child processes killed
+//! when a test ends, and the test's own Zenoh client (stats watcher and rogue publisher).
+#![allow(dead_code)]
+
+use dupac_common::ActorId;
+use dupac_common::keys::KeySpace;
+use dupac_common::msg::{
+    EnvTrajectory, Header, LearnerStats, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg,
+};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// A small procedural city with short pairs: a run of many updates per second.
+pub fn write_config(dir: &Path, run: &str, total_timesteps: u64) -> PathBuf {
+    let text = format!(
+        r#"
+[scenario]
+city = "procedural"
+n_sites = 8
+[scenario.procedural]
+size_m = 500
+n_sites = 8
+[cache]
+horizontal_m = 10
+vertical_m = 10
+path = "{dir}/rsrp.bin"
+[pairs]
+min_m = 40
+max_m = 70
+eval_bins_m = [50, 60]
+eval_per_bin = 4
+bin_tolerance = 0.1
+eval_file = "{dir}/eval.jsonl"
+[train]
+num_envs = 4
+num_steps = 64
+pool_size = 50
+checkpoint_every = 2
+eval_every = 1000
+eval_pairs = 8
+total_timesteps = {total_timesteps}
+[ppo]
+num_minibatches = 2
+hidden = [32, 32]
+[distributed]
+run = "{run}"
+actor_envs = 2
+chunk_steps = 32
+max_message_mib = 1.0
+stats_every_s = 0.2
+silent_after_s = 3.0
+"#,
+        dir = dir.display()
+    );
+    let path = dir.join("config.toml");
+    std::fs::write(&path, text).expect("write config");
+    path
+}
+
+pub fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    l.local_addr().expect("addr").port()
+}
+
+/// Child processes killed when the test ends, whatever happens.
+pub struct Procs {
+    pub dir: PathBuf,
+    pub config: PathBuf,
+    pub endpoint: String,
+    pub children: Vec<(String, Child)>,
+}
+
+impl Drop for Procs {
+    fn drop(&mut self) {
+        for (_, c) in &mut self.children {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+impl Procs {
+    pub fn new(dir: &Path, run: &str, total: u64) -> Procs {
+        let config = write_config(dir, run, total);
+        // The RSRP cache once, before any process would build it.
+        let st = Command::new(env!("CARGO_BIN_EXE_dupac"))
+            .args([
+                "--config",
+                config.to_str().expect("utf8"),
+                "-q",
+                "cache",
+                "build",
+            ])
+            .status()
+            .expect("cache build");
+        assert!(st.success(), "cache build failed");
+        Procs {
+            dir: dir.to_path_buf(),
+            config,
+            endpoint: format!("tcp/127.0.0.1:{}", free_port()),
+            children: Vec::new(),
+        }
+    }
+
+    pub fn spawn(&mut self, name: &str, args: &[&str]) {
+        let log = |ext: &str| {
+            std::fs::File::create(self.dir.join(format!("{name}.{ext}"))).expect("log file")
+        };
+        let child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+            .arg("--config")
+            .arg(&self.config)
+            .arg("-q")
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(log("out"))
+            .stderr(log("err"))
+            .spawn()
+            .expect("spawn dupac");
+        self.children.push((name.to_string(), child));
+    }
+
+    pub fn learner(&mut self, name: &str, extra: &[&str]) {
+        let out = self.dir.join("run").display().to_string();
+        let ep = self.endpoint.clone();
+        let mut a = vec![
+            "learner",
+            "--out",
+            &out,
+            "--mode",
+            "router",
+            "--listen",
+            &ep,
+            "--no-multicast-scouting",
+        ];
+        a.extend_from_slice(extra);
+        self.spawn(name, &a);
+    }
+
+    pub fn actor(&mut self, id: u32) {
+        let ep = self.endpoint.clone();
+        let id_s = id.to_string();
+        self.spawn(
+            &format!("actor{id}"),
+            &[
+                "actor",
+                "--id",
+                &id_s,
+                "--threads",
+                "1",
+                "--mode",
+                "client",
+                "--connect",
+                &ep,
+                "--no-multicast-scouting",
+            ],
+        );
+    }
+
+    pub fn child(&mut self, name: &str) -> &mut Child {
+        &mut self
+            .children
+            .iter_mut()
+            .find(|(n, _)| n == name)
+            .expect("no such child")
+            .1
+    }
+
+    /// Sends a signal and waits for the process to exit (at most 30 s).
+    pub fn signal_and_wait(&mut self, name: &str, sig: &str) -> std::process::ExitStatus {
+        let pid = self.child(name).id().to_string();
+        let st = Command::new("kill")
+            .args([sig, &pid])
+            .status()
+            .expect("kill");
+        assert!(st.success());
+        self.wait_exit(name, 30)
+    }
+
+    /// Waits for the process to exit, at most `secs`.
+    pub fn wait_exit(&mut self, name: &str, secs: u64) -> std::process::ExitStatus {
+        let t0 = Instant::now();
+        loop {
+            if let Some(st) = self.child(name).try_wait().expect("wait") {
+                return st;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(secs),
+                "{name} did not exit within {secs} s; {}",
+                self.logs()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    pub fn read(&self, name: &str) -> String {
+        std::fs::read_to_string(self.dir.join(name)).unwrap_or_default()
+    }
+
+    /// Every process's stderr tail, for failure messages.
+    pub fn logs(&self) -> String {
+        let mut s = String::new();
+        for (n, _) in &self.children {
+            let err = self.read(&format!("{n}.err"));
+            let tail: Vec<&str> = err.lines().rev().take(15).collect();
+            s.push_str(&format!(
+                "\n--- {n} stderr (last lines, reversed):\n{}",
+                tail.join("\n")
+            ));
+        }
+        s
+    }
+}
+
+/// The test's own Zenoh client: the learner's stats (newest only), and a rogue publisher.
+pub struct Watcher {
+    pub session: zenoh::Session,
+    pub keys: KeySpace,
+    pub stats:
+        zenoh::pubsub::Subscriber<zenoh::handlers::RingChannelHandler<zenoh::sample::Sample>>,
+}
+
+impl Watcher {
+    pub fn new(endpoint: &str, run: &str) -> Watcher {
+        let mut c = zenoh::Config::default();
+        c.insert_json5("mode", "\"client\"").expect("mode");
+        c.insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+            .expect("connect");
+        c.insert_json5("scouting/multicast/enabled", "false")
+            .expect("scouting");
+        Watcher::with_config(c, run)
+    }
+
+    /// A watcher with its own Zenoh configuration (TLS certificates, say).
+    pub fn with_config(c: zenoh::Config, run: &str) -> Watcher {
+        // The router may not listen yet: retry for a while.
+        let t0 = Instant::now();
+        let session = loop {
+            match zenoh::open(c.clone()).wait() {
+                Ok(s) => break s,
+                Err(e) => {
+                    assert!(
+                        t0.elapsed() < Duration::from_secs(60),
+                        "cannot connect: {e}"
+                    );
+                    std::thread::sleep(Duration::from_millis(200));
+                }
+            }
+        };
+        let keys = KeySpace::new(run);
+        let stats = session
+            .declare_subscriber(keys.stats_learner())
+            .with(zenoh::handlers::RingChannel::new(1))
+            .wait()
+            .expect("subscribe");
+        Watcher {
+            session,
+            keys,
+            stats,
+        }
+    }
+
+    /// Waits (at most `secs`) for learner stats satisfying `ok`.
+    pub fn wait_for(
+        &self,
+        procs: &Procs,
+        what: &str,
+        secs: u64,
+        ok: impl Fn(&LearnerStats) -> bool,
+    ) -> LearnerStats {
+        let t0 = Instant::now();
+        let mut last = None;
+        while t0.elapsed() < Duration::from_secs(secs) {
+            if let Ok(Some(s)) = self.stats.recv_timeout(Duration::from_millis(200))
+                && let Ok(StatsMsg::Learner(st)) =
+                    decode_msg::<StatsMsg>(&s.payload().to_bytes(), 1 << 26, "stats")
+            {
+                if ok(&st) {
+                    return st;
+                }
+                last = Some(st);
+            }
+        }
+        panic!(
+            "timed out waiting for {what}; last stats: {:?}{}",
+            last.map(|s| (s.update, s.drops, s.actors)),
+            procs.logs()
+        );
+    }
+
+    pub fn weights(&self) -> WeightsMsg {
+        let replies = self
+            .session
+            .get(self.keys.weights())
+            .timeout(Duration::from_secs(5))
+            .wait()
+            .expect("query");
+        let reply = replies.recv().expect("a weights reply");
+        let sample = reply.result().expect("ok reply");
+        decode_msg(&sample.payload().to_bytes(), 1 << 26, "weights").expect("weights decode")
+    }
+
+    pub fn publish(&self, actor: u32, bytes: Vec<u8>) {
+        self.session
+            .put(self.keys.traj(ActorId(actor)), bytes)
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .wait()
+            .expect("put");
+    }
+}
+
+/// The `update` column of a run's metrics.
+pub fn metric_updates(path: &Path) -> Vec<u64> {
+    std::fs::read_to_string(path)
+        .expect("metrics")
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).expect("row")["update"]
+                .as_f64()
+                .expect("update") as u64
+        })
+        .collect()
+}
+
+pub fn drops(s: &LearnerStats, reason: &str) -> u64 {
+    s.drops.get(reason).copied().unwrap_or(0)
+}
+
+/// A well-formed chunk for the learner that `w` came from, acted with `version`.
+pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk {
+    let (d, t) = (w.policy.obs_dim, 4usize);
+    let mut h = Header::new(
+        &w.header.run_id,
+        w.header.learner_incarnation,
+        ActorId(actor),
+        w.header.config_fingerprint,
+    );
+    h.policy_version = version;
+    TrajectoryChunk {
+        header: h,
+        trajectories: vec![EnvTrajectory {
+            env: 0,
+            obs_dim: d,
+            obs: vec![0.1; t * d],
+            moves: vec![0.0; t * 3],
+            sites: vec![0; t],
+            logprobs: vec![-3.0; t],
+            values: vec![0.0; t],
+            rewards: vec![0.0; t],
+            terminated: vec![false; t],
+            truncated: vec![false; t],
+            next_values: vec![0.0; t],
+            bootstrap_obs: vec![0.1; d],
+            episodes: vec![],
+        }],
+    }
+}
