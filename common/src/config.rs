@@ -377,6 +377,16 @@ impl SensorScale {
     }
 }
 
+/// Source of c_t and θ_t (see [`ObservationConfig::nearest_obstacle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NearestObstacle {
+    /// The shortest ray of the sensor fan (spec/env.md "Observation").
+    Fan,
+    /// The nearest surface point of the building mesh.
+    Exact,
+}
+
 /// How the serving GBS is chosen (spec/env.md "Association").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -452,6 +462,11 @@ pub struct ObservationConfig {
     /// (spec/env.md), `log` = ln(1 + d / 1 m) / ln(1 + range / 1 m), which resolves the last
     /// metres before a wall (a departure from the spec for the collision study of issue 4).
     pub sensor_scale: SensorScale,
+    /// Where c_t and θ_t come from: `fan` = the shortest of the 26 rays and its direction
+    /// (spec/env.md), `exact` = the true nearest building surface point within the sensor range
+    /// (the paper's "distance and direction to the nearest obstacle"; it also sees corners that
+    /// fall between the rays).
+    pub nearest_obstacle: NearestObstacle,
     /// Scale of distances to the goal (m): goal vector / this.
     pub goal_scale_m: f64,
     /// RSRP normalisation: (RSRP − centre) / scale.
@@ -468,6 +483,7 @@ impl Default for ObservationConfig {
             rsrp_serving: true,
             sensor_range_m: 50.0,
             sensor_scale: SensorScale::Linear,
+            nearest_obstacle: NearestObstacle::Fan,
             goal_scale_m: 800.0,
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
@@ -632,6 +648,11 @@ pub struct PpoConfig {
     /// Scale rewards by the running std of the discounted return, clipped to ±reward_clip.
     pub normalize_reward: bool,
     pub reward_clip: f64,
+    /// Consecutive updates skipped for numerical faults (a non-finite observation, reward or
+    /// value in the batch, or non-finite weights after the update) before the run stops with an
+    /// error; 0 = never stop. A skipped update leaves the weights, optimiser and normalisers as
+    /// they were (issue 7, docs/reliability.md).
+    pub max_bad_updates: u32,
 }
 
 impl Default for PpoConfig {
@@ -658,6 +679,7 @@ impl Default for PpoConfig {
             obs_clip: 10.0,
             normalize_reward: true,
             reward_clip: 10.0,
+            max_bad_updates: 5,
         }
     }
 }

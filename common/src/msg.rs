@@ -119,6 +119,29 @@ pub struct EnvTrajectory {
 }
 
 impl EnvTrajectory {
+    /// The first non-finite number of the trajectory, named (`"rewards[3] = NaN"`), or `None`
+    /// when every number is finite (issue 7: a NaN or inf never reaches the learner's update).
+    pub fn first_non_finite(&self) -> Option<String> {
+        let fields = [
+            ("obs", &self.obs),
+            ("moves", &self.moves),
+            ("logprobs", &self.logprobs),
+            ("values", &self.values),
+            ("rewards", &self.rewards),
+            ("next_values", &self.next_values),
+            ("bootstrap_obs", &self.bootstrap_obs),
+        ];
+        for (name, v) in fields {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Some(format!("{name}[{i}] = {}", v[i]));
+            }
+        }
+        if self.episodes.iter().any(|e| !e.is_finite()) {
+            return Some("episode summary".to_string());
+        }
+        None
+    }
+
     pub fn len(&self) -> usize {
         self.rewards.len()
     }
@@ -509,25 +532,8 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
                 tr.episodes.len()
             ))));
         }
-        let finite = [
-            ("obs", &tr.obs),
-            ("moves", &tr.moves),
-            ("logprobs", &tr.logprobs),
-            ("values", &tr.values),
-            ("rewards", &tr.rewards),
-            ("next_values", &tr.next_values),
-            ("bootstrap_obs", &tr.bootstrap_obs),
-        ];
-        for (name, v) in finite {
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(reject(
-                    DropReason::NonFinite,
-                    at(&format!("{name}[{i}] = {}", v[i])),
-                ));
-            }
-        }
-        if tr.episodes.iter().any(|e| !e.is_finite()) {
-            return Err(reject(DropReason::NonFinite, at("episode summary")));
+        if let Some(what) = tr.first_non_finite() {
+            return Err(reject(DropReason::NonFinite, at(&what)));
         }
     }
     Ok(())

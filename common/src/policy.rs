@@ -75,6 +75,13 @@ pub struct Mlp {
 }
 
 impl Mlp {
+    /// Whether every weight and bias is finite.
+    pub fn all_finite(&self) -> bool {
+        self.layers
+            .iter()
+            .all(|l| l.weight.iter().chain(&l.bias).all(|v| v.is_finite()))
+    }
+
     pub fn n_in(&self) -> usize {
         self.layers.first().map(|l| l.n_in).unwrap_or(0)
     }

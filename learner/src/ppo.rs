@@ -69,6 +69,27 @@ pub struct UpdateStats {
     pub learning_rate: f64,
 }
 
+impl UpdateStats {
+    /// The statistics of an update skipped for a numerical fault: no losses (NaN, written as
+    /// `null` in metrics.jsonl), the learning rate it would have used.
+    pub fn skipped(learning_rate: f64) -> UpdateStats {
+        UpdateStats {
+            policy_loss: f64::NAN,
+            value_loss: f64::NAN,
+            entropy: f64::NAN,
+            entropy_move: f64::NAN,
+            entropy_site: f64::NAN,
+            old_approx_kl: f64::NAN,
+            approx_kl: f64::NAN,
+            clipfrac: f64::NAN,
+            explained_variance: f64::NAN,
+            grad_norm: f64::NAN,
+            learning_rate,
+            ..UpdateStats::default()
+        }
+    }
+}
+
 /// Clipped surrogate policy loss `mean(max(−A·ρ, −A·clip(ρ, 1 − ε, 1 + ε)))`, ρ = exp(logπ − logπ_old).
 pub fn policy_loss(
     new_logprob: Tensor<1>,

@@ -47,6 +47,16 @@ pub enum TrainError {
     Checkpoint(#[from] CheckpointError),
     #[error("{0}")]
     Invalid(String),
+    /// `ppo.max_bad_updates` consecutive updates were skipped for numerical faults.
+    #[error(
+        "stopping: {streak} consecutive updates skipped for numerical faults (ppo.max_bad_updates = {max}); last: {last}. The weights are the last good ones (version {version}); the last checkpoint holds them"
+    )]
+    Numerics {
+        streak: u32,
+        max: u32,
+        last: String,
+        version: u64,
+    },
 }
 
 /// Domain metrics over a set of episodes (spec/env.md "Metrics").
@@ -137,6 +147,7 @@ pub fn evaluate(
 pub type MetricsRow = BTreeMap<String, f64>;
 
 /// What one call of [`Trainer::iteration`] did.
+#[derive(Debug)]
 pub struct IterationReport {
     pub stats: UpdateStats,
     pub row: MetricsRow,
@@ -176,6 +187,9 @@ pub struct Learner {
     recent: VecDeque<EpisodeSummary>,
     /// Samples trained with the decoupled correction (acted with an older version) so far.
     pub off_policy_samples: u64,
+    /// Updates skipped for numerical faults, in all and in a row.
+    pub skipped_updates: u64,
+    bad_streak: u32,
 }
 
 /// Episodes kept for the rolling training metrics.
@@ -220,6 +234,8 @@ impl Learner {
             train_seconds: 0.0,
             recent: VecDeque::new(),
             off_policy_samples: 0,
+            skipped_updates: 0,
+            bad_streak: 0,
             cfg,
         }
     }
@@ -304,8 +320,116 @@ impl Learner {
         policy: &PolicyWeights,
         segments: &[Segment<'_>],
         timings: Timings,
-    ) -> IterationReport {
+    ) -> Result<IterationReport, TrainError> {
         let t0 = Instant::now();
+        let n_samples: usize = segments.iter().map(|s| s.traj.len()).sum();
+        // Numerical faults (issue 7): a non-finite number in the batch skips the whole update
+        // before anything (normalisers, return accumulators, weights) has seen it.
+        let bad_input = segments.iter().find_map(|s| {
+            s.traj.first_non_finite().map(|w| {
+                format!(
+                    "non-finite input from actor {} env {}: {w}",
+                    s.actor, s.traj.env
+                )
+            })
+        });
+        let frac = 1.0 - self.update as f64 / self.num_updates() as f64;
+        let lr = if self.cfg.ppo.anneal_lr {
+            frac.max(0.0) * self.cfg.ppo.learning_rate
+        } else {
+            self.cfg.ppo.learning_rate
+        };
+        let (stats, update_s, skipped) = match bad_input {
+            Some(why) => (UpdateStats::skipped(lr), 0.0, Some(why)),
+            None => self.update_on(policy, segments, lr),
+        };
+        if let Some(why) = &skipped {
+            self.skipped_updates += 1;
+            self.bad_streak += 1;
+            tracing::warn!(
+                update = self.update + 1,
+                streak = self.bad_streak,
+                "update skipped: {why}"
+            );
+        } else {
+            self.bad_streak = 0;
+        }
+        self.update += 1;
+        self.global_step += n_samples as u64;
+        let elapsed = timings.collect_s + t0.elapsed().as_secs_f64();
+        self.train_seconds += elapsed;
+        let mut row = MetricsRow::new();
+        let mut put = |k: &str, v: f64| {
+            row.insert(k.to_string(), v);
+        };
+        put("global_step", self.global_step as f64);
+        put("update", self.update as f64);
+        put("time_s", self.train_seconds);
+        put("charts/SPS", n_samples as f64 / elapsed);
+        put("charts/rollout_s", timings.collect_s);
+        put("charts/update_s", update_s);
+        put("charts/learning_rate", lr);
+        let older: usize = segments
+            .iter()
+            .filter(|s| s.behaviour_version != policy.version)
+            .map(|s| s.traj.len())
+            .sum();
+        put(
+            "charts/older_policy_frac",
+            older as f64 / n_samples.max(1) as f64,
+        );
+        put("losses/policy_loss", stats.policy_loss);
+        put("losses/value_loss", stats.value_loss);
+        put("losses/entropy", stats.entropy);
+        put("losses/entropy_move", stats.entropy_move);
+        put("losses/entropy_site", stats.entropy_site);
+        put("losses/old_approx_kl", stats.old_approx_kl);
+        put("losses/approx_kl", stats.approx_kl);
+        put("losses/clipfrac", stats.clipfrac);
+        put("losses/explained_variance", stats.explained_variance);
+        put("losses/grad_norm", stats.grad_norm);
+        put("losses/skipped_nonfinite", stats.skipped_nonfinite as f64);
+        put(
+            "numerics/skipped_update",
+            f64::from(u8::from(skipped.is_some())),
+        );
+        put("numerics/skipped_updates", self.skipped_updates as f64);
+        let recent: Vec<EpisodeSummary> = self.recent.iter().cloned().collect();
+        let d = domain_stats(&recent);
+        put("charts/episodic_return", d.episodic_return);
+        put("charts/episodic_length", d.episodic_length);
+        put_domain(&mut row, "domain", &d);
+        let max = self.cfg.ppo.max_bad_updates;
+        if let Some(last) = skipped
+            && max > 0
+            && self.bad_streak >= max
+        {
+            return Err(TrainError::Numerics {
+                streak: self.bad_streak,
+                max,
+                last,
+                version: self.update,
+            });
+        }
+        Ok(IterationReport { stats, row })
+    }
+
+    /// The update proper on finite data: returns its statistics, its duration and, when the
+    /// weights came out non-finite, why it was undone (weights, optimiser, normalisers and return
+    /// accumulators restored to what they were).
+    fn update_on(
+        &mut self,
+        policy: &PolicyWeights,
+        segments: &[Segment<'_>],
+        lr: f64,
+    ) -> (UpdateStats, f64, Option<String>) {
+        let before = (
+            self.ppo.model.clone(),
+            self.ppo.optim.clone(),
+            self.obs_norm.clone(),
+            self.reward_scaler.clone(),
+            self.return_acc.clone(),
+        );
         let batch = self.assemble(policy, segments);
         for seg in segments {
             for e in &seg.traj.episodes {
@@ -322,59 +446,29 @@ impl Learner {
                 self.obs_norm.stats.update(&seg.traj.obs);
             }
         }
-        let frac = 1.0 - self.update as f64 / self.num_updates() as f64;
-        let lr = if self.cfg.ppo.anneal_lr {
-            frac.max(0.0) * self.cfg.ppo.learning_rate
-        } else {
-            self.cfg.ppo.learning_rate
-        };
         let mut rng =
             ChaCha8Rng::seed_from_u64(stream_seed(self.cfg.train.seed, u64::MAX, self.update));
         let t1 = Instant::now();
         let stats = self.ppo.update(&batch, lr, &mut rng);
         let update_s = t1.elapsed().as_secs_f64();
-        self.update += 1;
-        self.global_step += batch.len() as u64;
-        let elapsed = timings.collect_s + t0.elapsed().as_secs_f64();
-        self.train_seconds += elapsed;
-
-        let mut row = MetricsRow::new();
-        let mut put = |k: &str, v: f64| {
-            row.insert(k.to_string(), v);
-        };
-        put("global_step", self.global_step as f64);
-        put("update", self.update as f64);
-        put("time_s", self.train_seconds);
-        put("charts/SPS", batch.len() as f64 / elapsed);
-        put("charts/rollout_s", timings.collect_s);
-        put("charts/update_s", update_s);
-        put("charts/learning_rate", lr);
-        let older: usize = segments
-            .iter()
-            .filter(|s| s.behaviour_version != policy.version)
-            .map(|s| s.traj.len())
-            .sum();
-        put(
-            "charts/older_policy_frac",
-            older as f64 / batch.len().max(1) as f64,
-        );
-        put("losses/policy_loss", stats.policy_loss);
-        put("losses/value_loss", stats.value_loss);
-        put("losses/entropy", stats.entropy);
-        put("losses/entropy_move", stats.entropy_move);
-        put("losses/entropy_site", stats.entropy_site);
-        put("losses/old_approx_kl", stats.old_approx_kl);
-        put("losses/approx_kl", stats.approx_kl);
-        put("losses/clipfrac", stats.clipfrac);
-        put("losses/explained_variance", stats.explained_variance);
-        put("losses/grad_norm", stats.grad_norm);
-        put("losses/skipped_nonfinite", stats.skipped_nonfinite as f64);
-        let recent: Vec<EpisodeSummary> = self.recent.iter().cloned().collect();
-        let d = domain_stats(&recent);
-        put("charts/episodic_return", d.episodic_return);
-        put("charts/episodic_length", d.episodic_length);
-        put_domain(&mut row, "domain", &d);
-        IterationReport { stats, row }
+        let (actor, critic, log_std) = self.ppo.model.to_plain();
+        let finite =
+            actor.all_finite() && critic.all_finite() && log_std.iter().all(|v| v.is_finite());
+        if finite {
+            return (stats, update_s, None);
+        }
+        (
+            self.ppo.model,
+            self.ppo.optim,
+            self.obs_norm,
+            self.reward_scaler,
+            self.return_acc,
+        ) = before;
+        (
+            UpdateStats::skipped(lr),
+            update_s,
+            Some("non-finite weights after the update (undone)".to_string()),
+        )
     }
 
     /// Reward scaling per stream, GAE per stream, observations normalised with the statistics
@@ -597,9 +691,8 @@ impl Trainer {
                 traj,
             })
             .collect();
-        Ok(self
-            .learner
-            .learn(&policy, &segments, Timings { collect_s }))
+        self.learner
+            .learn(&policy, &segments, Timings { collect_s })
     }
 
     /// Flies `pairs` with the current deterministic policy.
@@ -696,6 +789,110 @@ mod tests {
             bootstrap_obs: vec![0.3; OBS],
             episodes: vec![],
         }
+    }
+
+    fn seg(tr: &EnvTrajectory, version: u64) -> Segment<'_> {
+        Segment {
+            actor: ActorId(0),
+            behaviour_version: version,
+            traj: tr,
+        }
+    }
+
+    /// A NaN or inf anywhere in the batch skips the update whole: weights, normalisers and
+    /// return accumulators as they were, the skip counted; `ppo.max_bad_updates` in a row stop
+    /// the run with an error naming the fault; a good update in between resets the streak.
+    #[test]
+    fn non_finite_input_never_reaches_the_weights() {
+        let mut l = learner();
+        l.cfg.ppo.max_bad_updates = 3;
+        l.obs_norm.enabled = true;
+        let p0 = l.policy();
+        let good = traj(&p0, 0.0);
+        let mut bad = good.clone();
+        bad.rewards[1] = f32::NAN;
+        let mut inf_obs = good.clone();
+        inf_obs.obs[4] = f32::INFINITY;
+        let t = Timings { collect_s: 0.0 };
+        for (i, tr) in [&bad, &inf_obs].into_iter().enumerate() {
+            let r = l
+                .learn(&l.policy(), &[seg(tr, l.update)], t)
+                .expect("below the limit");
+            assert_eq!(r.row["numerics/skipped_update"], 1.0);
+            assert_eq!(r.row["numerics/skipped_updates"], (i + 1) as f64);
+            assert!(r.row["losses/policy_loss"].is_nan());
+            let p = l.policy();
+            assert_eq!(
+                (p.actor, p.critic, p.log_std),
+                (p0.actor.clone(), p0.critic.clone(), p0.log_std)
+            );
+            assert_eq!(p.obs_norm, p0.obs_norm, "the normaliser never saw the inf");
+            assert!(
+                l.return_acc.is_empty(),
+                "no return accumulated from a NaN reward"
+            );
+        }
+        // A good update resets the streak and changes the weights.
+        let r = l
+            .learn(&l.policy(), &[seg(&good, l.update)], t)
+            .expect("good");
+        assert_eq!(r.row["numerics/skipped_update"], 0.0);
+        assert_ne!(l.policy().actor, p0.actor);
+        let last_good = l.policy();
+        for _ in 0..2 {
+            l.learn(&l.policy(), &[seg(&bad, l.update)], t)
+                .expect("below the limit");
+        }
+        let e = l
+            .learn(&l.policy(), &[seg(&bad, l.update)], t)
+            .expect_err("3 in a row");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("3 consecutive updates") && msg.contains("rewards[1] = NaN"),
+            "{msg}"
+        );
+        assert_eq!(
+            l.policy().actor,
+            last_good.actor,
+            "the last good weights stay"
+        );
+    }
+
+    /// An update whose weights come out non-finite (here: a learning rate that overflows f32)
+    /// is undone: weights, Adam state and normalisers are the last good ones.
+    #[test]
+    fn an_update_that_makes_weights_non_finite_is_undone() {
+        let mut l = learner();
+        l.cfg.ppo.learning_rate = 1e39;
+        l.cfg.ppo.anneal_lr = false;
+        l.cfg.ppo.max_bad_updates = 0;
+        let p0 = l.policy();
+        let tr = traj(&p0, 0.0);
+        let r = l
+            .learn(&p0, &[seg(&tr, p0.version)], Timings { collect_s: 0.0 })
+            .expect("max_bad_updates = 0 never stops");
+        assert_eq!(r.row["numerics/skipped_update"], 1.0);
+        let p = l.policy();
+        assert!(p.actor.all_finite() && p.critic.all_finite());
+        assert_eq!(
+            (p.actor, p.critic, p.log_std),
+            (p0.actor, p0.critic, p0.log_std)
+        );
+        assert_eq!(
+            l.update, 1,
+            "the skipped update still counts as an iteration"
+        );
+        // With a sane learning rate the same learner trains on.
+        l.cfg.ppo.learning_rate = 3e-4;
+        let r = l
+            .learn(
+                &l.policy(),
+                &[seg(&tr, l.update)],
+                Timings { collect_s: 0.0 },
+            )
+            .expect("good");
+        assert_eq!(r.row["numerics/skipped_update"], 0.0);
+        assert!(l.policy().actor.all_finite());
     }
 
     #[test]

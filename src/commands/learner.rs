@@ -110,7 +110,7 @@ pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
             Timings {
                 collect_s: batch.wait_s,
             },
-        );
+        )?;
         let ppo_s = t_ppo.elapsed().as_secs_f64();
         let t_pub = Instant::now();
         node.publish_weights(&learner.policy())?;

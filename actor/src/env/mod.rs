@@ -17,7 +17,7 @@ pub use info::{Outcome, StepInfo};
 pub use reward::step_reward;
 
 use dupac_common::SiteId;
-use dupac_common::config::{Association, Config, EnvConfig};
+use dupac_common::config::{Association, Config, EnvConfig, NearestObstacle};
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
@@ -450,7 +450,15 @@ impl Env {
         let p = self.position_m;
         let pos = [(p[0] - cx) / hx, (p[1] - cy) / hy, (p[2] - zc) / hz];
         let mut fan = [1.0f32; 26];
-        let (c_t, nearest) = self.sense(&mut fan);
+        let (mut c_t, nearest) = self.sense(&mut fan);
+        let mut dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
+        if o.nearest_obstacle == NearestObstacle::Exact {
+            let range = o.sensor_range_m;
+            (c_t, dir) = match self.world.city.mesh.nearest_surface_m(p, range) {
+                Some((d, u)) => (o.sensor_scale.scale(d, range) as f32, u),
+                None => (1.0, [0.0; 3]),
+            };
+        }
         let rsrp_norm = |v: f64| {
             let x = (v - o.rsrp_centre_dbm) / o.rsrp_scale_db;
             // −∞ (a site that cannot be measured) and extreme nulls are clipped.
@@ -470,7 +478,6 @@ impl Env {
             obs[gd.start] = (self.distance_to_goal_m / o.goal_scale_m) as f32;
         }
         obs[s.obstacle_distance.start] = c_t;
-        let dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
         for k in 0..3 {
             obs[s.obstacle_direction.start + k] = dir[k] as f32;
         }

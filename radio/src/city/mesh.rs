@@ -128,6 +128,32 @@ impl CityMesh {
         hit.then_some(f64::from(best))
     }
 
+    /// The nearest building surface point within `max_m` of `p_m`: its distance (m) and the unit
+    /// direction from `p_m` towards it, or `None` when no surface is that close. The exact
+    /// "distance c_t and direction θ_t to the nearest obstacle" of the paper's state (a BVH
+    /// best-first projection onto the mesh; a point inside a building projects onto its surface).
+    pub fn nearest_surface_m(&self, p_m: [f64; 3], max_m: f64) -> Option<(f64, [f64; 3])> {
+        use parry3d::query::PointQuery;
+        if max_m.is_nan() || max_m <= 0.0 || p_m.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let p = to_vec3(p_m);
+        let proj = self
+            .trimesh
+            .project_local_point_with_max_dist(p, false, max_m as f32)?;
+        let d = proj.point - p;
+        let n = d.length();
+        if !n.is_finite() {
+            return None;
+        }
+        let dir = if n > 0.0 {
+            [f64::from(d.x / n), f64::from(d.y / n), f64::from(d.z / n)]
+        } else {
+            [0.0; 3]
+        };
+        Some((f64::from(n), dir))
+    }
+
     /// Swept-sphere collision: the fraction `t ∈ [0, 1]` of the move `a_m → b_m` at which a
     /// sphere of `radius_m` first touches a building surface, or `None` if the whole move is
     /// free. A broad phase on the BVH (the move's swept box) skips the exact cast in open air.
@@ -366,6 +392,46 @@ mod tests {
             m.sphere_sweep([500.0, 500.0, 50.0], [501.0, 501.0, 51.0], 0.5)
                 .is_none()
         );
+    }
+
+    #[test]
+    fn nearest_surface_sees_a_corner_between_the_sensor_rays() {
+        let m = scene();
+        // Beside the L's outer corner (20, 10): the exact nearest point is the corner edge,
+        // √(3² + 2²) m away; the closest of the 26 grid rays only hits the wall at 3√2 m.
+        let p = [23.0, 12.0, 10.0];
+        let (d, dir) = m.nearest_surface_m(p, 50.0).expect("a surface");
+        assert!((d - 13f64.sqrt()).abs() < 1e-3, "{d}");
+        assert!(
+            (dir[0] + 3.0 / 13f64.sqrt()).abs() < 1e-3
+                && (dir[1] + 2.0 / 13f64.sqrt()).abs() < 1e-3
+        );
+        assert!(dir[2].abs() < 1e-6);
+        let fan_min = crate_fan_min(&m, p);
+        assert!(fan_min > d + 0.5, "fan {fan_min} vs exact {d}");
+        // Over the roof: straight down.
+        let (d, dir) = m.nearest_surface_m([5.0, 5.0, 34.0], 50.0).expect("roof");
+        assert!((d - 4.0).abs() < 1e-3 && (dir[2] + 1.0).abs() < 1e-6);
+        // Nothing within the range.
+        assert!(m.nearest_surface_m([500.0, 500.0, 10.0], 50.0).is_none());
+        assert!(m.nearest_surface_m([f64::NAN, 0.0, 0.0], 50.0).is_none());
+    }
+
+    fn crate_fan_min(m: &CityMesh, p: [f64; 3]) -> f64 {
+        let mut best = f64::INFINITY;
+        for x in -1..=1 {
+            for y in -1..=1 {
+                for z in -1..=1 {
+                    if (x, y, z) != (0, 0, 0)
+                        && let Some(t) =
+                            m.ray_distance_m(p, [f64::from(x), f64::from(y), f64::from(z)], 50.0)
+                    {
+                        best = best.min(t);
+                    }
+                }
+            }
+        }
+        best
     }
 
     #[test]
