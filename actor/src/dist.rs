@@ -75,6 +75,8 @@ pub struct ActorReport {
     pub versions: Vec<u64>,
     /// Weight messages refused (wrong shape, non-finite).
     pub refused_weights: u64,
+    /// Shares sent again because the learner stayed at a version (`distributed.resend_after_s`).
+    pub resent_shares: u64,
 }
 
 /// The weights in use and where they came from.
@@ -343,6 +345,7 @@ pub fn run_actor(
     let mut chunks_this_version = 0usize;
     let mut last_key: Option<(u64, u64)> = None;
     let mut last_weights_at = Instant::now();
+    let mut swapped_at = Instant::now();
     let stopped = || stop.load(Ordering::Relaxed) || wiring.stop.load(Ordering::Relaxed);
     tracing::info!(actor = %opts.id, envs = d.actor_envs, "actor started; waiting for weights");
     while !stopped() {
@@ -375,6 +378,19 @@ pub fn run_actor(
         if incoming.is_none() && at_cap && last_weights_at.elapsed() > Duration::from_secs(1) {
             incoming = wiring.query_weights(&expect, limit)?;
             last_weights_at = Instant::now();
+            // Still the version this actor acts with: the learner is waiting for data, so
+            // chunks of this share were lost (a router restart, a partition: delivery is at
+            // most once). Produce another share rather than wait for ever.
+            if let (Some(w), Some(c)) = (&incoming, &current)
+                && w.header.learner_incarnation == c.incarnation
+                && w.policy.version == c.policy.version
+                && swapped_at.elapsed().as_secs_f64() > d.resend_after_s
+            {
+                tracing::info!(actor = %opts.id, version = c.policy.version, "the learner still waits at this version; sending another share");
+                chunks_this_version = 0;
+                swapped_at = Instant::now();
+                report.resent_shares += 1;
+            }
         }
         if current.is_none() || (!learner_alive && incoming.is_none()) {
             // Joining, or the learner is gone: ask for weights (a restarted learner answers).
@@ -426,6 +442,7 @@ pub fn run_actor(
         if swapped {
             last_key = Some((cur.incarnation, version));
             chunks_this_version = 0;
+            swapped_at = Instant::now();
             // The first step acted with this version starts now.
             last_swap_latency_ms = unix_ms().saturating_sub(cur.sent_unix_ms) as f64;
             if !report.versions.is_empty() {

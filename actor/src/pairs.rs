@@ -419,8 +419,7 @@ pub fn read_pairs_jsonl(
         if line.trim().is_empty() {
             continue;
         }
-        let input: PairInput =
-            serde_json::from_str(&line).map_err(|e| bad(format!("invalid pair: {e}")))?;
+        let input: PairInput = serde_json::from_str(&line).map_err(|e| bad(json_error(&e)))?;
         let pair = validate(input, out.len() as u64, planner, cfg).map_err(bad)?;
         if let Some(first) = seen.insert(pair.id, line_no) {
             return Err(bad(format!(
@@ -436,6 +435,19 @@ pub fn read_pairs_jsonl(
         });
     }
     Ok(out)
+}
+
+/// A JSON error of one line, located by its column: serde_json's own "at line 1 column N" would
+/// name line 1 of the line, not of the file.
+fn json_error(e: &serde_json::Error) -> String {
+    let text = e.to_string();
+    let position = format!(" at line {} column {}", e.line(), e.column());
+    match text.strip_suffix(&position) {
+        Some(message) if e.line() == 1 => {
+            format!("invalid pair (column {}): {message}", e.column())
+        }
+        _ => format!("invalid pair: {text}"),
+    }
 }
 
 /// Validates one input line and fills in what it left out.

@@ -118,7 +118,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CodecError> {
     };
     std::fs::create_dir_all(dir).map_err(io)?;
     let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    tmp.write_all(bytes).map_err(io)?;
+    let (first, second) = bytes.split_at(bytes.len() / 2);
+    tmp.write_all(first).map_err(io)?;
+    crate::fault::crash_point("atomic-write");
+    tmp.write_all(second).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
     tmp.persist(path).map_err(|e| io(e.error))?;
     Ok(())

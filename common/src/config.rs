@@ -759,6 +759,10 @@ pub struct DistributedConfig {
     pub queue_chunks: usize,
     /// An actor that published nothing for this long is reported silent (s).
     pub silent_after_s: f64,
+    /// An actor that has sent its share for the current version and still sees the learner at
+    /// that version this many seconds after the swap sends another share: its chunks were lost
+    /// (router restart, partition; delivery is at most once). Longer than a PPO update.
+    pub resend_after_s: f64,
     /// Interval of the stats messages of learner and actors (s).
     pub stats_every_s: f64,
 }
@@ -777,6 +781,7 @@ impl Default for DistributedConfig {
             max_message_mib: 64.0,
             queue_chunks: 256,
             silent_after_s: 10.0,
+            resend_after_s: 5.0,
             stats_every_s: 1.0,
         }
     }
@@ -1260,6 +1265,7 @@ impl Config {
             return Err(bad("distributed.queue_chunks", "must be >= 1"));
         }
         positive("distributed.silent_after_s", d.silent_after_s)?;
+        positive("distributed.resend_after_s", d.resend_after_s)?;
         positive("distributed.stats_every_s", d.stats_every_s)?;
         Ok(())
     }

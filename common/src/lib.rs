@@ -6,6 +6,7 @@
 
 pub mod codec;
 pub mod config;
+pub mod fault;
 pub mod fingerprint;
 pub mod ids;
 pub mod keys;

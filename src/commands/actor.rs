@@ -77,8 +77,8 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         report.versions.last().copied().unwrap_or(0),
     );
     println!(
-        "actor {}: {} chunks, {} env steps, {} weight swaps; acted with versions {first}..={last}",
-        opts.id, report.chunks_sent, report.env_steps, report.swaps,
+        "actor {}: {} chunks, {} env steps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
+        opts.id, report.chunks_sent, report.env_steps, report.swaps, report.resent_shares,
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -106,6 +106,11 @@ impl Procs {
     }
 
     pub fn spawn(&mut self, name: &str, args: &[&str]) {
+        self.spawn_env(name, args, &[]);
+    }
+
+    /// [`Procs::spawn`] with extra environment variables (`DUPAC_FAULT`, say).
+    pub fn spawn_env(&mut self, name: &str, args: &[&str], envs: &[(&str, &str)]) {
         let log = |ext: &str| {
             std::fs::File::create(self.dir.join(format!("{name}.{ext}"))).expect("log file")
         };
@@ -114,6 +119,7 @@ impl Procs {
             .arg(&self.config)
             .arg("-q")
             .args(args)
+            .envs(envs.iter().copied())
             .stdin(Stdio::null())
             .stdout(log("out"))
             .stderr(log("err"))

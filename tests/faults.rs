@@ -1,0 +1,302 @@
+//! Faults survived (issue 7, docs/reliability.md), with real processes over loopback: actors
+//! killed and restarted again and again, a router restart, a learner that dies inside a
+//! checkpoint write, and a disk that fills up under a run.
+
+mod support;
+
+use dupac_common::ActorId;
+use dupac_common::msg::ActorState;
+use std::path::Path;
+use std::process::Command;
+use support::*;
+
+fn alive_with_chunks(s: &dupac_common::msg::LearnerStats, id: u32, chunks: u64) -> bool {
+    s.actors
+        .iter()
+        .any(|a| a.actor == ActorId(id) && a.state == ActorState::Alive && a.chunks > chunks)
+}
+
+/// One actor killed with SIGKILL and restarted under the same id eight times while another
+/// trains on: every restart is seen leaving and rejoining, its fresh data is accepted each
+/// time, nothing is dropped as garbage or schema, and the learner never stops.
+#[test]
+fn an_actor_killed_and_restarted_eight_times_rejoins_each_time() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "faults-a";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    p.learner("learner", &[]);
+    p.actor(0);
+    p.actor(1);
+    let w = Watcher::new(&p.endpoint, run);
+    let mut seen = w.wait_for(&p, "both actors training", 120, |s| {
+        alive_with_chunks(s, 0, 0) && alive_with_chunks(s, 1, 0)
+    });
+    for round in 0..8 {
+        let name = if round == 0 {
+            "actor1".to_string()
+        } else {
+            format!("actor1-{round}")
+        };
+        let st = p.signal_and_wait(&name, "-KILL");
+        assert!(!st.success());
+        w.wait_for(&p, "the killed actor seen leaving", 30, |s| {
+            s.actors
+                .iter()
+                .any(|a| a.actor == ActorId(1) && a.state == ActorState::Left)
+        });
+        let next = format!("actor1-{}", round + 1);
+        let ep = p.endpoint.clone();
+        p.spawn(
+            &next,
+            &[
+                "actor",
+                "--id",
+                "1",
+                "--threads",
+                "1",
+                "--mode",
+                "client",
+                "--connect",
+                &ep,
+                "--no-multicast-scouting",
+            ],
+        );
+        // The learner counts chunks per actor id across restarts: more than before = the new
+        // process's data was accepted.
+        let before = seen
+            .actors
+            .iter()
+            .find(|a| a.actor == ActorId(1))
+            .map(|a| a.chunks)
+            .unwrap_or(0);
+        seen = w.wait_for(&p, "the restarted actor's data accepted", 60, |s| {
+            alive_with_chunks(s, 1, before) && s.update > seen.update
+        });
+    }
+    for reason in ["garbage", "schema", "dimensions", "non_finite"] {
+        assert_eq!(drops(&seen, reason), 0, "{reason}: {:?}", seen.drops);
+    }
+    assert!(p.child("learner").try_wait().expect("wait").is_none());
+    p.signal_and_wait("learner", "-INT");
+}
+
+/// The router between learner and actor is killed (SIGKILL) and started again on the same
+/// port: both reconnect by themselves and training continues.
+#[test]
+fn learner_and_actor_reconnect_after_a_router_restart() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "faults-b";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    let ep = p.endpoint.clone();
+    let out = dir.path().join("run").display().to_string();
+    let client = [
+        "--mode",
+        "client",
+        "--connect",
+        &ep,
+        "--no-multicast-scouting",
+    ];
+    p.spawn(
+        "router",
+        &["router", "--listen", &ep, "--no-multicast-scouting"],
+    );
+    let mut learner = vec!["learner", "--out", &out];
+    learner.extend_from_slice(&client);
+    p.spawn("learner", &learner);
+    let mut actor = vec!["actor", "--id", "0", "--threads", "1"];
+    actor.extend_from_slice(&client);
+    p.spawn("actor0", &actor);
+    let before = {
+        let w = Watcher::new(&ep, run);
+        w.wait_for(&p, "training through the router", 120, |s| {
+            s.update >= 5 && alive_with_chunks(s, 0, 0)
+        })
+    };
+    p.signal_and_wait("router", "-KILL");
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    p.spawn(
+        "router2",
+        &["router", "--listen", &ep, "--no-multicast-scouting"],
+    );
+    let w = Watcher::new(&ep, run);
+    let after = w.wait_for(&p, "training after the router restart", 120, |s| {
+        s.update >= before.update + 10 && alive_with_chunks(s, 0, 0)
+    });
+    assert!(after.update >= before.update + 10);
+    for name in ["learner", "actor0"] {
+        assert!(
+            p.child(name).try_wait().expect("wait").is_none(),
+            "{name} exited{}",
+            p.logs()
+        );
+    }
+    let updates = metric_updates(&dir.path().join("run/metrics.jsonl"));
+    assert!(updates.windows(2).all(|w| w[1] == w[0] + 1), "no gaps");
+    p.signal_and_wait("learner", "-INT");
+}
+
+/// The learner aborts half-way through writing its second checkpoint (`DUPAC_FAULT`, the
+/// process dies as under SIGKILL): the checkpoint of the previous write is intact,
+/// `--resume` starts from it, and the learning curve continues without gaps.
+#[test]
+fn a_learner_crash_inside_a_checkpoint_write_keeps_the_previous_checkpoint() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "faults-c";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    let ep = p.endpoint.clone();
+    let out = dir.path().join("run").display().to_string();
+    let learner_args = [
+        "learner",
+        "--out",
+        &out,
+        "--mode",
+        "router",
+        "--listen",
+        &ep,
+        "--no-multicast-scouting",
+    ];
+    // Atomic writes: checkpoint (update 2), policy (update 2), checkpoint (update 4) ← abort.
+    p.spawn_env(
+        "learner1",
+        &learner_args,
+        &[("DUPAC_FAULT", "atomic-write:3")],
+    );
+    p.actor(0);
+    let st = p.wait_exit("learner1", 120);
+    assert!(!st.success(), "the learner was to abort");
+    assert!(
+        p.read("learner1.err")
+            .contains("aborting at crash point atomic-write"),
+        "{}",
+        p.logs()
+    );
+    let run_dir = dir.path().join("run");
+    let ck = dupac_learner::checkpoint::load_checkpoint(&run_dir.join("checkpoint.bin"))
+        .expect("the previous checkpoint is intact");
+    assert_eq!(ck.meta.update, 2, "the checkpoint of update 2 stays");
+    // The interrupted write is a half-written temporary file beside it, never checkpoint.bin.
+    let full = std::fs::metadata(run_dir.join("checkpoint.bin"))
+        .expect("meta")
+        .len();
+    let partial: Vec<u64> = std::fs::read_dir(&run_dir)
+        .expect("ls")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".tmp"))
+        .map(|e| e.metadata().expect("meta").len())
+        .collect();
+    assert_eq!(partial.len(), 1, "one interrupted write");
+    assert!(partial[0] < full, "{partial:?} vs {full}");
+
+    let mut resumed = learner_args.to_vec();
+    resumed.push("--resume");
+    p.spawn("learner2", &resumed);
+    let w = Watcher::new(&ep, run);
+    w.wait_for(&p, "training resumed from update 2", 120, |s| s.update >= 8);
+    assert!(
+        p.read("learner2.out").contains("resuming at update 2")
+            || p.read("learner2.err").contains("resuming at update 2"),
+        "{}",
+        p.logs()
+    );
+    let updates = metric_updates(&run_dir.join("metrics.jsonl"));
+    assert_eq!(updates.first(), Some(&1));
+    assert!(updates.windows(2).all(|w| w[1] == w[0] + 1), "{updates:?}");
+    p.signal_and_wait("learner2", "-INT");
+}
+
+/// The run directory on a 192 KiB file system that fills up (a tmpfs in a user and mount
+/// namespace, `unshare -rm`): the run stops with an error naming the file and "No space left on
+/// device"; the checkpoint on disk is the last good one (it loads and `--resume` continues
+/// from it); no file is corrupt (metrics lines parse; at most the last one is cut).
+#[test]
+fn a_full_disk_stops_the_run_with_a_clear_error_and_a_valid_checkpoint() {
+    let probe = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "true"])
+        .output();
+    if !matches!(&probe, Ok(o) if o.status.success()) {
+        eprintln!(
+            "SKIPPED: unprivileged user+mount namespaces are not available here (unshare -rm)"
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = Procs::new(dir.path(), "faults-d", 256 * 100_000);
+    let small = dir.path().join("small");
+    let saved = dir.path().join("saved");
+    std::fs::create_dir_all(&small).expect("mkdir");
+    std::fs::create_dir_all(&saved).expect("mkdir");
+    // Inside the namespace: mount, train until the disk is full, keep what is on it.
+    let script = r#"mount -t tmpfs -o size=192k tmpfs "$SMALL" || exit 90
+"$DUPAC" --config "$CONFIG" -q train --single-process --out "$SMALL" 2>"$SAVED/err.txt"
+echo $? >"$SAVED/exit.txt"
+cp -a "$SMALL/." "$SAVED/""#;
+    let st = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "sh", "-c", script])
+        .env("SMALL", &small)
+        .env("SAVED", &saved)
+        .env("DUPAC", env!("CARGO_BIN_EXE_dupac"))
+        .env("CONFIG", &p.config)
+        .status()
+        .expect("unshare");
+    assert!(st.success(), "namespace script: {st:?}");
+    let exit: i32 = std::fs::read_to_string(saved.join("exit.txt"))
+        .expect("exit")
+        .trim()
+        .parse()
+        .expect("code");
+    let err = std::fs::read_to_string(saved.join("err.txt")).expect("err");
+    assert_ne!(exit, 0, "the run must stop: {err}");
+    assert!(err.contains("No space left on device"), "{err}");
+    assert!(
+        err.contains(&small.display().to_string()),
+        "the error names the file: {err}"
+    );
+
+    let ck = dupac_learner::checkpoint::load_checkpoint(&saved.join("checkpoint.bin"))
+        .expect("the last good checkpoint loads");
+    assert!(
+        ck.meta.update >= 2,
+        "at least one checkpoint before the disk filled"
+    );
+    let metrics = std::fs::read_to_string(saved.join("metrics.jsonl")).expect("metrics");
+    let lines: Vec<&str> = metrics.lines().collect();
+    for (i, l) in lines.iter().enumerate() {
+        let ok = serde_json::from_str::<serde_json::Value>(l).is_ok();
+        assert!(
+            ok || i + 1 == lines.len(),
+            "metrics line {} corrupt: {l}",
+            i + 1
+        );
+    }
+    leftover_temporaries_are_absent(&saved);
+
+    // On a disk with room, --resume continues from that checkpoint.
+    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        .arg("--config")
+        .arg(&p.config)
+        .args(["-q", "train", "--single-process", "--resume", "--out"])
+        .arg(&saved)
+        .args([
+            "--set",
+            &format!("train.total_timesteps={}", 256 * (ck.meta.update + 3)),
+        ])
+        .output()
+        .expect("resume");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains(&format!("resuming at update {}", ck.meta.update)),
+        "{e}"
+    );
+}
+
+/// A failed write removes its temporary file (only a killed process leaves one behind).
+fn leftover_temporaries_are_absent(dir: &Path) {
+    let tmp: Vec<_> = std::fs::read_dir(dir)
+        .expect("ls")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with(".tmp"))
+        .collect();
+    assert!(tmp.is_empty(), "temporary files left: {tmp:?}");
+}
