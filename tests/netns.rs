@@ -17,6 +17,18 @@ const SKIPPED: i32 = 77;
 
 #[test]
 fn distributed_run_across_network_namespaces() {
+    run_script(&[]);
+}
+
+/// Issue 7: actor 2's link goes down for 12 s (longer than the zenoh lease) while actor 1
+/// trains on, then comes back: the learner sees it leave and rejoin, and it acts with newer
+/// versions after the partition; the script reports the drops the learner counted.
+#[test]
+fn an_actor_partitioned_past_the_lease_rejoins() {
+    run_script(&[("DUPAC_NETNS_PARTITION_S", "12")]);
+}
+
+fn run_script(envs: &[(&str, &str)]) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let script = root.join("deploy/netns/run.sh");
     let log = tempfile::NamedTempFile::new().expect("temp file for the script's output");
@@ -27,6 +39,7 @@ fn distributed_run_across_network_namespaces() {
         .arg(env!("CARGO_BIN_EXE_dupac"))
         .current_dir(root)
         .env("DUPAC_NETNS_TIMEOUT", LEARNER_TIMEOUT_S.to_string())
+        .envs(envs.iter().copied())
         .stdin(Stdio::null())
         .stdout(out)
         .stderr(err)

@@ -32,6 +32,14 @@
 #   DUPAC_NETNS_TIMESTEPS=4096   train.total_timesteps (a multiple of 256)
 #   DUPAC_NETNS_DELAY_MS=0       one-way delay added with netem on every host's link (needs tc)
 #   DUPAC_NETNS_KEEP=1           keep the work directory (logs, run output) after a PASS
+#   DUPAC_NETNS_PARTITION_S=0    > 0: partition actor 2 (its link down) for this many seconds
+#                                once training runs, then heal it (issue 7). Longer than the
+#                                zenoh lease (10 s) to be a real partition. The run is then
+#                                long (DUPAC_NETNS_TIMESTEPS defaults to 256 * 100000) and is
+#                                stopped with SIGINT once actor 2 is back; extra checks: the
+#                                learner trained on during the partition with actor 1 alone
+#                                (dist/alive_actors 2 → 1), actor 2 rejoined (→ 2) and acted with
+#                                versions newer than the partition; drops (stale chunks) reported
 # Exit status: 0 PASS, 1 FAIL, 2 usage error, 77 skipped (not root, no `ip`, no namespaces).
 
 set -uo pipefail
@@ -41,7 +49,13 @@ REPO=$(cd "$SCRIPT_DIR/../.." && pwd)
 ZENOH_DIR="$SCRIPT_DIR/../zenoh"
 
 TIMEOUT=${DUPAC_NETNS_TIMEOUT:-120}
-TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-4096}
+PARTITION_S=${DUPAC_NETNS_PARTITION_S:-0}
+[[ "$PARTITION_S" =~ ^[0-9]+$ ]] || { echo "error: DUPAC_NETNS_PARTITION_S must be a number of seconds" >&2; exit 2; }
+if [ "$PARTITION_S" -gt 0 ]; then
+    TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-25600000}
+else
+    TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-4096}
+fi
 DELAY_MS=${DUPAC_NETNS_DELAY_MS:-0}
 NUM_ENVS=4
 NUM_STEPS=64
@@ -301,6 +315,47 @@ check() { # check OK|FAIL message
     [ "$1" = ok ] || FAILS+=("$2")
 }
 
+# rows_now: update rows in the learner's metrics so far.
+rows_now() {
+    local n
+    n=$(grep -c '"update":' "$OUT/metrics.jsonl" 2>/dev/null)
+    echo "${n:-0}"
+}
+# alive_seq: dist/alive_actors of every row, one per line.
+alive_seq() { grep -o '"dist/alive_actors":[0-9]*' "$OUT/metrics.jsonl" 2>/dev/null | cut -d: -f2; }
+
+if [ "$PARTITION_S" -gt 0 ]; then
+    # ------------------------------------------------------------ the partition (issue 7)
+    for _ in $(seq 300); do [ "$(rows_now)" -ge 20 ] && break; sleep 0.1; done
+    before=$(rows_now)
+    [ "$before" -ge 20 ] && s=ok || s=FAIL
+    check "$s" "training before the partition: $before updates"
+    log "partition: actor 2's link down for ${PARTITION_S} s (at update $before)"
+    ipn -n "$P-a2" link set eth0 down
+    sleep "$PARTITION_S"
+    during=$(rows_now)
+    ipn -n "$P-a2" link set eth0 up
+    log "partition healed at update $during"
+    [ "$during" -gt "$before" ] && s=ok || s=FAIL
+    check "$s" "the learner trained on during the partition: updates $before → $during"
+    # Back: rows with both actors alive again after rows with one.
+    healed=0
+    for _ in $(seq 600); do
+        if alive_seq | awk 'BEGIN{st=0} $1==2 && st==0 {st=1} $1==1 && st==1 {st=2} $1==2 && st==2 {st=3} END{exit st==3 ? 0 : 1}'; then
+            healed=1
+            break
+        fi
+        sleep 0.1
+    done
+    [ $healed -eq 1 ] && s=ok || s=FAIL
+    check "$s" "dist/alive_actors went 2 → 1 (partition seen after the lease) → 2 (actor 2 rejoined)"
+    # Let the rejoined actor deliver, then stop the run as an operator would.
+    sleep 3
+    PARTITION_END=$during
+    kill -INT "${PID[learner]}" 2>/dev/null
+fi
+
+
 wait_exit learner "$TIMEOUT"
 LEARNER_RC=$RC
 LEARNER_S=$(awk -v a="$T_LEARNER" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
@@ -326,14 +381,22 @@ if [ -f "$OUT/metrics.jsonl" ]; then
     last=$(tail -n 1 "$OUT/metrics.jsonl" | grep -o '"update":[0-9.]*' | cut -d: -f2)
     last=${last%.0}
 fi
-[ "$rows" -eq "$UPDATES" ] && [ "$last" = "$UPDATES" ] && s=ok || s=FAIL
-check "$s" "metrics.jsonl: $rows update rows (expected $UPDATES), last update $last"
+if [ "$PARTITION_S" -gt 0 ]; then
+    [ "$rows" -gt 0 ] && [ "$last" = "$rows" ] && s=ok || s=FAIL
+    check "$s" "metrics.jsonl: $rows update rows, last update $last (no gaps)"
+    drops=$(tail -n 1 "$OUT/metrics.jsonl" | grep -o '"dist/dropped_[a-z_]*":[0-9.]*' | tr '\n' ' ')
+    REPORT+=("info  drops counted by the learner: ${drops:-none}")
+else
+    [ "$rows" -eq "$UPDATES" ] && [ "$last" = "$UPDATES" ] && s=ok || s=FAIL
+    check "$s" "metrics.jsonl: $rows update rows (expected $UPDATES), last update $last"
+fi
 for f in checkpoint.bin policy.bin metrics.csv config.toml; do
     [ -s "$OUT/$f" ] && s=ok || s=FAIL
     check "$s" "learner wrote $f"
 done
 
 for a in 1 2; do
+    [ "$PARTITION_S" -gt 0 ] && kill -INT "${PID[actor$a]}" 2>/dev/null
     wait_exit "actor$a" $ACTOR_WAIT
     line=$(grep -E "^actor $a: " "$WORK/actor$a.log" | tail -n 1)
     ver=$(sed -nE 's/.*acted with versions [0-9]+\.\.=([0-9]+).*/\1/p' <<<"$line")
@@ -341,6 +404,10 @@ for a in 1 2; do
     check "$s" "actor $a exited with $RC$([ "$RC" -eq 124 ] && echo " (still running $ACTOR_WAIT s after the learner)")"
     [ -n "$ver" ] && [ "$ver" -gt 0 ] && s=ok || s=FAIL
     check "$s" "actor $a summary: ${line:-<none>}"
+    if [ "$PARTITION_S" -gt 0 ] && [ "$a" -eq 2 ]; then
+        [ -n "$ver" ] && [ "$ver" -gt "$PARTITION_END" ] && s=ok || s=FAIL
+        check "$s" "actor 2 acted after the partition: last version ${ver:-?} > $PARTITION_END"
+    fi
 done
 
 rx=$("$IP" netns exec "$P-l" cat /sys/class/net/eth0/statistics/rx_bytes 2>/dev/null || echo 0)
@@ -350,6 +417,7 @@ check "$s" "learner's eth0 carried $((rx / 1024)) KiB in, $((tx / 1024)) KiB out
 
 # The monitor ends with the run; how many stats it saw depends on timing: informative only
 # (it is killed at cleanup if it missed the learner's last stats).
+[ "$PARTITION_S" -gt 0 ] && kill -INT "${PID[monitor]}" 2>/dev/null
 wait_exit monitor $((ACTOR_WAIT < 10 ? ACTOR_WAIT : 10))
 mon=0
 [ -f "$WORK/monitor.jsonl" ] && mon=$(wc -l <"$WORK/monitor.jsonl")
