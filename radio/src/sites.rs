@@ -67,12 +67,18 @@ pub struct SiteSpec {
     pub lat_deg: Option<f64>,
     /// Antenna height above ground (m); default: rooftop/pole rule.
     pub z_m: Option<f64>,
+    #[serde(default, deserialize_with = "de_kind")]
     pub kind: Option<SiteKind>,
     /// Boresights (deg); in CSV a `;`-separated list such as `30;150;270`.
     #[serde(default, deserialize_with = "de_boresights")]
     pub boresights_deg: Option<Vec<f64>>,
     pub tilt_deg: Option<f64>,
     pub tx_power_dbm: Option<f64>,
+}
+
+/// [`SiteKind`], with the field named in the error (the CSV reader names no column for it).
+fn de_kind<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<SiteKind>, D::Error> {
+    Option::<SiteKind>::deserialize(d).map_err(|e| serde::de::Error::custom(format!("kind: {e}")))
 }
 
 fn de_boresights<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>>, D::Error> {
@@ -83,7 +89,12 @@ fn de_boresights<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f6
         Text(String),
         Number(f64),
     }
-    match Option::<Raw>::deserialize(d)? {
+    let raw = Option::<Raw>::deserialize(d).map_err(|e| {
+        serde::de::Error::custom(format!(
+            "boresights_deg: expected an angle, a list of angles or `;`-separated angles ({e})"
+        ))
+    })?;
+    match raw {
         None => Ok(None),
         Some(Raw::List(v)) => Ok(Some(v)),
         Some(Raw::Number(x)) => Ok(Some(vec![x])),
@@ -100,7 +111,8 @@ fn de_boresights<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f6
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SitesToml {
-    site: Vec<SiteSpec>,
+    /// Spanned: errors of a site name the line of its `[[site]]` header.
+    site: Vec<toml::Spanned<SiteSpec>>,
 }
 
 /// A site position before mounting (from a cell-site estimate or a procedural lattice).
@@ -128,17 +140,11 @@ pub fn read_cells_csv(
         line,
         message,
     };
+    let bytes = std::fs::read(path).map_err(|e| RadioError::io(path, e))?;
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| match e.kind() {
-            csv::ErrorKind::Io(_) => RadioError::Sites {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            },
-            _ => table_err(1, e.to_string()),
-        })?;
+        .from_reader(bytes.as_slice());
     let headers = reader
         .headers()
         .map_err(|e| table_err(1, e.to_string()))?
@@ -153,10 +159,10 @@ pub fn read_cells_csv(
     let mut by_enb: BTreeMap<u64, (f64, f64, usize)> = BTreeMap::new();
     for record in reader.records() {
         let record = record.map_err(|e| {
-            let line = e.position().map(|p| p.line()).unwrap_or(0);
+            let line = record_line(&bytes, e.position());
             table_err(line, e.to_string())
         })?;
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let line = record_line(&bytes, record.position());
         let field = |c: usize, name: &str| -> Result<&str, RadioError> {
             record
                 .get(c)
@@ -201,8 +207,25 @@ pub fn read_cells_csv(
         .collect())
 }
 
+/// The line a CSV record starts on. The reader's position is taken before the blank lines it
+/// skips ahead of the record, so these are counted here.
+fn record_line(text: &[u8], pos: Option<&csv::Position>) -> u64 {
+    let Some(pos) = pos else { return 1 };
+    let rest = usize::try_from(pos.byte())
+        .ok()
+        .and_then(|b| text.get(b..))
+        .unwrap_or_default();
+    let blank = rest
+        .iter()
+        .take_while(|&&b| b == b'\n' || b == b'\r')
+        .filter(|&&b| b == b'\n')
+        .count();
+    pos.line() + blank as u64
+}
+
 /// Reads a user sites file: TOML (`[[site]]` tables) when the name ends in `.toml`, else CSV with
 /// a header naming [`SiteSpec`] fields (any subset; `x_m`+`y_m` or `lon_deg`+`lat_deg` required).
+/// Each site comes with the line it starts on (its `[[site]]` header, or its CSV record).
 pub fn read_sites_file(path: &Path) -> Result<Vec<(u64, SiteSpec)>, RadioError> {
     let text = std::fs::read_to_string(path).map_err(|e| RadioError::io(path, e))?;
     let specs: Vec<(u64, SiteSpec)> = if path.extension().is_some_and(|e| e == "toml") {
@@ -213,22 +236,49 @@ pub fn read_sites_file(path: &Path) -> Result<Vec<(u64, SiteSpec)>, RadioError> 
         parsed
             .site
             .into_iter()
-            .enumerate()
-            .map(|(i, s)| (i as u64 + 1, s))
+            .map(|s| {
+                let start = s.span().start.min(text.len());
+                let line = text.as_bytes()[..start]
+                    .iter()
+                    .filter(|&&b| b == b'\n')
+                    .count() as u64
+                    + 1;
+                (line, s.into_inner())
+            })
             .collect()
     } else {
+        let table_err = |line: u64, message: String| RadioError::Table {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
         let mut reader = csv::ReaderBuilder::new()
             .has_headers(true)
             .trim(csv::Trim::All)
             .from_reader(text.as_bytes());
+        let headers = reader
+            .headers()
+            .map_err(|e| table_err(1, e.to_string()))?
+            .clone();
         let mut out = Vec::new();
-        for row in reader.deserialize::<SiteSpec>() {
-            let spec = row.map_err(|e| RadioError::Table {
-                path: path.to_path_buf(),
-                line: e.position().map(|p| p.line()).unwrap_or(0),
-                message: e.to_string(),
+        for record in reader.records() {
+            let record = record.map_err(|e| {
+                table_err(record_line(text.as_bytes(), e.position()), e.to_string())
             })?;
-            out.push((out.len() as u64 + 2, spec));
+            let line = record_line(text.as_bytes(), record.position());
+            let spec: SiteSpec = record.deserialize(Some(&headers)).map_err(|e| {
+                let column = match e.kind() {
+                    csv::ErrorKind::Deserialize { err, .. } => {
+                        err.field().and_then(|f| headers.get(f as usize))
+                    }
+                    _ => None,
+                };
+                match column {
+                    Some(name) => table_err(line, format!("column `{name}`: {e}")),
+                    None => table_err(line, e.to_string()),
+                }
+            })?;
+            out.push((line, spec));
         }
         out
     };

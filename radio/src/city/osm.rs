@@ -18,6 +18,9 @@ use std::path::Path;
 const DUPLICATE_VERTEX_M: f64 = 0.01;
 /// Footprints smaller than this are rejected as degenerate (m²).
 const MIN_FOOTPRINT_M2: f64 = 0.01;
+/// Rings wider or longer than this are rejected: no building is, and the footprint index sizes
+/// its grid by the buildings' extent (a ring around the globe asked for terabytes).
+const MAX_RING_SPAN_M: f64 = 5_000.0;
 
 /// Reads `path` and returns the buildings whose footprint bounds intersect `keep_box_m`
 /// (`[x_min, y_min, x_max, y_max]`, local metres).
@@ -64,11 +67,26 @@ pub fn parse_buildings(
             id: id.clone(),
             message,
         };
-        let kind = prop_str(props, "kind").unwrap_or("building");
-        let has_parts = props
-            .and_then(|p| p.get("has_parts"))
-            .and_then(|v| v.as_bool())
-            .unwrap_or(false);
+        // Absent or null: a plain building without parts. Another type is an error, not the
+        // default (a `kind` of 5 is no building).
+        let kind = match props.and_then(|p| p.get("kind")) {
+            None | Some(serde_json::Value::Null) => "building",
+            Some(serde_json::Value::String(k)) => k.as_str(),
+            Some(v) => {
+                return Err(fail(format!(
+                    "property `kind`: expected \"building\" or \"building_part\", got {v}"
+                )));
+            }
+        };
+        let has_parts = match props.and_then(|p| p.get("has_parts")) {
+            None | Some(serde_json::Value::Null) => false,
+            Some(serde_json::Value::Bool(b)) => *b,
+            Some(v) => {
+                return Err(fail(format!(
+                    "property `has_parts`: expected true or false, got {v}"
+                )));
+            }
+        };
         match (kind, detail) {
             ("building", BuildingDetail::Parts) if has_parts => continue,
             ("building_part", BuildingDetail::Outlines) => continue,
@@ -202,6 +220,13 @@ fn polygon_to_building(
                 pts.len()
             ));
         }
+        let b = ring_bounds(&pts);
+        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        if w > MAX_RING_SPAN_M || h > MAX_RING_SPAN_M {
+            return Err(format!(
+                "{what} spans {w:.0} m × {h:.0} m, more than the {MAX_RING_SPAN_M} m of any building"
+            ));
+        }
         let area = signed_area_m2(&pts);
         if area.abs() < MIN_FOOTPRINT_M2 {
             return Err(format!("{what} is degenerate (area {area:.4} m²)"));
@@ -213,13 +238,55 @@ fn polygon_to_building(
     }
     let mut rings = rings.into_iter();
     let outer_m = rings.next().ok_or("polygon has no rings")?;
+    let holes_m: Vec<Vec<[f64; 2]>> = rings.collect();
+    // A hole outside the outer ring would add walls where the footprint has none, and holes
+    // covering the whole footprint leave nothing (a negative area).
+    let outer_box = ring_bounds(&outer_m);
+    let mut net_m2 = signed_area_m2(&outer_m);
+    for (k, hole) in holes_m.iter().enumerate() {
+        let b = ring_bounds(hole);
+        let tol = DUPLICATE_VERTEX_M;
+        if b[0] < outer_box[0] - tol
+            || b[1] < outer_box[1] - tol
+            || b[2] > outer_box[2] + tol
+            || b[3] > outer_box[3] + tol
+        {
+            return Err(format!("hole {} is not inside the outer ring", k + 1));
+        }
+        net_m2 -= signed_area_m2(hole).abs();
+    }
+    if net_m2 < MIN_FOOTPRINT_M2 {
+        return Err(format!(
+            "the holes cover the outer ring (area left {net_m2:.4} m²)"
+        ));
+    }
     Ok(Building {
         id: id.to_string(),
         outer_m,
-        holes_m: rings.collect(),
+        holes_m,
         z_min_m,
         z_max_m,
     })
+}
+
+/// `[x_min, y_min, x_max, y_max]` of a ring (m).
+fn ring_bounds(ring: &[[f64; 2]]) -> [f64; 4] {
+    ring.iter().fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        },
+    )
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
