@@ -36,5 +36,8 @@ fn soak_short_variant_passes() {
         .parse()
         .expect("number");
     assert!(kills >= 1, "no actor was killed: {out}");
-    assert!(dir.path().join("faulty/learner_killed_at").exists(), "{out}");
+    assert!(
+        dir.path().join("faulty/learner_killed_at").exists(),
+        "{out}"
+    );
 }
