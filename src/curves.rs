@@ -1,9 +1,9 @@
 //! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
 //! against environment steps.
 
+use crate::metrics_table::MetricsTable;
 use anyhow::{Context, Result};
 use plotters::prelude::*;
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The panels drawn: (metric key, panel title with units).
@@ -32,13 +32,13 @@ pub const PANELS: &[(&str, &str)] = &[
 ];
 
 /// Draws the panels of [`PANELS`] that have data into `path` (atomically).
-pub fn render_curves(rows: &[BTreeMap<String, f64>], title: &str, path: &Path) -> Result<()> {
+pub fn render_curves(rows: &MetricsTable, title: &str, path: &Path) -> Result<()> {
     crate::plot::ensure_font()?;
     crate::plot::write_png_atomic(path, |tmp| draw(rows, title, tmp))
         .with_context(|| format!("cannot write learning curves {}", path.display()))
 }
 
-fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
+fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
     let root = BitMapBackend::new(tmp, (1800, 1300)).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(50);
@@ -49,11 +49,7 @@ fn draw(rows: &[BTreeMap<String, f64>], title: &str, tmp: &Path) -> Result<()> {
     )?;
     let cells = body.split_evenly((3, 4));
     for (cell, (key, label)) in cells.iter().zip(PANELS) {
-        let pts: Vec<(f64, f64)> = rows
-            .iter()
-            .filter_map(|r| Some((*r.get("global_step")?, *r.get(*key)?)))
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .collect();
+        let pts = rows.points("global_step", key);
         let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);
         let (mut y_min, mut y_max) = pts
             .iter()

@@ -3,6 +3,7 @@
 mod commands;
 mod curves;
 mod io;
+mod metrics_table;
 mod plan_plot;
 mod plot;
 

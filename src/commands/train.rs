@@ -6,6 +6,7 @@
 
 use crate::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};
+use crate::metrics_table::MetricsTable;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use dupac_actor::pairs::{Pair, eval_pairs, read_pairs_jsonl, training_pool, write_pairs_jsonl};
@@ -189,7 +190,7 @@ pub struct RunOutput {
     pub out: PathBuf,
     pub ck_path: PathBuf,
     metrics_path: PathBuf,
-    rows: Vec<MetricsRow>,
+    rows: MetricsTable,
     metrics: std::fs::File,
     title: String,
 }
@@ -203,6 +204,7 @@ impl RunOutput {
         let mut rows = read_rows(&metrics_path)?;
         rows.retain(|r| r.get("update").copied().unwrap_or(0.0) <= start_update as f64);
         write_rows(&metrics_path, &rows)?;
+        let rows = MetricsTable::from_rows(&rows);
         let metrics = std::fs::OpenOptions::new()
             .append(true)
             .create(true)
@@ -222,7 +224,7 @@ impl RunOutput {
     pub fn push(&mut self, row: MetricsRow) -> Result<()> {
         writeln!(self.metrics, "{}", serde_json::to_string(&row)?)
             .with_context(|| format!("writing {}", self.metrics_path.display()))?;
-        self.rows.push(row);
+        self.rows.push(&row);
         Ok(())
     }
 
@@ -237,7 +239,7 @@ impl RunOutput {
     }
 
     pub fn last(&self) -> MetricsRow {
-        self.rows.last().cloned().unwrap_or_default()
+        self.rows.last()
     }
 }
 
@@ -390,18 +392,20 @@ fn write_rows(path: &Path, rows: &[MetricsRow]) -> Result<()> {
     write_atomic(path, text.as_bytes())
 }
 
-fn write_csv(path: &Path, rows: &[MetricsRow]) -> Result<()> {
-    let mut keys: Vec<&String> = rows.iter().flat_map(|r| r.keys()).collect();
-    keys.sort();
-    keys.dedup();
+fn write_csv(path: &Path, rows: &MetricsTable) -> Result<()> {
+    let keys = rows.columns_sorted();
     write_atomic_with(path, |w| {
         let mut c = csv::Writer::from_writer(w);
-        c.write_record(keys.iter().map(|k| k.as_str()))?;
-        for r in rows {
-            c.write_record(
-                keys.iter()
-                    .map(|k| r.get(*k).map(|v| format!("{v}")).unwrap_or_default()),
-            )?;
+        c.write_record(&keys)?;
+        for i in 0..rows.len() {
+            c.write_record(keys.iter().map(|k| {
+                let v = rows.get(i, k);
+                if v.is_nan() {
+                    String::new()
+                } else {
+                    format!("{v}")
+                }
+            }))?;
         }
         c.flush()
     })
