@@ -76,6 +76,9 @@ enum Command {
     Router(commands::net::RouterArgs),
     /// Fly one pair with a trained policy (deterministic) and plot it beside the shortest path.
     Fly(commands::fly::FlyArgs),
+    /// Evaluate policies and planners on the held-out pairs: step records, the paper's figures,
+    /// rates, SINR, a Pareto plot, report.md.
+    Eval(commands::eval::EvalArgs),
     /// Print the resolved configuration as TOML (defaults + file + --set).
     Config,
 }
@@ -95,6 +98,7 @@ fn main() -> ExitCode {
         Command::Monitor(a) => commands::monitor::run(&cli.global, a),
         Command::Router(a) => commands::net::run_router(&cli.global, a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
+        Command::Eval(a) => commands::eval::run(&cli.global, a),
         Command::Config => cli.global.config().map(|c| {
             print!("{}", c.to_toml_string());
             ExitCode::SUCCESS

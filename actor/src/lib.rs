@@ -3,6 +3,7 @@
 
 pub mod dist;
 pub mod env;
+pub mod eval;
 pub mod pairs;
 pub mod pilot;
 pub mod planner;

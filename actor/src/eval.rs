@@ -1,0 +1,393 @@
+//! Evaluation records and metrics (issue 6, spec/env.md "Metrics"): what one flight recorded at
+//! every step, the per-flight metrics derived from it, and the statistics across flights (means
+//! with 95 % t intervals, Wilson intervals for rates). Pure functions over plain data: the report
+//! of `dupac eval` is computed from saved records without flying again.
+
+use crate::env::StepInfo;
+use dupac_common::msg::Outcome;
+use dupac_radio::class::RsrpClass;
+use serde::{Deserialize, Serialize};
+
+/// Thermal noise per LTE resource element (dBm): −174 dBm/Hz + 10·log10(15 kHz) + a UE noise
+/// figure of 9 dB. RSRP is a per-resource-element power, so SINR from RSRPs uses this noise.
+pub const NOISE_PER_RE_DBM: f64 = -174.0 + 41.760_912_590_556_81 + 9.0;
+
+/// SINR (dB) of `serving` with every other site as a co-channel interferer at full load:
+/// S / (Σ_{j ≠ serving} I_j + N), all in linear mW from dBm. Sites with a NaN/−∞ RSRP add
+/// nothing.
+pub fn sinr_db(rsrp_all_dbm: &[f64], serving: usize, noise_dbm: f64) -> f64 {
+    let mw = |dbm: f64| {
+        if dbm.is_finite() {
+            10f64.powf(dbm / 10.0)
+        } else {
+            0.0
+        }
+    };
+    let s = rsrp_all_dbm.get(serving).copied().map(mw).unwrap_or(0.0);
+    let i: f64 = rsrp_all_dbm
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| *j != serving)
+        .map(|(_, v)| mw(*v))
+        .sum();
+    10.0 * (s / (i + mw(noise_dbm))).log10()
+}
+
+/// One step of a flight, as evaluation keeps it (f32 positions and powers: 40 bytes a step).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StepRecord {
+    /// UAV position after the move (m).
+    pub position_m: [f32; 3],
+    pub serving: u16,
+    pub serving_rsrp_dbm: f32,
+    /// The strongest site here and its RSRP.
+    pub best_site: u16,
+    pub best_rsrp_dbm: f32,
+    /// SINR of the serving site against all others ([`sinr_db`]).
+    pub sinr_db: f32,
+    pub class: RsrpClass,
+    /// Geometric line of sight to the serving site.
+    pub los: bool,
+    pub handover: bool,
+    pub ping_pong: bool,
+}
+
+impl StepRecord {
+    /// The record of an environment step, with the SINR computed by the caller.
+    pub fn from_info(info: &StepInfo, sinr_db: f64) -> StepRecord {
+        let p = info.position_m;
+        StepRecord {
+            position_m: [p[0] as f32, p[1] as f32, p[2] as f32],
+            serving: info.serving.0,
+            serving_rsrp_dbm: info.serving_rsrp_dbm as f32,
+            best_site: info.best_site.0,
+            best_rsrp_dbm: info.best_rsrp_dbm as f32,
+            sinr_db: sinr_db as f32,
+            class: info.class,
+            los: info.los,
+            handover: info.handover,
+            ping_pong: info.ping_pong,
+        }
+    }
+}
+
+/// One flight of one method (and training seed) over one pair.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FlightRecord {
+    /// Method label (`dupac`, `base`, `shortest_a3`, `coverage_l1`, …).
+    pub method: String,
+    /// Training seed index of the method's policy (0 for planners).
+    pub seed: u32,
+    pub pair_id: u64,
+    /// Evaluation bin of the pair (m of shortest flyable distance).
+    pub bin_m: f64,
+    /// Shortest flyable path D and straight line of the pair (m).
+    pub shortest_m: f64,
+    pub straight_m: f64,
+    pub outcome: Outcome,
+    /// Source of the flight (m): the first step's distance is measured from it.
+    pub source_m: [f64; 3],
+    /// Distance left to the destination at the end (m; ≤ the goal radius on success).
+    pub remaining_m: f64,
+    pub steps: Vec<StepRecord>,
+}
+
+/// Metrics of one flight (spec/env.md "Metrics").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FlightMetrics {
+    pub outcome: Outcome,
+    /// Flight distance L: the sum of step lengths (m).
+    pub distance_m: f64,
+    /// (L + remaining) / D − 1 against the shortest flyable path D (a success ends within the
+    /// goal radius; the remainder is counted as flown, as in training's `distance_overhead`).
+    pub overhead: f64,
+    /// Mean serving RSRP over the steps (dBm).
+    pub mean_rsrp_dbm: f64,
+    /// Fraction of flight time (= of steps) in excellent / mediocre / poor RSRP.
+    pub frac_class: [f64; 3],
+    pub handovers: u32,
+    pub ping_pongs: u32,
+    /// Handovers per km flown.
+    pub handovers_per_km: f64,
+    pub mean_sinr_db: f64,
+    /// Fraction of flight time with SINR < −6 dB (below which an LTE link is hardly usable).
+    pub frac_sinr_below_m6db: f64,
+}
+
+/// Handovers (changes of the serving site) and ping-pongs (a handover back to the site of the
+/// previous handover within `window_steps` of it) of a serving-site sequence; the first element
+/// is the site at the start (before the first step), as in the environment.
+pub fn count_handovers(serving: &[u16], window_steps: u32) -> (u32, u32) {
+    let (mut handovers, mut ping_pongs) = (0u32, 0u32);
+    let mut last: Option<(u16, usize)> = None; // (site left, step of that handover)
+    for (t, w) in serving.windows(2).enumerate() {
+        let (before, now) = (w[0], w[1]);
+        if before == now {
+            continue;
+        }
+        handovers += 1;
+        let step = t + 1;
+        if let Some((left, at)) = last
+            && left == now
+            && step - at <= window_steps as usize
+        {
+            ping_pongs += 1;
+        }
+        last = Some((before, step));
+    }
+    (handovers, ping_pongs)
+}
+
+/// The metrics of `r`; `start_serving` is the serving site before the first step and
+/// `ping_pong_window_steps` the env's window in steps.
+pub fn flight_metrics(
+    r: &FlightRecord,
+    start_serving: u16,
+    ping_pong_window_steps: u32,
+) -> FlightMetrics {
+    let n = r.steps.len().max(1) as f64;
+    let mut distance_m = 0.0;
+    let mut prev = r.source_m;
+    let mut frac_class = [0.0; 3];
+    let (mut rsrp, mut sinr, mut low_sinr) = (0.0, 0.0, 0.0);
+    let mut serving = Vec::with_capacity(r.steps.len() + 1);
+    serving.push(start_serving);
+    for s in &r.steps {
+        let p = s.position_m.map(f64::from);
+        distance_m +=
+            ((p[0] - prev[0]).powi(2) + (p[1] - prev[1]).powi(2) + (p[2] - prev[2]).powi(2)).sqrt();
+        prev = p;
+        frac_class[class_index(s.class)] += 1.0;
+        rsrp += f64::from(s.serving_rsrp_dbm);
+        sinr += f64::from(s.sinr_db);
+        if s.sinr_db < -6.0 {
+            low_sinr += 1.0;
+        }
+        serving.push(s.serving);
+    }
+    let (handovers, ping_pongs) = count_handovers(&serving, ping_pong_window_steps);
+    let (frac_class, rsrp, sinr, low_sinr) =
+        (frac_class.map(|c| c / n), rsrp / n, sinr / n, low_sinr / n);
+    FlightMetrics {
+        outcome: r.outcome,
+        distance_m,
+        overhead: (distance_m + r.remaining_m) / r.shortest_m - 1.0,
+        mean_rsrp_dbm: rsrp,
+        frac_class,
+        handovers,
+        ping_pongs,
+        handovers_per_km: if distance_m > 0.0 {
+            f64::from(handovers) / (distance_m / 1000.0)
+        } else {
+            0.0
+        },
+        mean_sinr_db: sinr,
+        frac_sinr_below_m6db: low_sinr,
+    }
+}
+
+fn class_index(c: RsrpClass) -> usize {
+    match c {
+        RsrpClass::Excellent => 0,
+        RsrpClass::Mediocre => 1,
+        RsrpClass::Poor => 2,
+    }
+}
+
+/// A mean with its 95 % confidence interval (Student t, n − 1 degrees of freedom).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeanCi {
+    pub n: usize,
+    pub mean: f64,
+    /// Half-width of the interval (NaN for n < 2).
+    pub half_width: f64,
+}
+
+/// Mean and 95 % t interval of the finite values of `xs`.
+pub fn mean_ci95(xs: &[f64]) -> MeanCi {
+    let v: Vec<f64> = xs.iter().copied().filter(|x| x.is_finite()).collect();
+    let n = v.len();
+    if n == 0 {
+        return MeanCi {
+            n,
+            mean: f64::NAN,
+            half_width: f64::NAN,
+        };
+    }
+    let mean = v.iter().sum::<f64>() / n as f64;
+    if n < 2 {
+        return MeanCi {
+            n,
+            mean,
+            half_width: f64::NAN,
+        };
+    }
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    MeanCi {
+        n,
+        mean,
+        half_width: t975(n - 1) * (var / n as f64).sqrt(),
+    }
+}
+
+/// The 0.975 quantile of Student's t with `dof` degrees of freedom (table to 30, then the
+/// Cornish–Fisher expansion around the normal quantile; error < 1e-3).
+pub fn t975(dof: usize) -> f64 {
+    const T: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+        2.052, 2.048, 2.045, 2.042,
+    ];
+    match dof {
+        0 => f64::NAN,
+        d if d <= 30 => T[d - 1],
+        d => {
+            let z: f64 = 1.959_963_985;
+            let n = d as f64;
+            z + (z.powi(3) + z) / (4.0 * n)
+                + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * n * n)
+        }
+    }
+}
+
+/// A rate with its 95 % Wilson score interval.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Rate {
+    pub k: usize,
+    pub n: usize,
+    pub rate: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// `k` successes out of `n`, with the Wilson interval (z = 1.96).
+pub fn wilson95(k: usize, n: usize) -> Rate {
+    if n == 0 {
+        return Rate {
+            k,
+            n,
+            rate: f64::NAN,
+            lo: f64::NAN,
+            hi: f64::NAN,
+        };
+    }
+    let z = 1.959_963_985f64;
+    let (kf, nf) = (k as f64, n as f64);
+    let p = kf / nf;
+    let denom = 1.0 + z * z / nf;
+    let centre = (p + z * z / (2.0 * nf)) / denom;
+    let half = z * (p * (1.0 - p) / nf + z * z / (4.0 * nf * nf)).sqrt() / denom;
+    Rate {
+        k,
+        n,
+        rate: p,
+        lo: (centre - half).max(0.0),
+        hi: (centre + half).min(1.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn step(x: f32, serving: u16, rsrp: f32, class: RsrpClass, sinr: f32) -> StepRecord {
+        StepRecord {
+            position_m: [x, 0.0, 50.0],
+            serving,
+            serving_rsrp_dbm: rsrp,
+            best_site: serving,
+            best_rsrp_dbm: rsrp,
+            sinr_db: sinr,
+            class,
+            los: true,
+            handover: false,
+            ping_pong: false,
+        }
+    }
+
+    /// A hand-built flight: 4 steps of 1 m then 1 step of 2 m (L = 6 m) over D = 5 m.
+    fn flight() -> FlightRecord {
+        use RsrpClass::*;
+        FlightRecord {
+            method: "m".into(),
+            seed: 0,
+            pair_id: 1,
+            bin_m: 200.0,
+            shortest_m: 5.0,
+            straight_m: 5.0,
+            outcome: Outcome::Goal,
+            source_m: [0.0, 0.0, 50.0],
+            remaining_m: 0.5,
+            steps: vec![
+                step(1.0, 3, -70.0, Excellent, 10.0),
+                step(2.0, 4, -85.0, Mediocre, -7.0),
+                step(3.0, 3, -75.0, Excellent, 3.0),
+                step(4.0, 3, -105.0, Poor, -10.0),
+                step(6.0, 5, -80.0, Excellent, 0.0),
+            ],
+        }
+    }
+
+    #[test]
+    fn class_fractions_distance_overhead_and_rsrp_of_a_hand_built_flight() {
+        let m = flight_metrics(&flight(), 3, 100);
+        assert!((m.distance_m - 6.0).abs() < 1e-9);
+        assert!((m.overhead - 0.3).abs() < 1e-9, "(6 + 0.5) / 5 − 1");
+        assert_eq!(m.frac_class, [0.6, 0.2, 0.2]);
+        assert!((m.mean_rsrp_dbm - (-83.0)).abs() < 1e-9);
+        assert!((m.mean_sinr_db - (-0.8)).abs() < 1e-6);
+        assert!((m.frac_sinr_below_m6db - 0.4).abs() < 1e-9);
+        // 3 → 4 → 3 (back within 1 step: ping-pong) → 5.
+        assert_eq!((m.handovers, m.ping_pongs), (3, 1));
+        assert!((m.handovers_per_km - 500.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn handovers_and_ping_pongs_follow_the_window() {
+        // 0 → 1 at step 1, 1 → 0 at step 3: a ping-pong if the window is ≥ 2 steps.
+        let s = [0, 1, 1, 0, 0, 2];
+        assert_eq!(count_handovers(&s, 2), (3, 1));
+        assert_eq!(count_handovers(&s, 1), (3, 0));
+        // A → B → C → B: returning to B is not back to the site of the *last* handover (C←B
+        // left B, so C → B is a ping-pong).
+        assert_eq!(count_handovers(&[0, 1, 2, 1], 5), (3, 1));
+        assert_eq!(count_handovers(&[0, 1, 2, 0], 5), (3, 0));
+        assert_eq!(count_handovers(&[7; 10], 5), (0, 0));
+        assert_eq!(count_handovers(&[], 5), (0, 0));
+    }
+
+    #[test]
+    fn confidence_intervals_against_hand_computed_values() {
+        // 1..=5: mean 3, s = √2.5, t(4) = 2.776 → half-width 2.776 · √(2.5 / 5).
+        let c = mean_ci95(&[1.0, 2.0, 3.0, 4.0, 5.0, f64::NAN]);
+        assert_eq!(c.n, 5);
+        assert!((c.mean - 3.0).abs() < 1e-12);
+        assert!((c.half_width - 2.776 * 0.5f64.sqrt()).abs() < 1e-9);
+        assert!(mean_ci95(&[4.0]).half_width.is_nan());
+        assert!(mean_ci95(&[]).mean.is_nan());
+        // t(∞) → 1.96; t(31) ≈ 2.0395, t(120) ≈ 1.9799.
+        assert!((t975(31) - 2.0395).abs() < 1e-3);
+        assert!((t975(120) - 1.9799).abs() < 1e-3);
+        // Wilson: 8 of 10 → [0.490, 0.943] (z = 1.96).
+        let w = wilson95(8, 10);
+        assert!((w.rate - 0.8).abs() < 1e-12);
+        assert!(
+            (w.lo - 0.4902).abs() < 1e-3 && (w.hi - 0.9433).abs() < 1e-3,
+            "{w:?}"
+        );
+        let w0 = wilson95(0, 50);
+        assert_eq!(w0.lo, 0.0);
+        assert!((w0.hi - 0.0713).abs() < 1e-3);
+    }
+
+    #[test]
+    fn sinr_of_equal_interferers_and_noise() {
+        // Serving −70 dBm, two interferers at −73 dBm (each half the power): SINR ≈ 0 dB.
+        let s = sinr_db(&[-70.0, -73.0103, -73.0103], 0, -200.0);
+        assert!(s.abs() < 1e-3, "{s}");
+        // Alone above the noise: RSRP − N.
+        let s = sinr_db(&[-100.0, f64::NEG_INFINITY], 0, NOISE_PER_RE_DBM);
+        assert!((s - (-100.0 - NOISE_PER_RE_DBM)).abs() < 1e-9);
+        assert!((NOISE_PER_RE_DBM - (-123.24)).abs() < 0.01);
+    }
+}
