@@ -579,6 +579,109 @@ fn train_resume_and_fly_on_a_small_city() {
     }
     assert!(String::from_utf8_lossy(&fly.stdout).contains("shortest path (A3)"));
 
+    // `dupac eval`: the policy (two "seeds": the same file twice) and the planners over the
+    // held-out pairs; then the report again from the saved records alone, identical.
+    let ev = dir.path().join("eval");
+    let policy = format!("dupac={}", out.join("policy.bin").display());
+    let mut a: Vec<String> = vec![
+        "eval".into(),
+        "-q".into(),
+        "--policy".into(),
+        policy.clone(),
+        "--policy".into(),
+        policy,
+        "--lambda".into(),
+        "1".into(),
+        "--out".into(),
+        ev.display().to_string(),
+    ];
+    a.extend(common.iter().cloned());
+    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+    let e = dupac(&refs, None);
+    assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
+    let methods: Vec<&str> = summary
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(
+        methods,
+        ["dupac", "coverage_l1", "shortest_a3", "shortest_oracle"],
+        "{summary}"
+    );
+    let dupac_row: Vec<&str> = summary.lines().nth(1).expect("row").split(',').collect();
+    assert_eq!(
+        &dupac_row[1..3],
+        &["2", "16"],
+        "2 seeds × 8 held-out pairs: {summary}"
+    );
+    let shortest_row = summary
+        .lines()
+        .find(|l| l.starts_with("shortest_a3,"))
+        .expect("row");
+    assert!(
+        shortest_row.split(',').nth(3) == Some("1"),
+        "the planned shortest path always arrives: {shortest_row}"
+    );
+    for f in [
+        "report.md",
+        "fig3.png",
+        "fig4.png",
+        "pareto.png",
+        "fig3_fig4_bins.csv",
+        "pareto.csv",
+    ] {
+        assert!(ev.join(f).exists(), "{f} missing");
+    }
+    let before: Vec<String> = [
+        "report.md",
+        "summary.csv",
+        "fig3_fig4_bins.csv",
+        "pareto.csv",
+    ]
+    .iter()
+    .map(|f| std::fs::read_to_string(ev.join(f)).expect("read"))
+    .collect();
+    for f in [
+        "report.md",
+        "summary.csv",
+        "fig3_fig4_bins.csv",
+        "pareto.csv",
+        "fig3.png",
+    ] {
+        std::fs::remove_file(ev.join(f)).expect("rm");
+    }
+    let mut a: Vec<String> = vec![
+        "eval".into(),
+        "-q".into(),
+        "--report-only".into(),
+        "--out".into(),
+        ev.display().to_string(),
+    ];
+    a.extend(common.iter().cloned());
+    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+    let again = dupac(&refs, None);
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    let after: Vec<String> = [
+        "report.md",
+        "summary.csv",
+        "fig3_fig4_bins.csv",
+        "pareto.csv",
+    ]
+    .iter()
+    .map(|f| std::fs::read_to_string(ev.join(f)).expect("regenerated"))
+    .collect();
+    assert_eq!(
+        before, after,
+        "the report is a function of the saved records"
+    );
+    assert!(ev.join("fig3.png").exists());
+
     // A corrupt checkpoint is a clear error naming the file.
     std::fs::write(out.join("checkpoint.bin"), b"garbage").expect("write");
     let bad = run(&["--single-process", "--resume"]);
