@@ -59,6 +59,10 @@ pub struct EvalArgs {
     /// Recompute the report from `OUT/records/*.bin` without flying.
     #[arg(long)]
     pub report_only: bool,
+    /// Also render the paper's Fig. 2(b) (best-server coverage per altitude and its summary
+    /// table, as `dupac map`) into `OUT/fig2b/`.
+    #[arg(long)]
+    pub maps: bool,
     /// Labels compared with the paper's DUPAC and base method.
     #[arg(long, default_value = "dupac")]
     pub dupac_label: String,
@@ -106,6 +110,15 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     write_report(&args.out, &files, &args.dupac_label, &args.base_label)?;
     let world = dupac_radio::world::RadioWorld::build(&cfg).context("building the radio world")?;
     draw_examples(&args.out, &world, &files)?;
+    if args.maps {
+        super::map::run(
+            global,
+            &super::map::MapArgs {
+                out: Some(args.out.join("fig2b")),
+                site: None,
+            },
+        )?;
+    }
     println!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)
 }
