@@ -32,6 +32,9 @@ pub struct FlightTrace {
     pub serving_rsrp_dbm: Vec<f64>,
     /// RSRP class at each position; same length as `points_m`.
     pub class: Vec<RsrpClass>,
+    /// Whether the last point is the destination (a star "D" is drawn there); a flight that
+    /// ended early (collision, out of bounds, time limit) gets a cross instead.
+    pub reached: bool,
 }
 
 /// Image size (px).
@@ -823,7 +826,23 @@ fn draw_top_view(
             .iter()
             .any(|d| (d.0 - c.0).abs() <= 4 && (d.1 - c.1).abs() <= 4)
     };
-    for t in traces {
+    for t in traces.iter().filter(|t| !t.reached) {
+        if let Some(p) = t
+            .points_m
+            .last()
+            .filter(|p| inside(p) && t.points_m.len() >= 2)
+        {
+            let c = plot.map_coordinate(&(p[0], p[1]));
+            let r = 9;
+            for (a, b) in [((-r, -r), (r, r)), ((-r, r), (r, -r))] {
+                root.draw(&PathElement::new(
+                    vec![(c.0 + a.0, c.1 + a.1), (c.0 + b.0, c.1 + b.1)],
+                    BLACK.stroke_width(4),
+                ))?;
+            }
+        }
+    }
+    for t in traces.iter().filter(|t| t.reached) {
         if let Some(p) = t
             .points_m
             .last()
@@ -1160,6 +1179,7 @@ mod tests {
             points_m,
             serving_rsrp_dbm,
             class,
+            reached: true,
         }
     }
 
@@ -1316,6 +1336,7 @@ mod tests {
                 RsrpClass::Mediocre,
                 RsrpClass::Mediocre,
             ],
+            reached: true,
         };
         let runs = class_runs(&t);
         assert_eq!(runs.len(), 2);

@@ -974,13 +974,19 @@ fn hbar(y: f64, lo: f64, hi: f64, style: ShapeStyle) -> PathElement<(f64, f64)> 
 
 /// Example flights over the city (top view, altitude profile, RSRP along the way, coloured by
 /// class): for the shortest, a middle and the longest bin, the first pair of that bin, every
-/// method's seed-0 flight (`example_pair<ID>.png`).
+/// method's seed-0 flight, the coverage-aware planner at λ = 1 only (`example_pair<ID>.png`).
 fn draw_examples(
     out: &Path,
     world: &dupac_radio::world::RadioWorld,
     files: &[RecordsFile],
 ) -> Result<()> {
-    let seed0: Vec<&RecordsFile> = files.iter().filter(|f| f.seed == 0).collect();
+    // Seed 0 of every method; of the coverage-aware sweep only λ = 1 (readability).
+    let seed0: Vec<&RecordsFile> = files
+        .iter()
+        .filter(|f| {
+            f.seed == 0 && (!f.method.starts_with("coverage_l") || f.method == "coverage_l1")
+        })
+        .collect();
     let Some(first) = seed0.first() else {
         return Ok(());
     };
@@ -1009,6 +1015,7 @@ fn draw_examples(
                 points_m: vec![r.source_m],
                 serving_rsrp_dbm: vec![],
                 class: vec![],
+                reached: r.outcome == Outcome::Goal,
             };
             // At the source: the first step's values (one step away at most).
             t.serving_rsrp_dbm

@@ -165,10 +165,11 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     } else {
         "policy (A3)"
     };
-    let traces = vec![
-        trace(format!("{method} v{}", policy.version), &steps),
-        trace("shortest path (A3)".into(), &base.steps),
-    ];
+    let mut flown = trace(format!("{method} v{}", policy.version), &steps);
+    flown.reached = summary.outcome == Outcome::Goal;
+    let mut shortest = trace("shortest path (A3)".into(), &base.steps);
+    shortest.reached = base.outcome == Outcome::Goal;
+    let traces = vec![flown, shortest];
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let title = format!(

@@ -305,6 +305,7 @@ pub fn trace_of(
         points_m: vec![source_m],
         serving_rsrp_dbm: vec![source_rsrp_dbm],
         class: vec![thresholds.classify(source_rsrp_dbm)],
+        reached: true,
     };
     for s in steps {
         t.points_m.push(s.position_m);
