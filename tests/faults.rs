@@ -300,3 +300,57 @@ fn leftover_temporaries_are_absent(dir: &Path) {
         .collect();
     assert!(tmp.is_empty(), "temporary files left: {tmp:?}");
 }
+
+/// Ctrl-C (SIGINT) to the one-process trainer: it finishes the update in progress, writes a
+/// checkpoint of exactly that update and exits 0; `--resume` continues from it.
+#[test]
+fn ctrl_c_checkpoints_the_single_process_trainer() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut p = Procs::new(dir.path(), "faults-e", 256 * 100_000);
+    let out = dir.path().join("run");
+    let out_s = out.display().to_string();
+    p.spawn("train", &["train", "--single-process", "--out", &out_s]);
+    let t0 = std::time::Instant::now();
+    while metric_rows(&out) < 3 {
+        assert!(t0.elapsed().as_secs() < 120, "no progress{}", p.logs());
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let st = p.signal_and_wait("train", "-INT");
+    assert!(st.success(), "exit {st:?}{}", p.logs());
+    let err = p.read("train.err");
+    let n: u64 = err
+        .split("interrupted at update ")
+        .nth(1)
+        .and_then(|r| r.split(':').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no interruption line: {err}"));
+    let ck = dupac_learner::checkpoint::load_checkpoint(&out.join("checkpoint.bin"))
+        .expect("checkpoint");
+    assert_eq!(
+        ck.meta.update, n,
+        "the checkpoint is the update it stopped at"
+    );
+    assert_eq!(metric_updates(&out.join("metrics.jsonl")).last(), Some(&n));
+    p.spawn(
+        "train2",
+        &[
+            "train",
+            "--single-process",
+            "--out",
+            &out_s,
+            "--resume",
+            "--set",
+            &format!("train.total_timesteps={}", 256 * (n + 2)),
+        ],
+    );
+    let st = p.wait_exit("train2", 120);
+    assert!(st.success(), "{}", p.logs());
+    let updates = metric_updates(&out.join("metrics.jsonl"));
+    assert_eq!(updates, (1..=n + 2).collect::<Vec<_>>());
+}
+
+fn metric_rows(run: &Path) -> usize {
+    std::fs::read_to_string(run.join("metrics.jsonl"))
+        .map(|t| t.lines().count())
+        .unwrap_or(0)
+}

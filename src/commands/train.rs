@@ -322,6 +322,9 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         cfg.train.num_envs,
         cfg.train.seed
     );
+    // Ctrl-C (SIGINT; SIGTERM too, through the ctrlc crate's termination feature): finish the
+    // update in progress, write a checkpoint, exit 0 (docs/reliability.md).
+    let stop = super::net::stop_flag()?;
     while !trainer.done() {
         let report = trainer.iteration()?;
         let mut row = report.row;
@@ -336,8 +339,18 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
             tracing::info!(?row, "update");
         }
         out.push(row)?;
-        if trainer.update.is_multiple_of(cfg.train.checkpoint_every) || last {
+        let interrupted = stop.load(std::sync::atomic::Ordering::Relaxed);
+        if trainer.update.is_multiple_of(cfg.train.checkpoint_every) || last || interrupted {
             out.checkpoint(&trainer.learner)?;
+        }
+        if interrupted {
+            pb.finish_and_clear();
+            eprintln!(
+                "interrupted at update {}: checkpoint written to {}; continue with --resume",
+                trainer.update,
+                out.ck_path.display()
+            );
+            return Ok(ExitCode::SUCCESS);
         }
     }
     pb.finish_and_clear();
