@@ -654,13 +654,19 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
                 fmt_rate(a.rate(Outcome::Goal)),
                 fmt_rate(b.rate(Outcome::Goal))
             );
-            let agree = |ok: bool| if ok { "agrees" } else { "does not agree" };
+            let agree = |ok: bool| {
+                if ok {
+                    "agrees with"
+                } else {
+                    "is the opposite of"
+                }
+            };
             let _ = writeln!(
                 s,
-                "\nDUPAC's RSRP gain over the base method {} with the paper's direction; its time in excellent RSRP {}; DUPAC's overhead is {} the base method's (paper: longer). Where they differ, see docs/training.md (the learned site choice flaps without a handover cost, collisions dominate failures at this budget).",
+                "\nIn direction: DUPAC's mean RSRP against the base method's {} the paper (paper: DUPAC better); its time in excellent RSRP {} the paper (paper: DUPAC more); DUPAC's distance overhead against the base method's {} the paper (paper: DUPAC flies a little longer). Where ours differ, see docs/results.md (at this training budget the learned site choice flaps between sites — handovers and ping-pongs per km above — and collisions dominate the failures).",
                 agree(ra.mean > rb.mean),
                 agree(ea.mean > eb.mean),
-                if oa.mean > ob.mean { "above" } else { "below" }
+                agree(oa.mean > ob.mean)
             );
         }
         _ => {
@@ -793,7 +799,8 @@ fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
         root.fill(&WHITE)?;
         let nm = data.len().max(1) as f64;
         let group = nm + 1.0;
-        let x_max = bins.len() as f64 * group;
+        // One group's width of room on the right for the legend.
+        let x_max = (bins.len() as f64 + 1.7) * group;
         let mut chart = ChartBuilder::on(&root)
             .caption("Fig. 4: fraction of flight time per RSRP class (successful flights); bars per method, groups per distance bin", ("sans-serif", 20))
             .margin(14)
