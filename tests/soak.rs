@@ -3,7 +3,7 @@
 //! SIGKILL and restarted every 2–4 s and the learner is killed and `--resume`d half-way; then
 //! the same budget without faults. The script checks that both runs complete with an unbroken
 //! learning curve, that no process's memory grows, and that the faulty run's held-out success
-//! is no worse than the baseline's (within its tolerance). The long run's figures are in
+//! is no worse than the baseline's (within 0.25 here). The long run's figures are in
 //! docs/reliability.md.
 
 use std::path::Path;
@@ -18,6 +18,9 @@ fn soak_short_variant_passes() {
         .arg(env!("CARGO_BIN_EXE_dupac"))
         .env("SOAK_UPDATES", "600")
         .env("SOAK_KILL_EVERY_S", "2")
+        // 600 updates is short: both runs are still learning, so allow more spread between
+        // them than the long run's 0.15 (100 held-out pairs; this guards against collapse).
+        .env("SOAK_TOLERANCE", "0.25")
         .env("SOAK_DIR", dir.path())
         .output()
         .expect("run deploy/soak/run.sh");

@@ -64,7 +64,7 @@ path = "$WORK/rsrp.bin"
 min_m = 40
 max_m = 70
 eval_bins_m = [50, 60]
-eval_per_bin = 10
+eval_per_bin = 50
 bin_tolerance = 0.1
 eval_file = "$WORK/eval.jsonl"
 [train]
@@ -73,7 +73,7 @@ num_steps = 64
 pool_size = 50
 checkpoint_every = 10
 eval_every = 1000000
-eval_pairs = 20
+eval_pairs = 100
 [ppo]
 num_minibatches = 2
 hidden = [32, 32]
