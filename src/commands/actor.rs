@@ -57,7 +57,17 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
             .max(1),
         max_chunks: args.max_chunks,
     };
-    let session = args.net.open_retrying(&stop)?;
+    // Stopped before it could join (Ctrl-C or the orchestrator's SIGTERM at the end of a run):
+    // leave cleanly, with the summary line of an actor that sent nothing.
+    let joined = args.net.open_retrying(&stop);
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        println!(
+            "actor {}: 0 chunks, 0 env steps, 0 weight swaps, 0 shares re-sent; stopped before joining",
+            opts.id
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let session = joined?;
     eprintln!(
         "actor {} of run {:?}: {} environments on {} threads, fingerprint {fingerprint:016x}",
         opts.id, cfg.distributed.run, cfg.distributed.actor_envs, opts.threads

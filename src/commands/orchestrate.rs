@@ -205,8 +205,13 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
             std::thread::sleep(Duration::from_millis(50));
         }
         if let Ok(None) = a.try_wait() {
+            // An actor that missed the Stop (still starting, or joining as the run ended):
+            // SIGTERM lets it finish its chunk and print its summary; SIGKILL after 10 s.
             signal(a, libc::SIGTERM);
-            std::thread::sleep(Duration::from_millis(200));
+            let grace = Instant::now() + Duration::from_secs(10);
+            while Instant::now() < grace && matches!(a.try_wait(), Ok(None)) {
+                std::thread::sleep(Duration::from_millis(50));
+            }
             let _ = a.kill();
         }
         let _ = a.wait();
