@@ -144,23 +144,8 @@ fn a_learner_crash_inside_a_checkpoint_write_keeps_the_previous_checkpoint() {
     let run = "faults-c";
     let mut p = Procs::new(dir.path(), run, 256 * 100_000);
     let ep = p.endpoint.clone();
-    let out = dir.path().join("run").display().to_string();
-    let learner_args = [
-        "learner",
-        "--out",
-        &out,
-        "--mode",
-        "router",
-        "--listen",
-        &ep,
-        "--no-multicast-scouting",
-    ];
     // Atomic writes: checkpoint (update 2), policy (update 2), checkpoint (update 4) ← abort.
-    p.spawn_env(
-        "learner1",
-        &learner_args,
-        &[("DUPAC_FAULT", "atomic-write:3")],
-    );
+    p.learner_env("learner1", &[], &[("DUPAC_FAULT", "atomic-write:3")]);
     p.actor(0);
     let st = p.wait_exit("learner1", 120);
     assert!(!st.success(), "the learner was to abort");
@@ -187,9 +172,7 @@ fn a_learner_crash_inside_a_checkpoint_write_keeps_the_previous_checkpoint() {
     assert_eq!(partial.len(), 1, "one interrupted write");
     assert!(partial[0] < full, "{partial:?} vs {full}");
 
-    let mut resumed = learner_args.to_vec();
-    resumed.push("--resume");
-    p.spawn("learner2", &resumed);
+    p.learner("learner2", &["--resume"]);
     let w = Watcher::new(&ep, run);
     w.wait_for(&p, "training resumed from update 2", 120, |s| s.update >= 8);
     assert!(

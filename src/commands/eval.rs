@@ -17,7 +17,7 @@ use dupac_actor::eval::{
     FlightMetrics, FlightRecord, MeanCi, NOISE_PER_RE_DBM, Rate, StepRecord, flight_metrics,
     mean_ci95, sinr_db, wilson95,
 };
-use dupac_actor::pairs::{Pair, read_pairs_jsonl};
+use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
@@ -210,16 +210,7 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
     if methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_))) {
         planner.with_coverage(rsrp.as_ref(), RsrpThresholds::from_config(&cfg.radio));
     }
-    let file = args
-        .pairs
-        .clone()
-        .unwrap_or_else(|| cfg.pairs.eval_file.clone());
-    let pairs = read_pairs_jsonl(&file, &planner, &cfg.pairs).with_context(|| {
-        format!(
-            "reading pairs {} (make them with `dupac pairs`)",
-            file.display()
-        )
-    })?;
+    let (file, pairs) = super::train::read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         bail!("{}: no pairs", file.display());

@@ -11,7 +11,6 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::dist::Follower;
 use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
-use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::{EpisodeAccumulator, EpisodeSummary, fly_policy};
@@ -103,16 +102,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         None => world_and_cache(&cfg, global.quiet)?,
     };
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    let file = args
-        .pairs
-        .clone()
-        .unwrap_or_else(|| cfg.pairs.eval_file.clone());
-    let pairs = read_pairs_jsonl(&file, &planner, &cfg.pairs).with_context(|| {
-        format!(
-            "reading pairs {} (make them with `dupac pairs`)",
-            file.display()
-        )
-    })?;
+    let (file, pairs) = super::train::read_eval_pairs(&cfg, args.pairs.as_ref(), &planner)?;
     let p = pairs.get(args.pair).ok_or_else(|| {
         anyhow!(
             "{}: --pair {} but the file has {} pairs",

@@ -126,6 +126,23 @@ pub fn held_out_pairs(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Ve
     Ok(pairs)
 }
 
+/// The pairs of `file` (default `pairs.eval_file`, the held-out set), with the file named in
+/// errors: what `dupac fly` and `dupac eval` fly.
+pub fn read_eval_pairs(
+    cfg: &Config,
+    file: Option<&PathBuf>,
+    planner: &Planner,
+) -> Result<(PathBuf, Vec<Pair>)> {
+    let file = file.cloned().unwrap_or_else(|| cfg.pairs.eval_file.clone());
+    let pairs = read_pairs_jsonl(&file, planner, &cfg.pairs).with_context(|| {
+        format!(
+            "reading pairs {} (make them with `dupac pairs`)",
+            file.display()
+        )
+    })?;
+    Ok((file, pairs))
+}
+
 /// `n` pairs spread evenly over `pairs` (all bins represented).
 pub fn spread(pairs: &[Pair], n: usize) -> Vec<Pair> {
     if n >= pairs.len() {

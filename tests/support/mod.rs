@@ -129,6 +129,11 @@ impl Procs {
     }
 
     pub fn learner(&mut self, name: &str, extra: &[&str]) {
+        self.learner_env(name, extra, &[]);
+    }
+
+    /// [`Procs::learner`] with extra environment variables (`DUPAC_FAULT`, say).
+    pub fn learner_env(&mut self, name: &str, extra: &[&str], envs: &[(&str, &str)]) {
         let out = self.dir.join("run").display().to_string();
         let ep = self.endpoint.clone();
         let mut a = vec![
@@ -142,7 +147,7 @@ impl Procs {
             "--no-multicast-scouting",
         ];
         a.extend_from_slice(extra);
-        self.spawn(name, &a);
+        self.spawn_env(name, &a, envs);
     }
 
     pub fn actor(&mut self, id: u32) {
