@@ -634,11 +634,26 @@ fn train_resume_and_fly_on_a_small_city() {
     ] {
         assert!(ev.join(f).exists(), "{f} missing");
     }
+    // failures.csv: one row per flight that missed its goal, none for the planned shortest path.
+    let failures = std::fs::read_to_string(ev.join("failures.csv")).expect("failures.csv");
+    let success: f64 = dupac_row[3].parse().expect("success rate");
+    let failed = failures
+        .lines()
+        .skip(1)
+        .filter(|l| l.starts_with("dupac,"))
+        .count();
+    assert_eq!(
+        failed,
+        ((1.0 - success) * 16.0).round() as usize,
+        "{failures}"
+    );
+    assert!(!failures.lines().any(|l| l.starts_with("shortest_a3,")));
     let before: Vec<String> = [
         "report.md",
         "summary.csv",
         "fig3_fig4_bins.csv",
         "pareto.csv",
+        "failures.csv",
     ]
     .iter()
     .map(|f| std::fs::read_to_string(ev.join(f)).expect("read"))
@@ -648,6 +663,7 @@ fn train_resume_and_fly_on_a_small_city() {
         "summary.csv",
         "fig3_fig4_bins.csv",
         "pareto.csv",
+        "failures.csv",
         "fig3.png",
     ] {
         std::fs::remove_file(ev.join(f)).expect("rm");
@@ -672,6 +688,7 @@ fn train_resume_and_fly_on_a_small_city() {
         "summary.csv",
         "fig3_fig4_bins.csv",
         "pareto.csv",
+        "failures.csv",
     ]
     .iter()
     .map(|f| std::fs::read_to_string(ev.join(f)).expect("regenerated"))

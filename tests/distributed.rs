@@ -68,7 +68,8 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
             "fly",
             "--follow",
             "--step-ms",
-            "300",
+            // One decision is env.action_repeat = 5 steps: ≈ 10 decisions for these pairs.
+            "1500",
             "--pair",
             "0",
             "--out",

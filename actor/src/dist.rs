@@ -320,9 +320,11 @@ pub fn run_actor(
         .map_err(|e| ActorError::Threads(e.to_string()))?;
     // A restarted actor must not replay its earlier episodes: the salt differs per start.
     let salt = unix_ms() ^ u64::from(std::process::id()).rotate_left(32);
+    // Training rollouts: the sphere grown by env.training_margin_m.
+    let train_cfg = cfg.training();
     let mut workers: Vec<Worker> = (0..d.actor_envs)
         .map(|k| {
-            let env = Env::new(cfg, world.clone(), rsrp.clone())?;
+            let env = Env::new(&train_cfg, world.clone(), rsrp.clone())?;
             let stream = (u64::from(opts.id.0) << 20) | k as u64;
             Ok(Worker::new(
                 k as u32,

@@ -87,6 +87,8 @@ pub struct FlightRecord {
     pub outcome: Outcome,
     /// Source of the flight (m): the first step's distance is measured from it.
     pub source_m: [f64; 3],
+    /// Destination of the flight (m).
+    pub destination_m: [f64; 3],
     /// Distance left to the destination at the end (m; ≤ the goal radius on success).
     pub remaining_m: f64,
     pub steps: Vec<StepRecord>,
@@ -317,6 +319,7 @@ mod tests {
             straight_m: 5.0,
             outcome: Outcome::Goal,
             source_m: [0.0, 0.0, 50.0],
+            destination_m: [5.0, 0.0, 50.0],
             remaining_m: 0.5,
             steps: vec![
                 step(1.0, 3, -70.0, Excellent, 10.0),

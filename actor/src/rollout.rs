@@ -201,8 +201,11 @@ impl Worker {
                 move_: a.move_raw.map(f64::from),
                 site: SiteId(a.site as u16),
             };
-            let step = self.env.step(&action)?;
-            self.acc.push(&step.info);
+            // One decision: `env.action_repeat` steps of the environment.
+            let step = self.env.act(&action)?;
+            for info in self.env.substeps() {
+                self.acc.push(info);
+            }
             tr.moves.extend_from_slice(&a.move_raw);
             tr.sites.push(a.site);
             tr.logprobs.push(a.logprob);
@@ -244,8 +247,8 @@ impl Worker {
     }
 }
 
-/// Flies one episode with the deterministic policy (mean move, arg-max site), returning the
-/// summary and every step's record.
+/// Flies one episode with the deterministic policy (mean move, arg-max site; one decision per
+/// `env.action_repeat` steps), returning the summary and every step's record.
 pub fn fly_policy(
     env: &mut Env,
     policy: &PolicyWeights,
@@ -259,12 +262,14 @@ pub fn fly_policy(
     let mut steps = Vec::new();
     loop {
         let a = policy.act_deterministic(&obs, &mut scratch);
-        let step = env.step(&Action {
+        let step = env.act(&Action {
             move_: a.move_raw.map(f64::from),
             site: SiteId(a.site as u16),
         })?;
-        acc.push(&step.info);
-        steps.push(step.info);
+        for info in env.substeps() {
+            acc.push(info);
+            steps.push(*info);
+        }
         if step.terminated || step.truncated {
             let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
             return Ok((acc.finish(pair_id, episode.shortest_m, outcome), steps));

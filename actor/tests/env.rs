@@ -2,7 +2,7 @@
 
 use dupac_actor::env::{Action, Env, EnvError, Episode, Outcome};
 use dupac_common::SiteId;
-use dupac_common::config::{Association, Config};
+use dupac_common::config::{ActionClip, Association, Config};
 use dupac_common::obs::field;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::{Building, City};
@@ -148,7 +148,7 @@ fn collision_with_a_wall_stops_at_contact_and_terminates() {
     let s = last.expect("must hit the wall at x = 50");
     assert_eq!(s.info.outcome, Some(Outcome::Collision));
     assert!(!s.truncated);
-    assert_eq!(s.reward, -100.0);
+    assert_eq!(s.reward, Config::default().env.reward.collision_reward);
     assert!(
         (s.info.position_m[0] - 49.5).abs() < 1e-3,
         "{:?}",
@@ -203,7 +203,7 @@ fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
     let s = e.step(&mv(-1.0, 0.0, 0.0, 0)).expect("step");
     assert_eq!(s.info.outcome, Some(Outcome::OutOfBounds));
     assert!(s.terminated);
-    assert_eq!(s.reward, -100.0);
+    assert_eq!(s.reward, Config::default().env.reward.out_of_bounds_reward);
 }
 
 #[test]
@@ -410,4 +410,169 @@ fn observation_layout_holds_what_it_documents() {
         o[l.range(field::SERVING_ONE_HOT).expect("one-hot")].to_vec(),
         vec![0.0, 1.0]
     );
+}
+
+#[test]
+fn ball_clip_caps_every_move_at_max_step_while_cube_clips_per_axis() {
+    let run = |clip: ActionClip, a: [f64; 3]| {
+        let mut cfg = Config::default();
+        cfg.env.action_clip = clip;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        e.reset(1, ep([0.0, -150.0, 70.0], [0.0, 150.0, 70.0]))
+            .expect("reset");
+        e.step(&mv(a[0], a[1], a[2], 0)).expect("step").info
+    };
+    // Cube: the diagonal (3, 3, 3) is clipped to (1, 1, 1): √3 m in one step.
+    let cube = run(ActionClip::Cube, [3.0, 3.0, 3.0]);
+    assert!((cube.step_length_m - 3f64.sqrt()).abs() < 1e-9);
+    // Ball: the same action flies 1 m along the same direction.
+    let ball = run(ActionClip::Ball, [3.0, 3.0, 3.0]);
+    assert!(
+        (ball.step_length_m - 1.0).abs() < 1e-9,
+        "{}",
+        ball.step_length_m
+    );
+    let u = 1.0 / 3f64.sqrt();
+    for (k, want) in [0.0 + u, -150.0 + u, 70.0 + u].iter().enumerate() {
+        assert!((ball.position_m[k] - want).abs() < 1e-9);
+    }
+    // Inside the ball nothing changes: (0.3, −0.4, 0) flies 0.5 m under both.
+    for clip in [ActionClip::Cube, ActionClip::Ball] {
+        let s = run(clip, [0.3, -0.4, 0.0]);
+        assert!((s.step_length_m - 0.5).abs() < 1e-9, "{clip:?}");
+    }
+}
+
+#[test]
+fn goal_direction_is_the_unit_vector_to_the_destination() {
+    let mut cfg = Config::default();
+    cfg.env.observation.goal_direction = true;
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    e.reset(1, ep([0.0, -150.0, 70.0], [30.0, -110.0, 70.0]))
+        .expect("reset");
+    let l = e.layout().clone();
+    let r = l.range(field::GOAL_DIRECTION).expect("goal_direction");
+    assert_eq!(e.observation()[r.clone()].to_vec(), vec![0.6, 0.8, 0.0]);
+    // It follows the UAV: after 1 m north the destination lies at (30, 39, 0) / |·|.
+    e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
+    let n = (30f64 * 30.0 + 39.0 * 39.0).sqrt();
+    let got = e.observation()[r].to_vec();
+    assert!(
+        (f64::from(got[0]) - 30.0 / n).abs() < 1e-6 && (f64::from(got[1]) - 39.0 / n).abs() < 1e-6
+    );
+    // On by default; off gives the spec's observation, three values shorter.
+    assert!(
+        env_with(Association::Learned, EXCELLENT)
+            .layout()
+            .range(field::GOAL_DIRECTION)
+            .is_some()
+    );
+    cfg.env.observation.goal_direction = false;
+    let d = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    assert!(d.layout().range(field::GOAL_DIRECTION).is_none());
+    assert_eq!(d.layout().len() + 3, l.len());
+}
+
+#[test]
+fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
+    let make = |repeat: u32| {
+        let mut cfg = Config::default();
+        cfg.env.action_repeat = repeat;
+        cfg.env.action_clip = ActionClip::Ball;
+        Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env")
+    };
+    // Five steps one at a time and one decision of five give the same flight, step for step.
+    let pair = ep([0.0, -150.0, 70.0], [0.0, 150.0, 70.0]);
+    let mut single = make(1);
+    single.reset(3, pair).expect("reset");
+    let a = mv(0.6, 0.8, 0.0, 1);
+    let mut rewards = 0.0;
+    let mut infos = Vec::new();
+    for _ in 0..5 {
+        let s = single.step(&a).expect("step");
+        rewards += s.reward;
+        infos.push(s.info);
+    }
+    let mut five = make(5);
+    five.reset(3, pair).expect("reset");
+    let s = five.act(&a).expect("act");
+    assert_eq!(five.substeps(), &infos[..]);
+    assert_eq!(s.info, infos[4]);
+    assert!(
+        (s.reward - rewards).abs() < 1e-9,
+        "{} vs {rewards}",
+        s.reward
+    );
+    assert_eq!(five.position_m(), single.position_m());
+    assert_eq!(five.observation(), single.observation());
+    // The handover of the decision's site happens at its first step, not five times.
+    assert_eq!(five.substeps().iter().filter(|i| i.handover).count(), 1);
+    // A decision stops at the step that ends the episode: the goal 12 m ahead (radius 10 m) is
+    // reached at the 2nd of 5 steps, and the decision's reward includes the goal reward.
+    let mut e = make(5);
+    e.reset(3, ep([0.0, -150.0, 70.0], [0.0, -138.0, 70.0]))
+        .expect("reset");
+    let s = e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
+    assert!(s.terminated && !s.truncated);
+    assert_eq!(e.substeps().len(), 2);
+    assert_eq!(s.info.outcome, Some(Outcome::Goal));
+    assert!(
+        (s.reward - (2.0 * 10.0 + 100.0)).abs() < 1e-9,
+        "{}",
+        s.reward
+    );
+    assert_eq!(e.act(&mv(0.0, 1.0, 0.0, 0)), Err(EnvError::EpisodeOver));
+    // The time limit cuts a decision too: T = ⌈3 · 12 / 1⌉ = 36 steps, flown sideways.
+    e.reset(3, ep([0.0, -150.0, 70.0], [0.0, -138.0, 70.0]))
+        .expect("reset");
+    let mut steps = 0;
+    let last = loop {
+        let s = e.act(&mv(0.0, 0.0, 0.0, 0)).expect("act");
+        steps += e.substeps().len();
+        if s.terminated || s.truncated {
+            break s;
+        }
+    };
+    assert!(last.truncated && !last.terminated);
+    assert_eq!(steps, 36);
+    assert_eq!(e.substeps().len(), 1, "36 = 7 × 5 + 1");
+}
+
+#[test]
+fn geofence_makes_the_area_edge_a_sensed_wall() {
+    use dupac_common::config::NearestObstacle;
+    use dupac_common::obs::SENSOR_DIRECTIONS;
+    let sensed = |fence: bool, nearest: NearestObstacle| {
+        let mut cfg = Config::default();
+        cfg.env.observation.geofence = fence;
+        cfg.env.observation.nearest_obstacle = nearest;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        // 10 m south of the north edge (y = 200), far from both buildings.
+        e.reset(1, ep([-120.0, 190.0, 70.0], [-120.0, 100.0, 70.0]))
+            .expect("reset");
+        let l = e.layout().clone();
+        let o = e.observation().to_vec();
+        let ray = |dir: [i8; 3]| {
+            let i = SENSOR_DIRECTIONS
+                .iter()
+                .position(|d| *d == dir)
+                .expect("direction");
+            o[l.range(field::SENSOR_FAN).expect("fan").start + i]
+        };
+        let c_t = o[l.range(field::OBSTACLE_DISTANCE).expect("c_t").start];
+        let theta = o[l.range(field::OBSTACLE_DIRECTION).expect("θ_t")].to_vec();
+        (ray([0, 1, 0]), ray([0, 1, 1]), ray([0, -1, 0]), c_t, theta)
+    };
+    // Linear scale over 50 m: the edge straight north at 10 m reads 0.2, up-north at 10·√2 m.
+    for nearest in [NearestObstacle::Fan, NearestObstacle::Exact] {
+        let (north, up_north, south, c_t, theta) = sensed(true, nearest);
+        assert!((north - 0.2).abs() < 1e-6, "{north}");
+        assert!((up_north - 0.2 * 2f32.sqrt()).abs() < 1e-6, "{up_north}");
+        assert_eq!(south, 1.0);
+        assert!((c_t - 0.2).abs() < 1e-6, "{nearest:?}: {c_t}");
+        assert_eq!(theta, vec![0.0, 1.0, 0.0]);
+    }
+    // Off (the spec): the edge is invisible.
+    let (north, _, _, c_t, _) = sensed(false, NearestObstacle::Exact);
+    assert_eq!((north, c_t), (1.0, 1.0));
 }

@@ -387,6 +387,18 @@ pub enum NearestObstacle {
     Exact,
 }
 
+/// How the action's move a ∈ ℝ³ becomes a displacement (see [`EnvConfig::action_clip`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionClip {
+    /// Each axis clipped to [−1, 1] (spec/env.md "UAV and motion"): a diagonal move is up to
+    /// √3 × max_step_m long.
+    Cube,
+    /// a scaled onto the unit ball when |a| > 1: every move is at most max_step_m long, so the
+    /// UAV never exceeds the paper's speed in any direction.
+    Ball,
+}
+
 /// How the serving GBS is chosen (spec/env.md "Association").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -436,8 +448,8 @@ impl Default for RewardConfig {
             mu2: 0.01,
             mu3: 0.1,
             goal_reward: 100.0,
-            collision_reward: -100.0,
-            out_of_bounds_reward: -100.0,
+            collision_reward: -1000.0,
+            out_of_bounds_reward: -1000.0,
             handover_reward: 0.0,
         }
     }
@@ -467,8 +479,17 @@ pub struct ObservationConfig {
     /// (the paper's "distance and direction to the nearest obstacle"; it also sees corners that
     /// fall between the rays).
     pub nearest_obstacle: NearestObstacle,
+    /// The flight area's lateral edge is sensed like a wall, by the sensor fan and by c_t/θ_t
+    /// (leaving the area ends an episode as a collision does, and without this only the
+    /// normalised position tells where the edge is; a departure from the spec, whose sensors see
+    /// buildings only).
+    pub geofence: bool,
     /// Scale of distances to the goal (m): goal vector / this.
     pub goal_scale_m: f64,
+    /// Also observe the unit direction to the destination (with `goal`): the goal vector alone
+    /// shrinks towards 0 on the final approach, where the network must divide by a tiny norm to
+    /// find the direction (a departure from the spec for the learning study of issue 4).
+    pub goal_direction: bool,
     /// RSRP normalisation: (RSRP − centre) / scale.
     pub rsrp_centre_dbm: f64,
     pub rsrp_scale_db: f64,
@@ -482,9 +503,11 @@ impl Default for ObservationConfig {
             rsrp_all: true,
             rsrp_serving: true,
             sensor_range_m: 50.0,
-            sensor_scale: SensorScale::Linear,
-            nearest_obstacle: NearestObstacle::Fan,
+            sensor_scale: SensorScale::Log,
+            nearest_obstacle: NearestObstacle::Exact,
+            geofence: true,
             goal_scale_m: 800.0,
+            goal_direction: true,
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
         }
@@ -500,9 +523,26 @@ pub struct EnvConfig {
     pub z_max_m: f64,
     /// UAV radius for collisions (m).
     pub uav_radius_m: f64,
+    /// Training only: the UAV's sphere is this much larger in training rollouts (m), so a
+    /// collision in training is coming within `uav_radius_m + training_margin_m` of a building and
+    /// the policy learns to keep that margin; evaluation, flights and planners use `uav_radius_m`
+    /// (see [`Config::training`]). 0 = train on the true sphere (the spec).
+    pub training_margin_m: f64,
     /// Displacement per unit action per axis (m).
     pub max_step_m: f64,
-    /// Flight speed (m/s) fixing the decision interval Δt = max_step_m / speed_mps.
+    /// How the move is bounded: `cube` = per axis to [−1, 1] (spec/env.md), `ball` = onto the
+    /// unit ball, so no move is longer than max_step_m (the speed of spec/env.md "Time" holds in
+    /// every direction; under `cube` a policy gains up to √3 × the progress per step by flying
+    /// the cube's diagonals, and its deterministic moves snap to those 26 directions).
+    pub action_clip: ActionClip,
+    /// Steps of the environment one decision of a policy lasts (frame skip, "action repeat" in
+    /// dm_control's words): the policy observes and acts every `action_repeat` steps, the move
+    /// and site it chose are applied to each, and their rewards add up. The environment itself,
+    /// its metrics, the A3 rule and the planners keep the paper's 1 m step; 1 = the paper's
+    /// decision every step (a departure for learning: at 1 m per decision γ = 0.95 sees 20 m
+    /// ahead; docs/training.md "Decision interval").
+    pub action_repeat: u32,
+    /// Flight speed (m/s) fixing the step interval Δt = max_step_m / speed_mps.
     pub speed_mps: f64,
     /// Goal reached within this distance of the destination (m).
     pub goal_radius_m: f64,
@@ -522,7 +562,10 @@ impl Default for EnvConfig {
             z_min_m: 20.0,
             z_max_m: 120.0,
             uav_radius_m: 0.5,
+            training_margin_m: 0.0,
             max_step_m: 1.0,
+            action_clip: ActionClip::Ball,
+            action_repeat: 5,
             speed_mps: 75.0 / 3.6,
             goal_radius_m: 10.0,
             time_limit_factor: 3.0,
@@ -690,11 +733,12 @@ impl Default for PpoConfig {
 pub struct TrainConfig {
     /// Seed of the run: network init, action sampling, episode pairs and resets.
     pub seed: u64,
-    /// Total environment steps.
+    /// Total timesteps (samples): decisions of the policy, each `env.action_repeat` steps of the
+    /// environment.
     pub total_timesteps: u64,
     /// Parallel environments (stepped on worker threads).
     pub num_envs: usize,
-    /// Steps per environment per rollout (batch = num_envs × num_steps).
+    /// Decisions per environment per rollout (batch = num_envs × num_steps).
     pub num_steps: usize,
     /// Training pairs in the pool episodes are drawn from (`pairs.min_m..max_m`).
     pub pool_size: usize,
@@ -805,6 +849,16 @@ impl DistributedConfig {
 }
 
 impl Config {
+    /// The configuration training rollouts step their environments with: the UAV's sphere
+    /// grown by `env.training_margin_m` (then 0, so it is never applied twice). Evaluation and
+    /// flights use `self` unchanged.
+    pub fn training(&self) -> Config {
+        let mut c = self.clone();
+        c.env.uav_radius_m += c.env.training_margin_m;
+        c.env.training_margin_m = 0.0;
+        c
+    }
+
     /// Identifies everything that makes one process's environment steps and policy shapes
     /// differ from another's: the radio world (`world_fingerprint`: city, sites, RSRP
     /// parameters), the radio, cache, environment, pairs and planner sections and the network
@@ -1106,7 +1160,13 @@ impl Config {
             return Err(bad("env.z_max_m", "must be > env.z_min_m"));
         }
         positive("env.uav_radius_m", e.uav_radius_m)?;
+        if !(e.training_margin_m.is_finite() && e.training_margin_m >= 0.0) {
+            return Err(bad("env.training_margin_m", "must be >= 0 m"));
+        }
         positive("env.max_step_m", e.max_step_m)?;
+        if !(1..=1000).contains(&e.action_repeat) {
+            return Err(bad("env.action_repeat", "must be in 1..=1000 steps"));
+        }
         positive("env.speed_mps", e.speed_mps)?;
         positive("env.goal_radius_m", e.goal_radius_m)?;
         positive("env.time_limit_factor", e.time_limit_factor)?;
@@ -1141,10 +1201,10 @@ impl Config {
             return Err(bad("pairs.max_m", "must be >= pairs.min_m"));
         }
         finite("pairs.endpoint_clearance_m", pr.endpoint_clearance_m)?;
-        if pr.endpoint_clearance_m < e.uav_radius_m {
+        if pr.endpoint_clearance_m < e.uav_radius_m + e.training_margin_m {
             return Err(bad(
                 "pairs.endpoint_clearance_m",
-                "must be >= env.uav_radius_m",
+                "must be >= env.uav_radius_m + env.training_margin_m",
             ));
         }
         if pr.eval_bins_m.iter().any(|b| !(b.is_finite() && *b > 0.0)) {
@@ -1376,6 +1436,25 @@ mod tests {
         assert!(e.to_string().contains("KEY=VALUE"), "{e}");
         let e = Config::load(None, &["radio.fc_ghz.x=1".to_string()]).unwrap_err();
         assert!(e.to_string().contains("radio.fc_ghz"), "{e}");
+    }
+
+    #[test]
+    fn training_grows_the_sphere_once_and_checks_its_room() {
+        let c = Config::load(None, &["env.training_margin_m=1".to_string()]).expect("valid");
+        let t = c.training();
+        assert_eq!(t.env.uav_radius_m, c.env.uav_radius_m + 1.0);
+        assert_eq!(t.env.training_margin_m, 0.0);
+        assert_eq!(t.training(), t, "applied once");
+        // Everything else is the same configuration.
+        let mut back = t.clone();
+        back.env.uav_radius_m = c.env.uav_radius_m;
+        back.env.training_margin_m = c.env.training_margin_m;
+        assert_eq!(back, c);
+        // The grown sphere must fit at every endpoint (5 m of clearance by default).
+        let e = Config::load(None, &["env.training_margin_m=4.6".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("pairs.endpoint_clearance_m"), "{e}");
+        let e = Config::load(None, &["env.training_margin_m=-1".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("env.training_margin_m"), "{e}");
     }
 
     #[test]

@@ -6,7 +6,9 @@ use crate::config::ObservationConfig;
 use std::ops::Range;
 
 /// Version of the observation layout; bump on any change of order, scaling or meaning.
-pub const OBS_VERSION: u32 = 1;
+/// 2: the goal direction field (`goal_direction`) and the geofence in the sensors
+/// (`geofence`).
+pub const OBS_VERSION: u32 = 2;
 
 /// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),
 /// in lexicographic order of (x, y, z).
@@ -47,6 +49,7 @@ pub mod field {
     pub const VELOCITY: &str = "velocity";
     pub const GOAL_VECTOR: &str = "goal_vector";
     pub const GOAL_DISTANCE: &str = "goal_distance";
+    pub const GOAL_DIRECTION: &str = "goal_direction";
     pub const OBSTACLE_DISTANCE: &str = "obstacle_distance";
     pub const OBSTACLE_DIRECTION: &str = "obstacle_direction";
     pub const SENSOR_FAN: &str = "sensor_fan";
@@ -85,6 +88,13 @@ impl ObsLayout {
         if cfg.goal {
             push(GOAL_VECTOR, 3, "(destination − position) / goal_scale_m");
             push(GOAL_DISTANCE, 1, "|destination − position| / goal_scale_m");
+            if cfg.goal_direction {
+                push(
+                    GOAL_DIRECTION,
+                    3,
+                    "(destination − position) / |destination − position| (zeros at the destination)",
+                );
+            }
         }
         push(
             OBSTACLE_DISTANCE,
@@ -159,12 +169,13 @@ mod tests {
     #[test]
     fn default_layout_is_the_documented_one() {
         let l = ObsLayout::new(&ObservationConfig::default(), 30);
-        // 3 + 3 + 3 + 1 + 1 + 3 + 26 + 30 + 30 + 1
-        assert_eq!(l.len(), 101);
+        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1
+        assert_eq!(l.len(), 104);
         assert_eq!(l.range(field::POSITION), Some(0..3));
-        assert_eq!(l.range(field::SENSOR_FAN), Some(14..40));
-        assert_eq!(l.range(field::SERVING_ONE_HOT), Some(40..70));
-        assert_eq!(l.range(field::RSRP_SERVING), Some(100..101));
+        assert_eq!(l.range(field::GOAL_DIRECTION), Some(10..13));
+        assert_eq!(l.range(field::SENSOR_FAN), Some(17..43));
+        assert_eq!(l.range(field::SERVING_ONE_HOT), Some(43..73));
+        assert_eq!(l.range(field::RSRP_SERVING), Some(103..104));
         // Fields tile the vector without gaps.
         let mut at = 0;
         for f in l.fields() {

@@ -731,9 +731,11 @@ fn make_workers(
     rsrp: &Arc<dyn RsrpSource + Send + Sync>,
     pool: &Arc<Vec<Pair>>,
 ) -> Result<Vec<Worker>, TrainError> {
+    // Training rollouts: the sphere grown by env.training_margin_m.
+    let train_cfg = cfg.training();
     (0..cfg.train.num_envs)
         .map(|k| {
-            let env = Env::new(cfg, world.clone(), rsrp.clone())?;
+            let env = Env::new(&train_cfg, world.clone(), rsrp.clone())?;
             Ok(Worker::new(
                 k as u32,
                 env,

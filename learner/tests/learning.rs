@@ -66,7 +66,7 @@ fn random_policy_success(
                 ],
                 site: SiteId(rng.random_range(0..6)),
             };
-            let s = env.step(&a).expect("step");
+            let s = env.act(&a).expect("act");
             if s.terminated || s.truncated {
                 ok += usize::from(s.info.outcome == Some(Outcome::Goal));
                 break;

@@ -72,7 +72,7 @@ pub struct EvalArgs {
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
 const RECORDS_MAGIC: &[u8; 8] = b"DUPACEVR";
-const RECORDS_VERSION: u32 = 1;
+const RECORDS_VERSION: u32 = 2;
 
 /// The records of one method and seed, with what the metrics need from the configuration.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
@@ -355,6 +355,7 @@ fn fly_one(
         straight_m: p.straight_m,
         outcome,
         source_m: p.source_m,
+        destination_m: p.destination_m,
         remaining_m,
         steps,
     })
@@ -555,6 +556,7 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
         }
         Ok(())
     })?;
+    write_failures(&out.join("failures.csv"), files)?;
     draw_fig3(out, &data, &bins)?;
     draw_fig4(out, &data, &bins)?;
     draw_pareto(out, &data)?;
@@ -563,6 +565,67 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
         report_md(&data, dupac, base).as_bytes(),
     )?;
     Ok(())
+}
+
+/// `failures.csv`: one row per flight that did not reach its goal, to see where and how policies
+/// fail: how far along the straight line they got, the altitude, the last move, and the angle
+/// between the last move and the direction to the destination (a collision flown head-on into
+/// the goal direction reads ≈ 0°; one while sliding along a wall ≈ 45–90°).
+fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<()> {
+    write_atomic_with(path, |w| {
+        writeln!(
+            w,
+            "method,seed,pair_id,bin_m,outcome,steps,straight_m,remaining_m,progress,x_m,y_m,z_m,last_move_x_m,last_move_y_m,last_move_z_m,angle_to_goal_deg"
+        )?;
+        for f in files.iter().flat_map(|r| &r.flights) {
+            if f.outcome == Outcome::Goal {
+                continue;
+            }
+            let n = f.steps.len();
+            let at = |i: usize| -> [f64; 3] {
+                if i == 0 {
+                    f.source_m
+                } else {
+                    f.steps[i - 1].position_m.map(f64::from)
+                }
+            };
+            let end = at(n);
+            let prev = at(n.saturating_sub(1));
+            let mv = [end[0] - prev[0], end[1] - prev[1], end[2] - prev[2]];
+            let to_goal = [
+                f.destination_m[0] - prev[0],
+                f.destination_m[1] - prev[1],
+                f.destination_m[2] - prev[2],
+            ];
+            let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            let dot = mv[0] * to_goal[0] + mv[1] * to_goal[1] + mv[2] * to_goal[2];
+            let angle = (dot / (norm(mv) * norm(to_goal)).max(1e-12))
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            writeln!(
+                w,
+                "{},{},{},{},{:?},{},{:.1},{:.1},{:.3},{:.1},{:.1},{:.1},{:.3},{:.3},{:.3},{:.1}",
+                f.method,
+                f.seed,
+                f.pair_id,
+                f.bin_m,
+                f.outcome,
+                n,
+                f.straight_m,
+                f.remaining_m,
+                1.0 - f.remaining_m / f.straight_m.max(1e-9),
+                end[0],
+                end[1],
+                end[2],
+                mv[0],
+                mv[1],
+                mv[2],
+                angle
+            )?;
+        }
+        Ok(())
+    })
 }
 
 fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {

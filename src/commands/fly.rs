@@ -36,7 +36,7 @@ pub struct FlyArgs {
     /// With `--follow`: `learned` (DUPAC) or `a3` (base method), as the learner trains.
     #[arg(long, value_enum, requires = "follow")]
     pub association: Option<super::train::AssociationArg>,
-    /// With `--follow`: wall-clock pause after each step (ms), to watch versions change.
+    /// With `--follow`: wall-clock pause after each decision (ms), to watch versions change.
     #[arg(long, default_value_t = 0, requires = "follow")]
     pub step_ms: u64,
     #[command(flatten)]
@@ -241,13 +241,15 @@ fn fly_following(
             policy = p;
         }
         let a = policy.act_deterministic(&obs, &mut scratch);
-        let step = env.step(&Action {
+        let step = env.act(&Action {
             move_: a.move_raw.map(f64::from),
             site: SiteId(a.site as u16),
         })?;
-        acc.push(&step.info);
-        steps.push(step.info);
-        versions.push(policy.version);
+        for info in env.substeps() {
+            acc.push(info);
+            steps.push(*info);
+            versions.push(policy.version);
+        }
         if step.terminated || step.truncated {
             let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
             return Ok((

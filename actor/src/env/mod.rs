@@ -17,7 +17,7 @@ pub use info::{Outcome, StepInfo};
 pub use reward::step_reward;
 
 use dupac_common::SiteId;
-use dupac_common::config::{Association, Config, EnvConfig, NearestObstacle};
+use dupac_common::config::{ActionClip, Association, Config, EnvConfig, NearestObstacle};
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
@@ -82,6 +82,7 @@ struct Slots {
     velocity: Range<usize>,
     goal_vector: Option<Range<usize>>,
     goal_distance: Option<Range<usize>>,
+    goal_direction: Option<Range<usize>>,
     obstacle_distance: Range<usize>,
     obstacle_direction: Range<usize>,
     sensor_fan: Option<Range<usize>>,
@@ -117,6 +118,8 @@ pub struct Env {
     done: bool,
     seed: u64,
     obs: Vec<f32>,
+    /// Step records of the last `act`.
+    substeps: Vec<StepInfo>,
 }
 
 impl Env {
@@ -142,6 +145,7 @@ impl Env {
             velocity: req(field::VELOCITY),
             goal_vector: layout.range(field::GOAL_VECTOR),
             goal_distance: layout.range(field::GOAL_DISTANCE),
+            goal_direction: layout.range(field::GOAL_DIRECTION),
             obstacle_distance: req(field::OBSTACLE_DISTANCE),
             obstacle_direction: req(field::OBSTACLE_DIRECTION),
             sensor_fan: layout.range(field::SENSOR_FAN),
@@ -180,6 +184,7 @@ impl Env {
             done: true,
             seed: 0,
             obs,
+            substeps: Vec::new(),
             cfg: env,
             world,
             rsrp,
@@ -285,6 +290,7 @@ impl Env {
         self.distance_flown_m = 0.0;
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
         self.last_handover = None;
+        self.substeps.clear();
         self.done = false;
         self.rsrp.rsrp_all_dbm(self.position_m, &mut self.rsrp_dbm);
         let (assoc, first) = Associator::start(self.cfg.association, self.a3, &self.rsrp_dbm);
@@ -294,8 +300,45 @@ impl Env {
         Ok(&self.obs)
     }
 
-    /// One decision step (Δt = max_step_m / speed).
+    /// One step of the paper's MDP (Δt = max_step_m / speed): moves, measures, rewards, and
+    /// writes the next observation.
     pub fn step(&mut self, action: &Action) -> Result<Step, EnvError> {
+        let s = self.advance(action)?;
+        self.write_observation();
+        Ok(s)
+    }
+
+    /// One decision of a policy: `action` applied for `env.action_repeat` steps, or until the
+    /// episode ends (frame skip). The rewards of those steps add up (undiscounted, as in every
+    /// frame-skip agent); `terminated`/`truncated` and `info` are the last step's; every step's
+    /// record is in [`Env::substeps`]. The observation is written once, after the last step.
+    /// With `action_repeat = 1` this is [`Env::step`].
+    pub fn act(&mut self, action: &Action) -> Result<Step, EnvError> {
+        self.substeps.clear();
+        let mut reward = 0.0;
+        let mut last = None;
+        for _ in 0..self.cfg.action_repeat.max(1) {
+            let s = self.advance(action)?;
+            reward += s.reward;
+            self.substeps.push(s.info);
+            let end = s.terminated || s.truncated;
+            last = Some(s);
+            if end {
+                break;
+            }
+        }
+        self.write_observation();
+        let last = last.ok_or(EnvError::EpisodeOver)?;
+        Ok(Step { reward, ..last })
+    }
+
+    /// The records of every step of the last [`Env::act`], in order.
+    pub fn substeps(&self) -> &[StepInfo] {
+        &self.substeps
+    }
+
+    /// `step` without writing the observation.
+    fn advance(&mut self, action: &Action) -> Result<Step, EnvError> {
         if self.done {
             return Err(EnvError::EpisodeOver);
         }
@@ -312,9 +355,10 @@ impl Env {
         }
         self.step += 1;
         let from = self.position_m;
+        let a = bounded_move(action.move_, self.cfg.action_clip);
         let mut to = [0.0; 3];
         for k in 0..3 {
-            to[k] = from[k] + action.move_[k].clamp(-1.0, 1.0) * self.cfg.max_step_m;
+            to[k] = from[k] + a[k] * self.cfg.max_step_m;
         }
         // The altitude band is a clamp, not a failure (spec/env.md "UAV and motion").
         to[2] = to[2].clamp(self.cfg.z_min_m, self.cfg.z_max_m);
@@ -384,7 +428,6 @@ impl Env {
             outcome = Some(Outcome::TimeLimit);
         }
         self.done = terminated || truncated;
-        self.write_observation();
         let info = StepInfo {
             step: self.step,
             position_m: to,
@@ -420,14 +463,21 @@ impl Env {
     fn sense(&self, fan: &mut [f32; 26]) -> (f32, Option<usize>) {
         let range = self.cfg.observation.sensor_range_m;
         let scale = self.cfg.observation.sensor_scale;
+        let fence = self.cfg.observation.geofence;
         let mut best = (1.0f32, None);
         for (i, d) in self.sensor_dirs.iter().enumerate() {
-            let v = match self
+            let mut hit = self
                 .world
                 .city
                 .mesh
-                .ray_distance_m(self.position_m, *d, range)
-            {
+                .ray_distance_m(self.position_m, *d, range);
+            if fence {
+                let edge = area_exit_m(self.world.city.area_m, self.position_m, *d);
+                if edge <= range && hit.is_none_or(|t| edge < t) {
+                    hit = Some(edge);
+                }
+            }
+            let v = match hit {
                 Some(t) => scale.scale(t, range) as f32,
                 None => 1.0,
             };
@@ -454,7 +504,14 @@ impl Env {
         let mut dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
         if o.nearest_obstacle == NearestObstacle::Exact {
             let range = o.sensor_range_m;
-            (c_t, dir) = match self.world.city.mesh.nearest_surface_m(p, range) {
+            let mut nearest = self.world.city.mesh.nearest_surface_m(p, range);
+            if o.geofence {
+                let (d, u) = nearest_edge_m(a, p);
+                if d <= range && nearest.is_none_or(|(t, _)| d < t) {
+                    nearest = Some((d, u));
+                }
+            }
+            (c_t, dir) = match nearest {
                 Some((d, u)) => (o.sensor_scale.scale(d, range) as f32, u),
                 None => (1.0, [0.0; 3]),
             };
@@ -476,6 +533,17 @@ impl Env {
                 obs[gv.start + k] = ((ep.destination_m[k] - p[k]) / o.goal_scale_m) as f32;
             }
             obs[gd.start] = (self.distance_to_goal_m / o.goal_scale_m) as f32;
+            if let Some(u) = &s.goal_direction {
+                let d = self.distance_to_goal_m;
+                for k in 0..3 {
+                    let v = if d > 1e-9 {
+                        (ep.destination_m[k] - p[k]) / d
+                    } else {
+                        0.0
+                    };
+                    obs[u.start + k] = v as f32;
+                }
+            }
         }
         obs[s.obstacle_distance.start] = c_t;
         for k in 0..3 {
@@ -495,6 +563,52 @@ impl Env {
             obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
         }
     }
+}
+
+/// The move actually flown, in units of max_step_m: the action bounded per
+/// [`ActionClip`] (spec/env.md "UAV and motion" for `cube`).
+pub fn bounded_move(a: [f64; 3], clip: ActionClip) -> [f64; 3] {
+    match clip {
+        ActionClip::Cube => a.map(|v| v.clamp(-1.0, 1.0)),
+        ActionClip::Ball => {
+            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            if n > 1.0 { a.map(|v| v / n) } else { a }
+        }
+    }
+}
+
+/// Distance (m) from `p` along the unit direction `d` to the lateral edge of the flight area
+/// `area = [x_min, y_min, x_max, y_max]` (∞ for a vertical ray); 0 outside the area.
+fn area_exit_m(area: [f64; 4], p: [f64; 3], d: [f64; 3]) -> f64 {
+    let mut t = f64::INFINITY;
+    for (k, (lo, hi)) in [(area[0], area[2]), (area[1], area[3])]
+        .into_iter()
+        .enumerate()
+    {
+        if d[k] > 0.0 {
+            t = t.min((hi - p[k]) / d[k]);
+        } else if d[k] < 0.0 {
+            t = t.min((lo - p[k]) / d[k]);
+        }
+    }
+    t.max(0.0)
+}
+
+/// The nearest point of the flight area's lateral edge: its distance (m, 0 outside) and the unit
+/// horizontal direction towards it.
+fn nearest_edge_m(area: [f64; 4], p: [f64; 3]) -> (f64, [f64; 3]) {
+    [
+        (p[0] - area[0], [-1.0, 0.0, 0.0]),
+        (area[2] - p[0], [1.0, 0.0, 0.0]),
+        (p[1] - area[1], [0.0, -1.0, 0.0]),
+        (area[3] - p[1], [0.0, 1.0, 0.0]),
+    ]
+    .into_iter()
+    .map(|(d, u)| (d.max(0.0), u))
+    .fold(
+        (f64::INFINITY, [0.0; 3]),
+        |b, e| if e.0 < b.0 { e } else { b },
+    )
 }
 
 #[inline]

@@ -1,0 +1,32 @@
+//! `docs/spec_env.toml` restores the environment of docs/spec/env.md where the project's
+//! defaults depart from it (docs/env.md): the file must load and say exactly that.
+
+use dupac_common::config::{ActionClip, Config, NearestObstacle, SensorScale};
+use std::path::Path;
+
+#[test]
+fn spec_env_toml_is_the_spec_environment() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/spec_env.toml");
+    let cfg = Config::load(Some(&path), &[]).expect("docs/spec_env.toml loads");
+    let e = &cfg.env;
+    assert_eq!(e.action_clip, ActionClip::Cube);
+    assert_eq!(e.action_repeat, 1);
+    assert_eq!(e.max_step_m, 1.0);
+    assert_eq!(e.reward.collision_reward, -100.0);
+    assert_eq!(e.reward.out_of_bounds_reward, -100.0);
+    let o = &e.observation;
+    assert_eq!(o.sensor_scale, SensorScale::Linear);
+    assert_eq!(o.nearest_obstacle, NearestObstacle::Fan);
+    assert!(!o.geofence && !o.goal_direction);
+    // Everything else is the default: the file changes only the departures.
+    let mut spec = Config::default();
+    spec.env.action_clip = ActionClip::Cube;
+    spec.env.action_repeat = 1;
+    spec.env.reward.collision_reward = -100.0;
+    spec.env.reward.out_of_bounds_reward = -100.0;
+    spec.env.observation.sensor_scale = SensorScale::Linear;
+    spec.env.observation.nearest_obstacle = NearestObstacle::Fan;
+    spec.env.observation.geofence = false;
+    spec.env.observation.goal_direction = false;
+    assert_eq!(cfg, spec);
+}
