@@ -71,6 +71,29 @@ fn benches(c: &mut Criterion) {
                 black_box(env.observation());
             })
         });
+        if radio {
+            // One decision of a policy: env.action_repeat (5) steps, one observation.
+            g.throughput(Throughput::Elements(u64::from(cfg.env.action_repeat)));
+            g.bench_function("act_cache_decision", |b| {
+                b.iter(|| {
+                    let p = env.position_m();
+                    let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
+                    let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
+                    let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
+                    let a = Action {
+                        move_: [v[0] / n, v[1] / n, v[2] / n],
+                        site: SiteId((k % 30) as u16),
+                    };
+                    let s = env.act(&a).expect("act");
+                    if s.terminated || s.truncated {
+                        k += 1;
+                        env.reset(k as u64, episodes[k % episodes.len()])
+                            .expect("reset");
+                    }
+                    black_box(env.observation());
+                })
+            });
+        }
         g.finish();
     }
 }

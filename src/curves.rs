@@ -1,5 +1,5 @@
 //! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
-//! against environment steps.
+//! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
 use crate::metrics_table::MetricsTable;
 use anyhow::{Context, Result};
@@ -28,7 +28,7 @@ pub const PANELS: &[(&str, &str)] = &[
     ("losses/value_loss", "value loss"),
     ("losses/entropy", "entropy (move + site, nats)"),
     ("losses/approx_kl", "approx KL"),
-    ("charts/SPS", "env steps per second"),
+    ("charts/SPS", "timesteps (decisions) per second"),
 ];
 
 /// Draws the panels of [`PANELS`] that have data into `path` (atomically).
@@ -72,7 +72,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
             .build_cartesian_2d(0.0..x_max, (y_min - pad)..(y_max + pad))?;
         chart
             .configure_mesh()
-            .x_desc("environment steps")
+            .x_desc("timesteps (policy decisions)")
             .label_style(("sans-serif", 12))
             .x_label_formatter(&|x| format_steps(*x))
             .x_labels(5)

@@ -24,8 +24,9 @@ impl Flight {
 }
 
 /// Flies `waypoints_m` (the first is normally the source) from `episode.source_m`, moving
-/// straight at full speed towards the next waypoint each step (a per-axis action scaled so the
-/// largest component is 1, hence exactly along the segment), until the episode ends.
+/// straight at full speed towards the next waypoint each step (the action is the direction to
+/// it scaled to length ≤ 1, so every step is at most `max_step_m` long, exactly along the
+/// segment, under either `env.action_clip`), until the episode ends.
 /// `site(env)` gives the site action (only used with `association = "learned"`).
 pub fn fly_waypoints(
     env: &mut Env,
@@ -50,12 +51,7 @@ pub fn fly_waypoints(
             .copied()
             .unwrap_or(episode.destination_m);
         let v = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
-        let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let scale = if largest > max_step {
-            largest
-        } else {
-            max_step
-        };
+        let scale = dist(target, p).max(max_step);
         let action = Action {
             move_: [v[0] / scale, v[1] / scale, v[2] / scale],
             site: site(env),

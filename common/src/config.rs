@@ -562,7 +562,7 @@ impl Default for EnvConfig {
             z_min_m: 20.0,
             z_max_m: 120.0,
             uav_radius_m: 0.5,
-            training_margin_m: 0.0,
+            training_margin_m: 1.0,
             max_step_m: 1.0,
             action_clip: ActionClip::Ball,
             action_repeat: 5,

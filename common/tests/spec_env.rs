@@ -11,6 +11,7 @@ fn spec_env_toml_is_the_spec_environment() {
     let e = &cfg.env;
     assert_eq!(e.action_clip, ActionClip::Cube);
     assert_eq!(e.action_repeat, 1);
+    assert_eq!(e.training_margin_m, 0.0);
     assert_eq!(e.max_step_m, 1.0);
     assert_eq!(e.reward.collision_reward, -100.0);
     assert_eq!(e.reward.out_of_bounds_reward, -100.0);
@@ -22,6 +23,7 @@ fn spec_env_toml_is_the_spec_environment() {
     let mut spec = Config::default();
     spec.env.action_clip = ActionClip::Cube;
     spec.env.action_repeat = 1;
+    spec.env.training_margin_m = 0.0;
     spec.env.reward.collision_reward = -100.0;
     spec.env.reward.out_of_bounds_reward = -100.0;
     spec.env.observation.sensor_scale = SensorScale::Linear;

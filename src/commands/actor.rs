@@ -62,7 +62,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let joined = args.net.open_retrying(&stop);
     if stop.load(std::sync::atomic::Ordering::Relaxed) {
         println!(
-            "actor {}: 0 chunks, 0 env steps, 0 weight swaps, 0 shares re-sent; stopped before joining",
+            "actor {}: 0 chunks, 0 timesteps, 0 weight swaps, 0 shares re-sent; stopped before joining",
             opts.id
         );
         return Ok(ExitCode::SUCCESS);
@@ -87,7 +87,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         report.versions.last().copied().unwrap_or(0),
     );
     println!(
-        "actor {}: {} chunks, {} env steps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
+        "actor {}: {} chunks, {} timesteps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
         opts.id, report.chunks_sent, report.env_steps, report.swaps, report.resent_shares,
     );
     Ok(ExitCode::SUCCESS)

@@ -405,6 +405,25 @@ impl MethodData {
             .iter()
             .filter(|(_, m)| m.outcome == Outcome::Goal)
     }
+    /// Handovers and ping-pongs per km flown, over all flights.
+    fn per_km(&self) -> (f64, f64) {
+        let km: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| m.distance_m / 1000.0)
+            .sum();
+        let ho: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| f64::from(m.handovers))
+            .sum();
+        let pp: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| f64::from(m.ping_pongs))
+            .sum();
+        (ho / km.max(1e-9), pp / km.max(1e-9))
+    }
     fn rate(&self, o: Outcome) -> Rate {
         let k = self.flights.iter().filter(|(_, m)| m.outcome == o).count();
         wilson95(k, self.flights.len())
@@ -496,9 +515,7 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
             let ov = d.ci(None, |m| m.overhead);
             let rs = d.ci(None, |m| m.mean_rsrp_dbm);
             let ex = d.ci(None, |m| m.frac_class[0]);
-            let km: f64 = d.flights.iter().map(|(_, m)| m.distance_m / 1000.0).sum();
-            let ho: f64 = d.flights.iter().map(|(_, m)| f64::from(m.handovers)).sum();
-            let pp: f64 = d.flights.iter().map(|(_, m)| f64::from(m.ping_pongs)).sum();
+            let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
                 "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
@@ -517,8 +534,8 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
                 rs.half_width,
                 100.0 * ex.mean,
                 100.0 * ex.half_width,
-                ho / km.max(1e-9),
-                pp / km.max(1e-9),
+                ho_km,
+                pp_km,
                 d.all_ci(|m| m.mean_sinr_db).mean,
                 100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
             )?;
@@ -644,9 +661,7 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
         "|---|---:|---:|---|---:|---:|---|---|---|---:|---:|---:|---:|"
     );
     for d in data {
-        let km: f64 = d.flights.iter().map(|(_, m)| m.distance_m / 1000.0).sum();
-        let ho: f64 = d.flights.iter().map(|(_, m)| f64::from(m.handovers)).sum();
-        let pp: f64 = d.flights.iter().map(|(_, m)| f64::from(m.ping_pongs)).sum();
+        let (ho_km, pp_km) = d.per_km();
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
@@ -659,8 +674,8 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
             fmt_ci(d.ci(None, |m| m.overhead), 100.0, 1),
             fmt_ci(d.ci(None, |m| m.mean_rsrp_dbm), 1.0, 1),
             fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
-            ho / km.max(1e-9),
-            pp / km.max(1e-9),
+            ho_km,
+            pp_km,
             d.all_ci(|m| m.mean_sinr_db).mean,
             100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
         );
@@ -717,10 +732,19 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
             };
             let _ = writeln!(
                 s,
-                "\nIn direction: DUPAC's mean RSRP against the base method's {} the paper (paper: DUPAC better); its time in excellent RSRP {} the paper (paper: DUPAC more); DUPAC's distance overhead against the base method's {} the paper (paper: DUPAC flies a little longer). Where ours differ, see docs/results.md (at this training budget the learned site choice flaps between sites — handovers and ping-pongs per km above — and collisions dominate the failures).",
+                "\nIn direction: DUPAC's mean RSRP against the base method's {} the paper (paper: DUPAC better); its time in excellent RSRP {} the paper (paper: DUPAC more); DUPAC's distance overhead against the base method's {} the paper (paper: DUPAC flies a little longer). DUPAC hands over {:.1} times per km ({:.1} of them ping-pongs), the base method {:.1}. Flights that missed the goal, DUPAC / base: {:.1} / {:.1} % collisions, {:.1} / {:.1} % timeouts, {:.1} / {:.1} % out of bounds (where each ended: `failures.csv`). Discussion: docs/results.md, docs/training.md.",
                 agree(ra.mean > rb.mean),
                 agree(ea.mean > eb.mean),
-                agree(oa.mean > ob.mean)
+                agree(oa.mean > ob.mean),
+                a.per_km().0,
+                a.per_km().1,
+                b.per_km().0,
+                100.0 * a.rate(Outcome::Collision).rate,
+                100.0 * b.rate(Outcome::Collision).rate,
+                100.0 * a.rate(Outcome::TimeLimit).rate,
+                100.0 * b.rate(Outcome::TimeLimit).rate,
+                100.0 * a.rate(Outcome::OutOfBounds).rate,
+                100.0 * b.rate(Outcome::OutOfBounds).rate,
             );
         }
         _ => {

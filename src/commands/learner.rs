@@ -51,7 +51,7 @@ pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
     if let Some(ck) = &checkpoint {
         learner.restore(&device, ck)?;
         eprintln!(
-            "resuming at update {} ({} env steps)",
+            "resuming at update {} ({} timesteps)",
             ck.meta.update, ck.meta.global_step
         );
     }
@@ -76,7 +76,7 @@ pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
         learner.batch_size()
     );
     let total = learner.num_updates() * learner.batch_size() as u64;
-    let pb = super::progress_bar(total, "env steps", global.quiet);
+    let pb = super::progress_bar(total, "timesteps", global.quiet);
     pb.set_position(learner.global_step);
 
     let mut last_row = Default::default();

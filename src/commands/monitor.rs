@@ -48,7 +48,7 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
         Some(s) => {
             let _ = writeln!(
                 t,
-                "run {:?}  policy v{} ({}/{} updates{})  {:.2} updates/s  {:.0} env steps/s  {} env steps",
+                "run {:?}  policy v{} ({}/{} updates{})  {:.2} updates/s  {:.0} timesteps/s  {} timesteps",
                 s.header.run_id,
                 s.update,
                 s.update,
@@ -94,7 +94,7 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
                 "actor",
                 "state",
                 "steps/s",
-                "env steps",
+                "timesteps",
                 "chunks",
                 "lag",
                 "last seen",

@@ -269,7 +269,7 @@ pub fn eval_due(cfg: &Config, update: u64, last: bool) -> bool {
 pub fn summary_line(learner: &Learner, last: &MetricsRow) -> String {
     let g = |k: &str| last.get(k).copied().unwrap_or(f64::NAN);
     format!(
-        "done: {} updates, {} env steps, {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %",
+        "done: {} updates, {} timesteps (decisions), {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %",
         learner.update,
         learner.global_step,
         learner.train_seconds,
@@ -316,7 +316,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let mut trainer = match &checkpoint {
         Some(ck) => {
             eprintln!(
-                "resuming at update {} ({} env steps)",
+                "resuming at update {} ({} timesteps)",
                 ck.meta.update, ck.meta.global_step
             );
             Trainer::resume(cfg.clone(), world.clone(), rsrp.clone(), pool, &device, ck)?
@@ -330,7 +330,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         format!("{method}, seed {}: {}", cfg.train.seed, world.city.name),
     )?;
     let total = trainer.num_updates() * trainer.batch_size() as u64;
-    let pb = super::progress_bar(total, "env steps", global.quiet);
+    let pb = super::progress_bar(total, "timesteps", global.quiet);
     pb.set_position(trainer.global_step);
     eprintln!(
         "training {method} in one process: {} updates × {} samples, {} envs, seed {}",
