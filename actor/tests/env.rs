@@ -373,7 +373,12 @@ fn bad_input_is_an_error_not_a_panic() {
 
 #[test]
 fn observation_layout_holds_what_it_documents() {
-    let mut e = env_with(Association::Learned, EXCELLENT);
+    // The spec's sensors (linear scale, c_t from the fan) for the values below; the defaults'
+    // exact nearest surface and log scale are checked at the end.
+    let mut cfg = Config::default();
+    cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
+    cfg.env.observation.nearest_obstacle = dupac_common::config::NearestObstacle::Fan;
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
     e.reset(1, ep([45.0, 0.0, 70.0], [45.0, 80.0, 70.0]))
         .expect("reset");
     let l = e.layout().clone();
@@ -384,6 +389,7 @@ fn observation_layout_holds_what_it_documents() {
     assert_eq!(get(field::POSITION), vec![45.0 / 200.0, 0.0, 0.0]);
     assert_eq!(get(field::GOAL_VECTOR), vec![0.0, 80.0 / 800.0, 0.0]);
     assert_eq!(get(field::GOAL_DISTANCE), vec![0.1]);
+    assert_eq!(get(field::GOAL_DIRECTION), vec![0.0, 1.0, 0.0]);
     assert_eq!(get(field::SERVING_ONE_HOT), vec![1.0, 0.0]);
     // RSRP: (−70 + 90) / 30 and (−95 + 90) / 30.
     let r = get(field::RSRP_ALL);
@@ -410,6 +416,21 @@ fn observation_layout_holds_what_it_documents() {
         o[l.range(field::SERVING_ONE_HOT).expect("one-hot")].to_vec(),
         vec![0.0, 1.0]
     );
+    // Defaults: c_t and θ_t of the true nearest surface point, the block's roof edge at
+    // (50, 0, 60), √125 m away (nearer than the 14.1 m the fan sees), on the log scale.
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([45.0, 0.0, 70.0], [45.0, 80.0, 70.0]))
+        .expect("reset");
+    let o = e.observation().to_vec();
+    let d_m = 125f64.sqrt();
+    let c = o[l.range(field::OBSTACLE_DISTANCE).expect("c_t")][0];
+    let want = ((1.0 + d_m).ln() / 51f64.ln()) as f32;
+    assert!((c - want).abs() < 1e-4, "c_t = {c}, want {want}");
+    let d = o[l.range(field::OBSTACLE_DIRECTION).expect("θ_t")].to_vec();
+    let u = [5.0 / d_m, 0.0, -10.0 / d_m];
+    for k in 0..3 {
+        assert!((f64::from(d[k]) - u[k]).abs() < 1e-3, "{d:?}");
+    }
 }
 
 #[test]
@@ -546,6 +567,7 @@ fn geofence_makes_the_area_edge_a_sensed_wall() {
         let mut cfg = Config::default();
         cfg.env.observation.geofence = fence;
         cfg.env.observation.nearest_obstacle = nearest;
+        cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
         // 10 m south of the north edge (y = 200), far from both buildings.
         e.reset(1, ep([-120.0, 190.0, 70.0], [-120.0, 100.0, 70.0]))
