@@ -528,7 +528,8 @@ pub struct EnvConfig {
     /// the policy learns to keep that margin; evaluation, flights and planners use `uav_radius_m`
     /// (see [`Config::training`]). 0 = train on the true sphere (the spec).
     pub training_margin_m: f64,
-    /// Displacement per unit action per axis (m).
+    /// Displacement per unit of the bounded action (m): the longest move of one step under
+    /// `ball`, per axis under `cube`.
     pub max_step_m: f64,
     /// How the move is bounded: `cube` = per axis to [−1, 1] (spec/env.md), `ball` = onto the
     /// unit ball, so no move is longer than max_step_m (the speed of spec/env.md "Time" holds in
