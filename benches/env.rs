@@ -53,49 +53,37 @@ fn benches(c: &mut Criterion) {
             g.sample_size(10);
         }
         g.bench_function(format!("step_{name}_full_fan"), |b| {
-            b.iter(|| {
-                let p = env.position_m();
-                let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
-                let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
-                let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
-                let a = Action {
-                    move_: [v[0] / n, v[1] / n, v[2] / n],
-                    site: SiteId((k % 30) as u16),
-                };
-                let s = env.step(&a).expect("step");
-                if s.terminated || s.truncated {
-                    k += 1;
-                    env.reset(k as u64, episodes[k % episodes.len()])
-                        .expect("reset");
-                }
-                black_box(env.observation());
-            })
+            b.iter(|| fly_on(&mut env, &mut k, &episodes, false))
         });
         if radio {
             // One decision of a policy: env.action_repeat (5) steps, one observation.
             g.throughput(Throughput::Elements(u64::from(cfg.env.action_repeat)));
             g.bench_function("act_cache_decision", |b| {
-                b.iter(|| {
-                    let p = env.position_m();
-                    let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
-                    let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
-                    let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
-                    let a = Action {
-                        move_: [v[0] / n, v[1] / n, v[2] / n],
-                        site: SiteId((k % 30) as u16),
-                    };
-                    let s = env.act(&a).expect("act");
-                    if s.terminated || s.truncated {
-                        k += 1;
-                        env.reset(k as u64, episodes[k % episodes.len()])
-                            .expect("reset");
-                    }
-                    black_box(env.observation());
-                })
+                b.iter(|| fly_on(&mut env, &mut k, &episodes, true))
             });
         }
         g.finish();
     }
+}
+
+/// One step (or, with `decide`, one decision) straight at the goal, cycling through the sites;
+/// a finished episode starts the next of `episodes`.
+fn fly_on(env: &mut Env, k: &mut usize, episodes: &[Episode], decide: bool) {
+    let p = env.position_m();
+    let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
+    let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
+    let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
+    let a = Action {
+        move_: [v[0] / n, v[1] / n, v[2] / n],
+        site: SiteId((*k % 30) as u16),
+    };
+    let s = if decide { env.act(&a) } else { env.step(&a) }.expect("step");
+    if s.terminated || s.truncated {
+        *k += 1;
+        env.reset(*k as u64, episodes[*k % episodes.len()])
+            .expect("reset");
+    }
+    black_box(env.observation());
 }
 
 /// Planner time per pair: shortest flyable path of 20 evaluation-like pairs (warm edge cache).
