@@ -472,7 +472,7 @@ pub struct ObservationConfig {
     pub sensor_range_m: f64,
     /// How a sensed distance d is scaled into [0, 1] (c_t and the fan): `linear` = d / range
     /// (spec/env.md), `log` = ln(1 + d / 1 m) / ln(1 + range / 1 m), which resolves the last
-    /// metres before a wall (a departure from the spec for the collision study of issue 4).
+    /// metres before a wall (a departure from the spec, the default: docs/env.md).
     pub sensor_scale: SensorScale,
     /// Where c_t and θ_t come from: `fan` = the shortest of the 26 rays and its direction
     /// (spec/env.md), `exact` = the true nearest building surface point within the sensor range
@@ -488,7 +488,7 @@ pub struct ObservationConfig {
     pub goal_scale_m: f64,
     /// Also observe the unit direction to the destination (with `goal`): the goal vector alone
     /// shrinks towards 0 on the final approach, where the network must divide by a tiny norm to
-    /// find the direction (a departure from the spec for the learning study of issue 4).
+    /// find the direction (a departure from the spec, the default: docs/env.md).
     pub goal_direction: bool,
     /// RSRP normalisation: (RSRP − centre) / scale.
     pub rsrp_centre_dbm: f64,
@@ -541,7 +541,7 @@ pub struct EnvConfig {
     /// and site it chose are applied to each, and their rewards add up. The environment itself,
     /// its metrics, the A3 rule and the planners keep the paper's 1 m step; 1 = the paper's
     /// decision every step (a departure for learning: at 1 m per decision γ = 0.95 sees 20 m
-    /// ahead; docs/training.md "Decision interval").
+    /// ahead; docs/env.md "Where the defaults depart from spec/env.md").
     pub action_repeat: u32,
     /// Flight speed (m/s) fixing the step interval Δt = max_step_m / speed_mps.
     pub speed_mps: f64,
@@ -580,7 +580,8 @@ impl Default for EnvConfig {
 }
 
 impl EnvConfig {
-    /// Decision interval Δt (s) = max_step_m / speed_mps (spec/env.md "Time").
+    /// Step interval Δt (s) = max_step_m / speed_mps (spec/env.md "Time"); a decision of a
+    /// policy lasts `action_repeat` of them.
     pub fn dt_s(&self) -> f64 {
         self.max_step_m / self.speed_mps
     }
