@@ -209,6 +209,12 @@ impl Worker {
             tr.moves.extend_from_slice(&a.move_raw);
             tr.sites.push(a.site);
             tr.logprobs.push(a.logprob);
+            tr.site_logprobs.push(a.site_logprob);
+            // Every site's reward, for the all-sites site gradient (learned association only).
+            if policy.n_sites != 0 {
+                tr.site_rewards
+                    .extend(self.env.site_rewards().iter().map(|&r| r as f32));
+            }
             tr.values.push(a.value);
             tr.rewards.push(step.reward as f32);
             tr.terminated.push(step.terminated);

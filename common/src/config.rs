@@ -411,6 +411,26 @@ pub enum Association {
     BestRsrp,
 }
 
+/// The network that scores sites (see [`PpoConfig::site_head`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SiteHead {
+    /// M logits of the actor MLP, one per slot (the paper).
+    Slots,
+    /// A per-site MLP shared by all sites over their own features and a state embedding.
+    Equivariant,
+}
+
+/// The estimator of the site head's gradient (see [`PpoConfig::site_gradient`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SiteGradient {
+    /// PPO on the sampled site, one joint ratio with the move (the paper).
+    Sampled,
+    /// Σ_k ∇π(k|s) · A_k over every site k, with A_k from each site's own decision reward.
+    AllSites,
+}
+
 /// Where the environment gets RSRP from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -437,8 +457,22 @@ pub struct RewardConfig {
     pub collision_reward: f64,
     /// Reward for leaving the flight area (terminated).
     pub out_of_bounds_reward: f64,
-    /// Reward added per handover (0 in the paper; for ablations).
+    /// Reward added per handover (the paper has none: 0). A departure by default (−1): the learned
+    /// association has no hysteresis or time-to-trigger as A3 does, and without a cost a policy
+    /// that is indifferent among sites switches freely (docs/env.md, issue 15).
     pub handover_reward: f64,
+    /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
+    /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
+    /// costs SINR against the stronger interferer; this term prefers the stronger site
+    /// (a departure, 0 in the paper; docs/env.md). Regret is capped at 60 dB.
+    pub site_regret_weight: f64,
+    /// κ_r, the route's connectivity weight: per metre flown, −μ1 · κ_r · penalty(class of the
+    /// *best* site here), with the coverage-aware planner's penalties
+    /// (`planner.penalty_mediocre`, `planner.penalty_poor`; excellent 0), so κ_r plays the role
+    /// of the planner's λ. It depends on where the UAV flies, not on the site it serves (the site
+    /// choice has its own terms). 0 = the paper's Eq. (8) alone, under which a metre in mediocre
+    /// costs ≈ 0.9 while a metre of detour costs ≈ μ1 (a departure; docs/env.md).
+    pub route_connectivity_weight: f64,
 }
 
 impl Default for RewardConfig {
@@ -450,7 +484,9 @@ impl Default for RewardConfig {
             goal_reward: 100.0,
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
-            handover_reward: 0.0,
+            handover_reward: -1.0,
+            site_regret_weight: 0.1,
+            route_connectivity_weight: 0.5,
         }
     }
 }
@@ -493,6 +529,11 @@ pub struct ObservationConfig {
     /// RSRP normalisation: (RSRP − centre) / scale.
     pub rsrp_centre_dbm: f64,
     pub rsrp_scale_db: f64,
+    /// Per-site features for the permutation-equivariant site head (`ppo.site_head =
+    /// "equivariant"`), [`crate::obs::SITE_FEATURES`] values per site on a fixed physical scale,
+    /// at the end of the observation; the actor and critic MLPs do not read them. Written only
+    /// under `env.association = "learned"` (zeros otherwise). A departure (issue 15).
+    pub site_features: bool,
 }
 
 impl Default for ObservationConfig {
@@ -510,6 +551,7 @@ impl Default for ObservationConfig {
             goal_direction: true,
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
+            site_features: true,
         }
     }
 }
@@ -685,6 +727,19 @@ pub struct PpoConfig {
     pub adam_eps: f64,
     /// Hidden layer widths of both MLPs.
     pub hidden: Vec<usize>,
+    /// The site head: `slots` = M logits of the actor MLP (the paper), `equivariant` = one small
+    /// network shared by all sites scoring each from its own features (issue 15).
+    pub site_head: SiteHead,
+    /// How the site head learns: `sampled` = the paper's PPO on the sampled site (one joint ratio
+    /// and clip with the move), `all_sites` = the exact expected gradient over every site's
+    /// reward (the environment evaluates all of them), apart from the move's ratio and clip.
+    pub site_gradient: SiteGradient,
+    /// Width of the state embedding the equivariant head appends to each site's features.
+    pub site_embed: usize,
+    /// Hidden widths of the equivariant head's per-site MLP.
+    pub site_hidden: Vec<usize>,
+    /// Weight of the all-sites loss (`site_gradient = "all_sites"`).
+    pub site_coef: f64,
     /// Initial log-std of the move Gaussian.
     pub init_log_std: f64,
     /// Normalise observations by running mean/variance, clipped to ±obs_clip.
@@ -719,6 +774,11 @@ impl Default for PpoConfig {
             target_kl: 0.0,
             adam_eps: 1e-5,
             hidden: vec![256, 256],
+            site_head: SiteHead::Equivariant,
+            site_gradient: SiteGradient::AllSites,
+            site_embed: 16,
+            site_hidden: vec![32],
+            site_coef: 1.0,
             init_log_std: 0.0,
             normalize_obs: true,
             obs_clip: 10.0,
@@ -1185,6 +1245,17 @@ impl Config {
         ] {
             finite(k, v)?;
         }
+        for (k, v) in [
+            ("env.reward.site_regret_weight", rw.site_regret_weight),
+            (
+                "env.reward.route_connectivity_weight",
+                rw.route_connectivity_weight,
+            ),
+        ] {
+            if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
+                return Err(bad(k, format!("must be in [0, 1000], got {v}")));
+            }
+        }
         let o = &e.observation;
         positive("env.observation.sensor_range_m", o.sensor_range_m)?;
         positive("env.observation.goal_scale_m", o.goal_scale_m)?;
@@ -1258,6 +1329,27 @@ impl Config {
         positive("ppo.adam_eps", pp.adam_eps)?;
         if pp.hidden.is_empty() || pp.hidden.iter().any(|&h| h == 0 || h > 65_536) {
             return Err(bad("ppo.hidden", "must list 1 or more widths in 1..=65536"));
+        }
+        if pp.site_head == SiteHead::Equivariant
+            && e.association == Association::Learned
+            && !o.site_features
+        {
+            return Err(bad(
+                "ppo.site_head",
+                "\"equivariant\" scores sites from env.observation.site_features: set it to true, or use \"slots\"",
+            ));
+        }
+        if !(1..=1024).contains(&pp.site_embed) {
+            return Err(bad("ppo.site_embed", "must be in 1..=1024"));
+        }
+        if pp.site_hidden.is_empty() || pp.site_hidden.iter().any(|&h| h == 0 || h > 4096) {
+            return Err(bad(
+                "ppo.site_hidden",
+                "must list 1 or more widths in 1..=4096",
+            ));
+        }
+        if !(pp.site_coef.is_finite() && pp.site_coef >= 0.0) {
+            return Err(bad("ppo.site_coef", "must be a finite number >= 0"));
         }
         finite("ppo.init_log_std", pp.init_log_std)?;
         positive("ppo.obs_clip", pp.obs_clip)?;

@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 /// Version of every message layout below; bump on any change.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -98,8 +98,14 @@ pub struct EnvTrajectory {
     pub moves: Vec<f32>,
     /// Chosen site per step (0 without a site head).
     pub sites: Vec<u32>,
-    /// log μ(a|s) of the behaviour policy.
+    /// log μ(a|s) of the behaviour policy (move and site together).
     pub logprobs: Vec<f32>,
+    /// log μ(site|s) alone (0 without a site head); `logprobs − site_logprobs` is the move's.
+    pub site_logprobs: Vec<f32>,
+    /// Every site's decision reward `[T × n_sites]`, site-major per step: the reward the decision
+    /// would have had with site k serving (`site_rewards[t·M + sites[t]] == rewards[t]`); empty
+    /// when the site is not learned (issue 15, `Env::site_rewards`).
+    pub site_rewards: Vec<f32>,
     /// V(s) of the behaviour policy's critic.
     pub values: Vec<f32>,
     /// Raw rewards (scaling is the learner's).
@@ -126,6 +132,8 @@ impl EnvTrajectory {
             ("obs", &self.obs),
             ("moves", &self.moves),
             ("logprobs", &self.logprobs),
+            ("site_logprobs", &self.site_logprobs),
+            ("site_rewards", &self.site_rewards),
             ("values", &self.values),
             ("rewards", &self.rewards),
             ("next_values", &self.next_values),
@@ -509,6 +517,7 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
             ("moves", tr.moves.len(), t * MOVE_DIM),
             ("sites", tr.sites.len(), t),
             ("logprobs", tr.logprobs.len(), t),
+            ("site_logprobs", tr.site_logprobs.len(), t),
             ("values", tr.values.len(), t),
             ("terminated", tr.terminated.len(), t),
             ("truncated", tr.truncated.len(), t),
@@ -521,6 +530,13 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
                     "{name} has {got} values, expected {expected}"
                 ))));
             }
+        }
+        if !tr.site_rewards.is_empty() && tr.site_rewards.len() != t * x.n_sites {
+            return Err(dims(at(&format!(
+                "site_rewards has {} values, expected 0 or {}",
+                tr.site_rewards.len(),
+                t * x.n_sites
+            ))));
         }
         let max_site = x.n_sites.max(1) as u32;
         if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
@@ -586,6 +602,8 @@ mod tests {
                 moves: vec![0.0; 6],
                 sites: vec![0, 2],
                 logprobs: vec![-1.0; 2],
+                site_logprobs: vec![0.0; 2],
+                site_rewards: vec![],
                 values: vec![0.5; 2],
                 rewards: vec![1.0; 2],
                 terminated: vec![false, true],

@@ -7,8 +7,35 @@ use std::ops::Range;
 
 /// Version of the observation layout; bump on any change of order, scaling or meaning.
 /// 2: the goal direction field (`goal_direction`) and the geofence in the sensors
-/// (`geofence`).
-pub const OBS_VERSION: u32 = 2;
+/// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
+pub const OBS_VERSION: u32 = 3;
+
+/// Features per site in the `site_features` field, in this order (fixed physical scales, not
+/// the running normaliser; issue 15):
+pub mod site_feature {
+    /// (RSRP − rsrp_centre_dbm) / rsrp_scale_db, clipped to ±10.
+    pub const RSRP: usize = 0;
+    /// (RSRP − best RSRP here) / 10 dB, clipped to [−6, 0].
+    pub const RSRP_MINUS_BEST: usize = 1;
+    /// 1 for the serving site, else 0.
+    pub const SERVING: usize = 2;
+    /// ln(1 + d3D / 100 m).
+    pub const LOG_DISTANCE: usize = 3;
+    /// sin of the elevation of the site seen from the UAV ((z_site − z_uav) / d3D).
+    pub const SIN_ELEVATION: usize = 4;
+    /// cos, sin of the site's horizontal bearing relative to the UAV's heading (its last move;
+    /// the goal direction before the first move).
+    pub const COS_BEARING_HEADING: usize = 5;
+    pub const SIN_BEARING_HEADING: usize = 6;
+    /// cos, sin of the site's horizontal bearing relative to the direction to the destination.
+    pub const COS_BEARING_GOAL: usize = 7;
+    pub const SIN_BEARING_GOAL: usize = 8;
+    /// 1 when the geometric line of sight to the site is clear.
+    pub const LOS: usize = 9;
+}
+
+/// Number of features per site in the `site_features` field.
+pub const SITE_FEATURES: usize = 10;
 
 /// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),
 /// in lexicographic order of (x, y, z).
@@ -56,6 +83,7 @@ pub mod field {
     pub const SERVING_ONE_HOT: &str = "serving_one_hot";
     pub const RSRP_ALL: &str = "rsrp_all";
     pub const RSRP_SERVING: &str = "rsrp_serving";
+    pub const SITE_FEATURES: &str = "site_features";
 }
 
 /// The layout for a given observation configuration and number of sites M.
@@ -128,6 +156,14 @@ impl ObsLayout {
                 "serving RSRP, (dBm − rsrp_centre_dbm) / rsrp_scale_db",
             );
         }
+        // Last, so the MLPs read the prefix and the site head the tail.
+        if cfg.site_features {
+            push(
+                SITE_FEATURES,
+                n_sites * crate::obs::SITE_FEATURES,
+                "per site (site-major) the SITE_FEATURES values of obs::site_feature, fixed scales",
+            );
+        }
         ObsLayout {
             fields,
             len: at,
@@ -153,6 +189,13 @@ impl ObsLayout {
         &self.fields
     }
 
+    /// Length of the prefix the actor and critic MLPs read: everything but `site_features`.
+    pub fn trunk_len(&self) -> usize {
+        self.range(field::SITE_FEATURES)
+            .map(|r| r.start)
+            .unwrap_or(self.len)
+    }
+
     /// Index range of a field, `None` when it is switched off.
     pub fn range(&self, name: &str) -> Option<Range<usize>> {
         self.fields
@@ -169,8 +212,10 @@ mod tests {
     #[test]
     fn default_layout_is_the_documented_one() {
         let l = ObsLayout::new(&ObservationConfig::default(), 30);
-        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1
-        assert_eq!(l.len(), 104);
+        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1, then 30 × 10 site features
+        assert_eq!(l.len(), 104 + 300);
+        assert_eq!(l.trunk_len(), 104);
+        assert_eq!(l.range(field::SITE_FEATURES), Some(104..404));
         assert_eq!(l.range(field::POSITION), Some(0..3));
         assert_eq!(l.range(field::GOAL_DIRECTION), Some(10..13));
         assert_eq!(l.range(field::SENSOR_FAN), Some(17..43));
@@ -192,10 +237,12 @@ mod tests {
             sensor_fan: false,
             rsrp_all: false,
             rsrp_serving: false,
+            site_features: false,
             ..Default::default()
         };
         let l = ObsLayout::new(&cfg, 5);
         assert_eq!(l.len(), 3 + 3 + 1 + 3 + 5);
+        assert_eq!(l.trunk_len(), l.len());
         assert_eq!(l.range(field::RSRP_ALL), None);
     }
 

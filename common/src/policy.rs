@@ -7,10 +7,16 @@
 //! and `learner` proves with a test that this forward pass and the burn model give the same
 //! outputs to 1e-5 for the same weights.
 //!
-//! Network (issue 4): separate MLPs `obs → hidden… → out` with tanh hidden activations. The actor
-//! head outputs 3 Gaussian means (the move, before clipping to [−1, 1]³) followed by `n_sites`
-//! logits of the categorical site choice (absent, `n_sites = 0`, for the base method whose site is
-//! chosen by A3); the move's log-std is state-independent. The critic outputs one value.
+//! Network (issue 4): separate MLPs `obs → hidden… → out` with tanh hidden activations, reading
+//! the observation without its `site_features` tail ([`crate::obs::ObsLayout::trunk_len`]). The
+//! actor outputs 3 Gaussian means (the move, before clipping to [−1, 1]³); the move's log-std is
+//! state-independent. The critic outputs one value. The categorical site choice (absent,
+//! `n_sites = 0`, for the base method whose site A3 chooses) has `n_sites` logits from one of two
+//! heads (issue 15):
+//! - slots (the paper): `n_sites` more outputs of the actor MLP, one per site index;
+//! - equivariant ([`SiteHead`]): one MLP shared by all sites scores site k from its own features
+//!   (the tail of the observation, fixed scales) and an embedding `tanh(E·h)` of the actor's last
+//!   hidden activation `h`, so permuting the sites permutes the logits.
 
 use serde::{Deserialize, Serialize};
 
@@ -90,6 +96,22 @@ impl Mlp {
         self.layers.last().map(|l| l.n_out).unwrap_or(0)
     }
 
+    /// [`Mlp::forward`] that also returns the input of the last layer (the last hidden
+    /// activation, or `x` for a one-layer MLP) in `hidden`.
+    pub fn forward_with_hidden(
+        &self,
+        x: &[f32],
+        out: &mut [f32],
+        scratch: &mut [Vec<f32>; 2],
+        hidden: &mut Vec<f32>,
+    ) {
+        self.forward(x, out, scratch);
+        // After the last swap, scratch[1] holds what the last layer read.
+        let n = self.layers.last().map(|l| l.n_in).unwrap_or(0);
+        hidden.clear();
+        hidden.extend_from_slice(&scratch[1][..n]);
+    }
+
     /// Forward pass into `out` (`n_out` values), using `scratch` (two buffers of the widest layer).
     pub fn forward(&self, x: &[f32], out: &mut [f32], scratch: &mut [Vec<f32>; 2]) {
         let last = self.layers.len() - 1;
@@ -128,6 +150,94 @@ impl Mlp {
             return Err(format!("{what}: output width {width}, expected {n_out}"));
         }
         Ok(())
+    }
+}
+
+/// The permutation-equivariant site head (issue 15): `logit_k = g([f_k, tanh(E·h)])` with `f_k`
+/// site k's `features` values of the observation's tail, `h` the actor's last hidden activation
+/// and `g` an MLP (tanh hidden, one output) shared by every site.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SiteHead {
+    /// Features per site ([`crate::obs::SITE_FEATURES`]).
+    pub features: usize,
+    /// E: actor hidden width → embedding width.
+    pub embed: Dense,
+    /// g: `features + embedding` → … → 1.
+    pub mlp: Mlp,
+}
+
+/// Buffers of the site head's forward pass.
+#[derive(Debug, Default, Clone)]
+struct SiteScratch {
+    emb: Vec<f32>,
+    pre: Vec<f32>,
+    z: Vec<f32>,
+    layers: [Vec<f32>; 2],
+}
+
+impl SiteHead {
+    /// Logits of the `out.len()` sites from the actor's last hidden activation `hidden` and the
+    /// site features `feats` (`out.len() × features`, site-major). The first layer of `g` is
+    /// split: the embedding's part is computed once per state, the features' part per site.
+    fn logits(&self, hidden: &[f32], feats: &[f32], out: &mut [f32], s: &mut SiteScratch) {
+        let f = self.features;
+        s.emb.resize(self.embed.n_out, 0.0);
+        self.embed.forward(hidden, &mut s.emb);
+        s.emb.iter_mut().for_each(|v| *v = tanh_f32(*v));
+        let first = &self.mlp.layers[0];
+        let h1 = first.n_out;
+        // pre = b + emb · W[f..f+e]
+        s.pre.clear();
+        s.pre.extend_from_slice(&first.bias);
+        for (i, &e) in s.emb.iter().enumerate() {
+            let row = &first.weight[(f + i) * h1..(f + i + 1) * h1];
+            for (p, &w) in s.pre.iter_mut().zip(row) {
+                *p += e * w;
+            }
+        }
+        let rest = &self.mlp.layers[1..];
+        for (k, o) in out.iter_mut().enumerate() {
+            s.z.clear();
+            s.z.extend_from_slice(&s.pre);
+            for (i, &x) in feats[k * f..(k + 1) * f].iter().enumerate() {
+                let row = &first.weight[i * h1..(i + 1) * h1];
+                for (z, &w) in s.z.iter_mut().zip(row) {
+                    *z += x * w;
+                }
+            }
+            if rest.is_empty() {
+                *o = s.z[0];
+                continue;
+            }
+            s.z.iter_mut().for_each(|v| *v = tanh_f32(*v));
+            let [a, b] = &mut s.layers;
+            a.clear();
+            a.extend_from_slice(&s.z);
+            for (j, layer) in rest.iter().enumerate() {
+                b.resize(layer.n_out, 0.0);
+                layer.forward(a, b);
+                if j + 1 < rest.len() {
+                    b.iter_mut().for_each(|v| *v = tanh_f32(*v));
+                }
+                std::mem::swap(a, b);
+            }
+            *o = a[0];
+        }
+    }
+
+    fn check(&self, hidden: usize) -> Result<(), String> {
+        if self.features == 0 {
+            return Err("site head: 0 features per site".into());
+        }
+        self.embed.check("site head embedding")?;
+        if self.embed.n_in != hidden {
+            return Err(format!(
+                "site head embedding reads {} values, the actor's last hidden layer has {hidden}",
+                self.embed.n_in
+            ));
+        }
+        self.mlp
+            .check("site head", self.features + self.embed.n_out, 1)
     }
 }
 
@@ -268,12 +378,19 @@ impl RewardScaler {
 pub struct PolicyWeights {
     /// Policy version (number of PPO updates that produced it).
     pub version: u64,
+    /// [`crate::obs::OBS_VERSION`] of the layout the policy was trained on: a policy of another
+    /// layout is refused ([`PolicyWeights::validate`]).
+    pub obs_version: u32,
     /// Observation length (the [`crate::obs::ObsLayout`] of the environment).
     pub obs_dim: usize,
     /// Sites of the categorical head; 0 when the site is not learned (base method).
     pub n_sites: usize,
+    /// Actor MLP over the observation's first `actor.n_in()` values: 3 means, then `n_sites`
+    /// logits unless `site_head` scores the sites.
     pub actor: Mlp,
     pub critic: Mlp,
+    /// The equivariant site head (issue 15); `None` = slot logits of `actor` (the paper).
+    pub site_head: Option<SiteHead>,
     /// Log standard deviation of the move Gaussian, per axis.
     pub log_std: [f32; MOVE_DIM],
     pub obs_norm: ObsNormalizer,
@@ -289,6 +406,8 @@ pub struct ActionSample {
     pub site: u32,
     /// log π(a|s) of the whole hybrid action (move + site).
     pub logprob: f32,
+    /// log π(site|s) alone (0 without a site head): `logprob − site_logprob` is the move's.
+    pub site_logprob: f32,
     /// V(s), in the critic's (scaled-reward) units.
     pub value: f32,
 }
@@ -300,14 +419,44 @@ pub struct Scratch {
     head: Vec<f32>,
     value: Vec<f32>,
     layers: [Vec<f32>; 2],
+    hidden: Vec<f32>,
+    site: SiteScratch,
 }
 
 impl PolicyWeights {
-    /// Checks shapes and finiteness (weights can come from a file or the network).
+    /// Checks version, shapes, finiteness and the normalisers (weights can come from a file or
+    /// the network).
     pub fn validate(&self) -> Result<(), String> {
-        self.actor
-            .check("actor", self.obs_dim, MOVE_DIM + self.n_sites)?;
-        self.critic.check("critic", self.obs_dim, 1)?;
+        if self.obs_version != crate::obs::OBS_VERSION {
+            return Err(format!(
+                "trained on observation layout version {}; this build reads version {}: retrain the policy (dupac train)",
+                self.obs_version,
+                crate::obs::OBS_VERSION
+            ));
+        }
+        let trunk = self.trunk_dim();
+        if trunk == 0 || trunk > self.obs_dim {
+            return Err(format!(
+                "actor reads {trunk} values of observations of {}",
+                self.obs_dim
+            ));
+        }
+        match &self.site_head {
+            None => self.actor.check("actor", trunk, MOVE_DIM + self.n_sites)?,
+            Some(h) => {
+                self.actor.check("actor", trunk, MOVE_DIM)?;
+                let hidden = self.actor.layers.last().map(|l| l.n_in).unwrap_or(0);
+                h.check(hidden)?;
+                let tail = self.obs_dim - trunk;
+                if self.n_sites == 0 || tail != self.n_sites * h.features {
+                    return Err(format!(
+                        "site head: {tail} feature values for {} sites of {} features",
+                        self.n_sites, h.features
+                    ));
+                }
+            }
+        }
+        self.critic.check("critic", trunk, 1)?;
         if !self.log_std.iter().all(|v| v.is_finite()) {
             return Err("log_std: non-finite".into());
         }
@@ -322,26 +471,71 @@ impl PolicyWeights {
         if !s.mean.iter().chain(&s.var).all(|v| v.is_finite()) || s.var.iter().any(|v| *v < 0.0) {
             return Err("obs_norm: non-finite or negative statistics".into());
         }
+        if !(self.obs_norm.clip.is_finite() && self.obs_norm.clip > 0.0) {
+            return Err(format!(
+                "obs_norm.clip = {}: must be finite and > 0",
+                self.obs_norm.clip
+            ));
+        }
+        let r = &self.reward_scaler;
+        let rs = &r.stats;
+        if rs.dim() != 1
+            || rs.var.len() != 1
+            || !(rs.mean[0].is_finite() && rs.var[0].is_finite() && rs.var[0] >= 0.0)
+            || !(rs.count.is_finite() && rs.count >= 0.0)
+            || !(r.clip.is_finite() && r.clip > 0.0)
+            || !(r.gamma.is_finite() && (0.0..=1.0).contains(&r.gamma))
+        {
+            return Err("reward_scaler: statistics, clip or gamma out of range".into());
+        }
         Ok(())
+    }
+
+    /// Values of the observation the actor and critic MLPs read (the rest are site features).
+    pub fn trunk_dim(&self) -> usize {
+        self.actor.n_in()
     }
 
     /// Normalised observation, actor head (means then logits) and value for a raw observation.
     fn heads<'a>(&self, raw_obs: &[f32], s: &'a mut Scratch) -> (&'a [f32], f32) {
+        let trunk = self.trunk_dim();
         s.norm.resize(self.obs_dim, 0.0);
         self.obs_norm.apply(raw_obs, &mut s.norm);
         s.head.resize(MOVE_DIM + self.n_sites, 0.0);
-        self.actor.forward(&s.norm, &mut s.head, &mut s.layers);
+        match &self.site_head {
+            None => self
+                .actor
+                .forward(&s.norm[..trunk], &mut s.head, &mut s.layers),
+            Some(h) => {
+                self.actor.forward_with_hidden(
+                    &s.norm[..trunk],
+                    &mut s.head[..MOVE_DIM],
+                    &mut s.layers,
+                    &mut s.hidden,
+                );
+                // The features are on fixed scales: read raw, not normalised.
+                h.logits(
+                    &s.hidden,
+                    &raw_obs[trunk..],
+                    &mut s.head[MOVE_DIM..],
+                    &mut s.site,
+                );
+            }
+        }
         s.value.resize(1, 0.0);
-        self.critic.forward(&s.norm, &mut s.value, &mut s.layers);
+        self.critic
+            .forward(&s.norm[..trunk], &mut s.value, &mut s.layers);
         (&s.head, s.value[0])
     }
 
     /// V(s) of a raw observation.
     pub fn value(&self, raw_obs: &[f32], s: &mut Scratch) -> f32 {
+        let trunk = self.trunk_dim();
         s.norm.resize(self.obs_dim, 0.0);
         self.obs_norm.apply(raw_obs, &mut s.norm);
         s.value.resize(1, 0.0);
-        self.critic.forward(&s.norm, &mut s.value, &mut s.layers);
+        self.critic
+            .forward(&s.norm[..trunk], &mut s.value, &mut s.layers);
         s.value[0]
     }
 
@@ -352,11 +546,12 @@ impl PolicyWeights {
         move_raw.copy_from_slice(&head[..MOVE_DIM]);
         let logits = &head[MOVE_DIM..];
         let site = argmax(logits);
-        let logprob = self.logprob_of(head, &move_raw, site);
+        let (lp_move, lp_site) = self.logprob_of(head, &move_raw, site);
         ActionSample {
             move_raw,
             site: site as u32,
-            logprob,
+            logprob: lp_move + lp_site,
+            site_logprob: lp_site,
             value,
         }
     }
@@ -394,17 +589,18 @@ impl PolicyWeights {
             }
             pick
         };
-        let logprob = self.logprob_of(head, &move_raw, site);
+        let (lp_move, lp_site) = self.logprob_of(head, &move_raw, site);
         ActionSample {
             move_raw,
             site: site as u32,
-            logprob,
+            logprob: lp_move + lp_site,
+            site_logprob: lp_site,
             value,
         }
     }
 
-    /// log π of (move, site) given the actor head.
-    fn logprob_of(&self, head: &[f32], move_raw: &[f32; MOVE_DIM], site: usize) -> f32 {
+    /// (log π(move), log π(site)) given the actor head.
+    fn logprob_of(&self, head: &[f32], move_raw: &[f32; MOVE_DIM], site: usize) -> (f32, f32) {
         let mut lp = 0.0f64;
         for k in 0..MOVE_DIM {
             let log_std = f64::from(self.log_std[k]);
@@ -412,6 +608,7 @@ impl PolicyWeights {
             lp += -0.5 * z * z - log_std - HALF_LN_2PI;
         }
         let logits = &head[MOVE_DIM..];
+        let mut lp_site = 0.0f64;
         if !logits.is_empty() {
             let max = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
             let lse = f64::from(max)
@@ -420,9 +617,9 @@ impl PolicyWeights {
                     .map(|&l| f64::from(l - max).exp())
                     .sum::<f64>()
                     .ln();
-            lp += f64::from(logits[site]) - lse;
+            lp_site = f64::from(logits[site]) - lse;
         }
-        lp as f32
+        (lp as f32, lp_site as f32)
     }
 
     /// log π(move, site | s) of a raw observation under these weights (the learner's proximal
@@ -434,6 +631,19 @@ impl PolicyWeights {
         site: u32,
         s: &mut Scratch,
     ) -> f32 {
+        let (m, k) = self.logprob_parts(raw_obs, move_raw, site, s);
+        m + k
+    }
+
+    /// (log π(move | s), log π(site | s)) of a raw observation (the site part 0 without a site
+    /// head).
+    pub fn logprob_parts(
+        &self,
+        raw_obs: &[f32],
+        move_raw: &[f32; MOVE_DIM],
+        site: u32,
+        s: &mut Scratch,
+    ) -> (f32, f32) {
         let (head, _) = self.heads(raw_obs, s);
         let site = (site as usize).min(self.n_sites.saturating_sub(1));
         self.logprob_of(head, move_raw, site)

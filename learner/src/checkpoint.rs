@@ -20,9 +20,9 @@ use std::path::Path;
 use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
-const CHECKPOINT_VERSION: u32 = 1;
+const CHECKPOINT_VERSION: u32 = 2;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 1;
+const POLICY_VERSION: u32 = 2;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -110,7 +110,8 @@ pub fn load_checkpoint(path: &Path) -> Result<LoadedCheckpoint, CheckpointError>
         &bytes,
         MAX_FILE_BYTES,
         &what,
-    )?;
+    )
+    .map_err(older_format)?;
     f.meta
         .policy
         .validate()
@@ -138,7 +139,14 @@ impl LoadedCheckpoint {
             message,
         };
         let p = &self.meta.policy;
-        let skeleton = ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, device);
+        let skeleton = ActorCritic::from_plain(
+            &p.actor,
+            &p.critic,
+            p.log_std,
+            p.site_head.as_ref(),
+            p.n_sites,
+            device,
+        );
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(self.model.clone()))
             .map_err(|e| rec(format!("{e:?}")))?;
         let model = skeleton
@@ -158,6 +166,21 @@ pub fn save_policy(path: &Path, policy: &PolicyWeights) -> Result<(), Checkpoint
     Ok(())
 }
 
+/// An older format of policy or checkpoint file, named in words: format 1 carried observation
+/// layouts 1–2 and slot site logits only.
+fn older_format(e: CodecError) -> CheckpointError {
+    match e {
+        CodecError::Version { what, got, want } if got < want => CheckpointError::Invalid {
+            path: what,
+            message: format!(
+                "written by an older DUPAC (file format {got}, observation layout version ≤ 2); this build reads format {want} (observation layout version {}, the equivariant site head of issue 15): retrain with `dupac train`",
+                dupac_common::obs::OBS_VERSION
+            ),
+        },
+        e => e.into(),
+    }
+}
+
 /// Reads a policy: an exported policy file, or the policy inside a checkpoint.
 pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let what = path.display().to_string();
@@ -169,10 +192,12 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
             &bytes,
             MAX_FILE_BYTES,
             &what,
-        )?;
+        )
+        .map_err(older_format)?;
         f.meta.policy
     } else {
-        codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)?
+        codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)
+            .map_err(older_format)?
     };
     policy
         .validate()

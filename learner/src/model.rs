@@ -1,6 +1,9 @@
-//! The actor-critic in burn: separate MLPs (default 2 × 256, tanh), orthogonal init (gain √2
-//! hidden, 0.01 policy head, 1.0 value head, zero biases), a state-independent log-std for the 3D
-//! move Gaussian and an optional categorical head over the M sites (issue 4).
+//! The actor-critic in burn: separate MLPs (default 2 × 256, tanh) over the observation without
+//! its site-features tail, orthogonal init (gain √2 hidden, 0.01 policy head, 1.0 value head,
+//! zero biases), a state-independent log-std for the 3D move Gaussian and an optional categorical
+//! head over the M sites (issue 4): slot logits of the actor MLP (the paper), or the
+//! permutation-equivariant [`SiteHeadModule`] (issue 15, mirrored by
+//! [`dupac_common::policy::SiteHead`]).
 //!
 //! Layers are written here rather than taken from `burn::nn::Linear` because burn's orthogonal
 //! initializer panics on a bias, and because the weights must export one-to-one to the plain
@@ -9,7 +12,9 @@
 use burn::module::{Module, Param};
 use burn::tensor::activation::log_softmax;
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use dupac_common::policy::{Dense as PlainDense, HALF_LN_2PI, MOVE_DIM, Mlp as PlainMlp};
+use dupac_common::policy::{
+    Dense as PlainDense, HALF_LN_2PI, MOVE_DIM, Mlp as PlainMlp, SiteHead as PlainSiteHead,
+};
 use rand::RngExt;
 
 /// A dense layer `y = x·W + b`, `W: [n_in, n_out]`.
@@ -67,6 +72,15 @@ impl Mlp {
         x
     }
 
+    /// The output and the input of the last layer (the last hidden activation).
+    pub fn forward_with_hidden(&self, mut x: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        let last = self.layers.len() - 1;
+        for l in &self.layers[..last] {
+            x = fast_tanh(l.forward(x));
+        }
+        (self.layers[last].forward(x.clone()), x)
+    }
+
     pub fn from_plain(m: &PlainMlp, device: &Device) -> Mlp {
         Mlp {
             layers: m
@@ -84,18 +98,58 @@ impl Mlp {
     }
 }
 
+/// The permutation-equivariant site head: `logit_k = mlp([f_k, tanh(embed(h))])`, one MLP
+/// shared by every site k (its features `f_k`) with the actor's last hidden activation `h`.
+#[derive(Module, Debug)]
+pub struct SiteHeadModule {
+    pub embed: Dense,
+    pub mlp: Mlp,
+    /// Features per site.
+    #[module(skip)]
+    pub features: usize,
+}
+
+impl SiteHeadModule {
+    /// Logits `[B, n_sites]` from the hidden activation `[B, H]` and features `[B, n_sites·F]`.
+    pub fn logits(&self, hidden: Tensor<2>, feats: Tensor<2>, n_sites: usize) -> Tensor<2> {
+        let [b, _] = hidden.dims();
+        let f = self.features;
+        let emb = fast_tanh(self.embed.forward(hidden));
+        let e = emb.dims()[1];
+        let emb = emb
+            .unsqueeze_dim::<3>(1)
+            .expand([b, n_sites, e])
+            .reshape([b * n_sites, e]);
+        let x = Tensor::cat(vec![feats.reshape([b * n_sites, f]), emb], 1);
+        self.mlp.forward(x).reshape([b, n_sites])
+    }
+}
+
 /// Actor and critic with the move's log-std.
 #[derive(Module, Debug)]
 pub struct ActorCritic {
     pub actor: Mlp,
     pub critic: Mlp,
     pub log_std: Param<Tensor<1>>,
+    /// The equivariant site head (`None`: slot logits of `actor`, or no site choice).
+    pub site: Option<SiteHeadModule>,
+    /// Sites of the categorical choice (0 when the site is not learned).
+    #[module(skip)]
+    pub n_sites: usize,
+    /// Observation values the MLPs read (the rest are the site head's features).
+    #[module(skip)]
+    pub trunk_dim: usize,
 }
 
 /// What the update needs from a forward pass over a minibatch.
 pub struct Evaluated {
     /// log π(a|s) of the stored hybrid actions, `[B]`.
     pub logprob: Tensor<1>,
+    /// Its parts: log π(move|s) and log π(site|s) (zeros without a site head), `[B]`.
+    pub logprob_move: Tensor<1>,
+    pub logprob_site: Tensor<1>,
+    /// log π(k|s) of every site, `[B, M]` (`None` without a site head).
+    pub site_logp: Option<Tensor<2>>,
     /// Entropy of the move Gaussian (state-independent, scalar `[1]`).
     pub entropy_move: Tensor<1>,
     /// Entropy of the site categorical, `[B]` (zeros without a site head).
@@ -105,38 +159,60 @@ pub struct Evaluated {
 }
 
 impl ActorCritic {
-    /// Initial weights from plain ones (see [`init_plain`]).
+    /// Weights from plain ones (see [`init_plain`]); `n_sites` site logits, from `site` when
+    /// given, else from the actor's outputs after the 3 means.
     pub fn from_plain(
         actor: &PlainMlp,
         critic: &PlainMlp,
         log_std: [f32; 3],
+        site: Option<&PlainSiteHead>,
+        n_sites: usize,
         device: &Device,
     ) -> Self {
         ActorCritic {
             actor: Mlp::from_plain(actor, device),
             critic: Mlp::from_plain(critic, device),
             log_std: Param::from_data(TensorData::new(log_std.to_vec(), [MOVE_DIM]), device),
+            site: site.map(|h| SiteHeadModule {
+                embed: Dense::from_plain(&h.embed, device),
+                mlp: Mlp::from_plain(&h.mlp, device),
+                features: h.features,
+            }),
+            n_sites,
+            trunk_dim: actor.n_in(),
         }
     }
 
     /// Number of sites of the categorical head.
     pub fn n_sites(&self) -> usize {
-        let out = self
-            .actor
-            .layers
-            .last()
-            .map(|l| l.weight.val().dims()[1])
-            .unwrap_or(MOVE_DIM);
-        out - MOVE_DIM
+        self.n_sites
+    }
+
+    /// Site logits `[B, M]` and move means `[B, 3]` of normalised observations `[B, obs_dim]`
+    /// (`None` without a site head), and the trunk input.
+    fn heads(&self, obs: Tensor<2>) -> (Tensor<2>, Option<Tensor<2>>, Tensor<2>) {
+        let [_, d] = obs.dims();
+        let trunk = obs.clone().narrow(1, 0, self.trunk_dim);
+        let m = self.n_sites;
+        match &self.site {
+            Some(h) => {
+                let (mean, hidden) = self.actor.forward_with_hidden(trunk.clone());
+                let feats = obs.narrow(1, self.trunk_dim, d - self.trunk_dim);
+                (mean, Some(h.logits(hidden, feats, m)), trunk)
+            }
+            None => {
+                let head = self.actor.forward(trunk.clone());
+                let logits = (m > 0).then(|| head.clone().narrow(1, MOVE_DIM, m));
+                (head.narrow(1, 0, MOVE_DIM), logits, trunk)
+            }
+        }
     }
 
     /// Log-probabilities, entropies and values of stored actions.
     /// `obs: [B, obs_dim]` (normalised), `moves: [B, 3]` (unclipped), `sites: [B]`.
     pub fn evaluate(&self, obs: Tensor<2>, moves: Tensor<2>, sites: Tensor<1, Int>) -> Evaluated {
         let [b, _] = obs.dims();
-        let n_sites = self.n_sites();
-        let head = self.actor.forward(obs.clone());
-        let mean = head.clone().narrow(1, 0, MOVE_DIM);
+        let (mean, logits, trunk) = self.heads(obs);
         let log_std = self.log_std.val();
         let inv_std = log_std.clone().neg().exp().unsqueeze::<2>();
         let z = (moves - mean) * inv_std;
@@ -156,25 +232,32 @@ impl ActorCritic {
         let entropy_move = log_std
             .sum()
             .add_scalar((0.5 + HALF_LN_2PI) * MOVE_DIM as f64);
-        let (logprob, entropy_site) = if n_sites > 0 {
-            let logits = head.narrow(1, MOVE_DIM, n_sites);
-            let logp = log_softmax(logits, 1);
-            let lp_site = logp
-                .clone()
-                .gather(1, sites.unsqueeze_dim::<2>(1))
-                .squeeze_dim::<1>(1);
-            let ent = (logp.clone().exp() * logp)
-                .sum_dim(1)
-                .squeeze_dim::<1>(1)
-                .neg();
-            (lp_move + lp_site, ent)
-        } else {
-            let dev = obs.device();
-            (lp_move, Tensor::<1>::zeros([b], &dev))
+        let dev = trunk.device();
+        let (lp_site, entropy_site, site_logp) = match logits {
+            Some(logits) => {
+                let logp = log_softmax(logits, 1);
+                let lp_site = logp
+                    .clone()
+                    .gather(1, sites.unsqueeze_dim::<2>(1))
+                    .squeeze_dim::<1>(1);
+                let ent = (logp.clone().exp() * logp.clone())
+                    .sum_dim(1)
+                    .squeeze_dim::<1>(1)
+                    .neg();
+                (lp_site, ent, Some(logp))
+            }
+            None => (
+                Tensor::<1>::zeros([b], &dev),
+                Tensor::<1>::zeros([b], &dev),
+                None,
+            ),
         };
-        let value = self.critic.forward(obs).squeeze_dim::<1>(1);
+        let value = self.critic.forward(trunk).squeeze_dim::<1>(1);
         Evaluated {
-            logprob,
+            logprob: lp_move.clone() + lp_site.clone(),
+            logprob_move: lp_move,
+            logprob_site: lp_site,
+            site_logp,
             entropy_move,
             entropy_site,
             value,
@@ -183,15 +266,21 @@ impl ActorCritic {
 
     /// V(s) of a batch `[B, obs_dim]` → `[B]`.
     pub fn value(&self, obs: Tensor<2>) -> Tensor<1> {
-        self.critic.forward(obs).squeeze_dim::<1>(1)
+        let trunk = obs.narrow(1, 0, self.trunk_dim);
+        self.critic.forward(trunk).squeeze_dim::<1>(1)
     }
 
-    /// Plain copies of the weights.
-    pub fn to_plain(&self) -> (PlainMlp, PlainMlp, [f32; 3]) {
+    /// Plain copies of the weights: actor, critic, log-std, site head.
+    pub fn to_plain(&self) -> (PlainMlp, PlainMlp, [f32; 3], Option<PlainSiteHead>) {
         let v = tensor_to_vec(self.log_std.val());
         let mut log_std = [0.0; 3];
         log_std.copy_from_slice(&v[..3]);
-        (self.actor.to_plain(), self.critic.to_plain(), log_std)
+        let site = self.site.as_ref().map(|h| PlainSiteHead {
+            features: h.features,
+            embed: h.embed.to_plain(),
+            mlp: h.mlp.to_plain(),
+        });
+        (self.actor.to_plain(), self.critic.to_plain(), log_std, site)
     }
 }
 

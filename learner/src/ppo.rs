@@ -3,13 +3,22 @@
 //! clipped value loss, separately weighted entropy bonuses of the move and site heads, Adam with a
 //! caller-annealed learning rate, *global* gradient-norm clipping, optional target-KL early stop.
 //!
+//! The site head learns in one of two ways (`ppo.site_gradient`, issue 15):
+//! - `sampled` (the paper): the site's log-prob joins the move's in one ratio and one clip;
+//! - `all_sites`: the move alone is PPO's ratio and clip; the site head minimises
+//!   `−site_coef · mean_b Σ_k π(k|s_b) · Â_{b,k}` with `Â_{b,k}` the decision reward of site k
+//!   (every site's is recorded, the site not changing the flight) minus the best, normalised per
+//!   minibatch: the exact expected gradient Σ_k ∇π(k|s) A_k of the decision's reward, with no
+//!   sampling noise, no ratio and nothing to explore (so no site entropy bonus). It is myopic:
+//!   the site's later effect (the next decision's handover cost) is not in Â.
+//!
 //! The update does not care where the batch came from (one process or many actors).
 
 use crate::model::{ActorCritic, Evaluated, tensor_to_vec};
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use dupac_common::config::PpoConfig;
+use dupac_common::config::{PpoConfig, SiteGradient};
 use dupac_common::policy::MOVE_DIM;
 use rand::RngExt;
 use rand::seq::SliceRandom;
@@ -25,8 +34,14 @@ pub struct Batch {
     pub moves: Vec<f32>,
     /// Site indices `[len]` (0 without a site head).
     pub sites: Vec<i64>,
-    /// log π_old(a|s) `[len]`.
+    /// log π_old(a|s) `[len]`: of the move and site together, or of the move alone when
+    /// `site_rewards` is not empty (the all-sites gradient).
     pub logprobs: Vec<f32>,
+    /// Every site's decision reward, scaled like the rewards, `[len × n_sites]`; empty unless
+    /// the site head learns from all sites.
+    pub site_rewards: Vec<f32>,
+    /// Sites per row of `site_rewards`.
+    pub n_sites: usize,
     /// V_old(s) `[len]`.
     pub values: Vec<f32>,
     pub advantages: Vec<f32>,
@@ -56,6 +71,12 @@ pub struct UpdateStats {
     pub entropy: f64,
     pub entropy_move: f64,
     pub entropy_site: f64,
+    /// All-sites loss `−mean_b Σ_k π(k|s_b) Â_{b,k}` (0 under the sampled estimator).
+    pub site_loss: f64,
+    /// Mean over the batch of the policy's expected decision-reward regret of its site choice,
+    /// Σ_k π(k|s)(max_j r_j − r_k) in raw reward units, before the update (NaN when not
+    /// learned from all sites).
+    pub site_expected_regret: f64,
     pub old_approx_kl: f64,
     pub approx_kl: f64,
     pub clipfrac: f64,
@@ -79,6 +100,8 @@ impl UpdateStats {
             entropy: f64::NAN,
             entropy_move: f64::NAN,
             entropy_site: f64::NAN,
+            site_loss: f64::NAN,
+            site_expected_regret: f64::NAN,
             old_approx_kl: f64::NAN,
             approx_kl: f64::NAN,
             clipfrac: f64::NAN,
@@ -211,10 +234,15 @@ impl Ppo {
         };
         let mut order: Vec<usize> = (0..n).collect();
         let mut grad_norm_sum = 0.0;
+        let m = batch.n_sites;
+        let all_sites = self.cfg.site_gradient == SiteGradient::AllSites
+            && m > 0
+            && batch.site_rewards.len() == n * m;
+        stats.site_expected_regret = f64::NAN;
         'epochs: for _epoch in 0..self.cfg.update_epochs {
             stats.epochs += 1;
             order.shuffle(rng);
-            let mut sums = [0.0f64; 7];
+            let mut sums = [0.0f64; 8];
             let mut count = 0usize;
             for idx in order.chunks(mb) {
                 let b = idx.len();
@@ -260,13 +288,32 @@ impl Ppo {
                 let sites = Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), &self.device);
                 let Evaluated {
                     logprob,
+                    logprob_move,
+                    site_logp,
                     entropy_move,
                     entropy_site,
                     value,
+                    ..
                 } = self.model.evaluate(obs, moves, sites);
+                // Under the all-sites gradient the ratio and clip are the move's alone.
+                let logprob = if all_sites { logprob_move } else { logprob };
                 let oldlp = self.t1(oldlp);
                 let (pg_loss, ratio) =
                     policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
+                let site_loss = match (&site_logp, all_sites) {
+                    (Some(logp), true) => {
+                        let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
+                        let a = Tensor::<2>::from_data(TensorData::new(a, [b, m]), &self.device);
+                        Some(
+                            (logp.clone().exp() * a)
+                                .sum_dim(1)
+                                .mean()
+                                .neg()
+                                .mul_scalar(self.cfg.site_coef),
+                        )
+                    }
+                    _ => None,
+                };
                 let v_loss = value_loss(
                     value,
                     self.t1(oldv),
@@ -275,10 +322,22 @@ impl Ppo {
                 );
                 let ent_move = entropy_move.clone().mean();
                 let ent_site = entropy_site.clone().mean();
-                let loss = pg_loss.clone()
+                // The site's entropy bonus serves exploration, which the all-sites gradient
+                // does not need.
+                let ent_coef_site = if all_sites {
+                    0.0
+                } else {
+                    self.cfg.ent_coef_site
+                };
+                let mut loss = pg_loss.clone()
                     - ent_move.clone().mul_scalar(self.cfg.ent_coef_move)
-                    - ent_site.clone().mul_scalar(self.cfg.ent_coef_site)
+                    - ent_site.clone().mul_scalar(ent_coef_site)
                     + v_loss.clone().mul_scalar(self.cfg.vf_coef);
+                let mut site_v = 0.0;
+                if let Some(sl) = site_loss {
+                    site_v = f64::from(sl.clone().into_scalar::<f32>());
+                    loss = loss + sl;
+                }
 
                 // Diagnostics (no gradient): KL estimators of Schulman's blog, clip fraction.
                 let logratio = tensor_to_vec(logprob.detach() - oldlp);
@@ -312,10 +371,16 @@ impl Ppo {
                 self.model = self.optim.step(lr, self.model.clone(), grads);
                 stats.minibatches += 1;
                 grad_norm_sum += norm;
-                for (s, v) in
-                    sums.iter_mut()
-                        .zip([pg_v, vl_v, em_v, es_v, old_kl / bf, kl / bf, cf / bf])
-                {
+                for (s, v) in sums.iter_mut().zip([
+                    pg_v,
+                    vl_v,
+                    em_v,
+                    es_v,
+                    old_kl / bf,
+                    kl / bf,
+                    cf / bf,
+                    site_v,
+                ]) {
                     *s += v;
                 }
                 count += 1;
@@ -330,6 +395,7 @@ impl Ppo {
                 stats.old_approx_kl = sums[4] / c;
                 stats.approx_kl = sums[5] / c;
                 stats.clipfrac = sums[6] / c;
+                stats.site_loss = sums[7] / c;
             }
             if self.cfg.target_kl > 0.0 && stats.approx_kl > self.cfg.target_kl {
                 break 'epochs;
@@ -341,6 +407,25 @@ impl Ppo {
         stats.explained_variance = explained_variance(&batch.values, &batch.returns);
         stats
     }
+}
+
+/// The all-sites advantages `[idx.len() × m]` of the rows `idx`: each site's decision reward
+/// minus the row's best (≤ 0; a constant per row does not change Σ_k ∇π_k A_k, this one makes
+/// the loss the expected regret), divided by their root mean square over the minibatch when
+/// `normalise` (so the site head's step does not depend on the reward scale).
+pub fn site_advantages(site_rewards: &[f32], idx: &[usize], m: usize, normalise: bool) -> Vec<f32> {
+    let mut a = Vec::with_capacity(idx.len() * m);
+    for &i in idx {
+        let row = &site_rewards[i * m..(i + 1) * m];
+        let best = row.iter().fold(f32::NEG_INFINITY, |x, &y| x.max(y));
+        a.extend(row.iter().map(|&r| r - best));
+    }
+    if normalise && !a.is_empty() {
+        let ms = a.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() / a.len() as f64;
+        let rms = ms.sqrt() + 1e-8;
+        a.iter_mut().for_each(|x| *x = (f64::from(*x) / rms) as f32);
+    }
+    a
 }
 
 /// 1 − Var(R − V) / Var(R) (NaN when the returns have no variance), as CleanRL reports it.

@@ -23,8 +23,10 @@ use dupac_actor::rollout::{
     EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed,
 };
 use dupac_common::ActorId;
-use dupac_common::config::{Association, Config};
-use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch};
+use dupac_common::config::{Association, Config, SiteGradient, SiteHead};
+use dupac_common::policy::{
+    MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead as PlainSiteHead,
+};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rand::SeedableRng;
@@ -180,6 +182,8 @@ pub struct Learner {
     return_acc: BTreeMap<(ActorId, u32), f64>,
     n_sites: usize,
     obs_dim: usize,
+    /// Observation values the MLPs read (the rest: the site head's features).
+    trunk_dim: usize,
     pub update: u64,
     pub global_step: u64,
     pub episodes: u64,
@@ -204,6 +208,30 @@ pub fn policy_shape(cfg: &Config, probe: &Env) -> (usize, usize) {
     (probe.layout().len(), n_sites)
 }
 
+/// The MLPs' input length and the equivariant head's features per site, for observations of
+/// `obs_dim` values and `n_sites` learned sites: the layout of `env.observation` of that length
+/// tells where the `site_features` tail starts (the MLPs read what comes before it). The head is
+/// built when `ppo.site_head = "equivariant"` and the tail holds `n_sites × SITE_FEATURES`
+/// values (configuration validation guarantees it in a run); otherwise slot logits.
+fn trunk_shape(cfg: &Config, obs_dim: usize, n_sites: usize) -> (usize, Option<usize>) {
+    use dupac_common::obs::{ObsLayout, SITE_FEATURES};
+    let trunk = (0..=obs_dim)
+        .map(|m| ObsLayout::new(&cfg.env.observation, m))
+        .find(|l| l.len() == obs_dim)
+        .map(|l| l.trunk_len())
+        .unwrap_or(obs_dim);
+    let want = n_sites > 0 && cfg.ppo.site_head == SiteHead::Equivariant;
+    let fits = obs_dim - trunk == n_sites * SITE_FEATURES;
+    if want && !fits {
+        tracing::warn!(
+            obs_dim,
+            n_sites,
+            "no site features in the observation: slot logits instead of the equivariant head"
+        );
+    }
+    (trunk, (want && fits).then_some(SITE_FEATURES))
+}
+
 impl Learner {
     /// Fresh networks initialised from `train.seed`.
     pub fn new(
@@ -216,10 +244,28 @@ impl Learner {
         let device = &device.clone().autodiff();
         let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(cfg.train.seed, u64::MAX - 1, 0));
         let pp = &cfg.ppo;
-        let actor = init_plain(obs_dim, &pp.hidden, MOVE_DIM + n_sites, 0.01, &mut rng);
-        let critic = init_plain(obs_dim, &pp.hidden, 1, 1.0, &mut rng);
+        let (trunk_dim, head_features) = trunk_shape(&cfg, obs_dim, n_sites);
+        let slot_logits = if head_features.is_some() { 0 } else { n_sites };
+        let actor = init_plain(trunk_dim, &pp.hidden, MOVE_DIM + slot_logits, 0.01, &mut rng);
+        let critic = init_plain(trunk_dim, &pp.hidden, 1, 1.0, &mut rng);
         let log_std = [pp.init_log_std as f32; MOVE_DIM];
-        let model = ActorCritic::from_plain(&actor, &critic, log_std, device);
+        let site = head_features.map(|f| {
+            let hidden = *pp.hidden.last().unwrap_or(&trunk_dim);
+            let embed = init_plain(hidden, &[], pp.site_embed, 2f64.sqrt(), &mut rng);
+            PlainSiteHead {
+                features: f,
+                embed: embed.layers.into_iter().next().expect("one layer"),
+                mlp: init_plain(f + pp.site_embed, &pp.site_hidden, 1, 0.01, &mut rng),
+            }
+        });
+        let model = ActorCritic::from_plain(
+            &actor,
+            &critic,
+            log_std,
+            site.as_ref(),
+            n_sites,
+            device,
+        );
         let ppo = Ppo::new(pp.clone(), model, device.clone());
         Learner {
             obs_norm: ObsNormalizer::new(obs_dim, pp.normalize_obs, pp.obs_clip),
@@ -227,6 +273,7 @@ impl Learner {
             return_acc: BTreeMap::new(),
             n_sites,
             obs_dim,
+            trunk_dim,
             ppo,
             update: 0,
             global_step: 0,
@@ -248,10 +295,19 @@ impl Learner {
     ) -> Result<(), TrainError> {
         let device = &device.clone().autodiff();
         let p = &ck.meta.policy;
-        if p.obs_dim != self.obs_dim || p.n_sites != self.n_sites {
+        if p.obs_dim != self.obs_dim
+            || p.n_sites != self.n_sites
+            || p.trunk_dim() != self.trunk_dim
+            || p.site_head.is_some() != self.ppo.model.site.is_some()
+        {
             return Err(TrainError::Invalid(format!(
-                "checkpoint policy has {} observations and {} site logits; this configuration gives {} and {}",
-                p.obs_dim, p.n_sites, self.obs_dim, self.n_sites
+                "checkpoint policy has {} observations, {} site logits and {} site head; this configuration gives {}, {} and {} (ppo.site_head)",
+                p.obs_dim,
+                p.n_sites,
+                if p.site_head.is_some() { "an equivariant" } else { "a slot" },
+                self.obs_dim,
+                self.n_sites,
+                if self.ppo.model.site.is_some() { "an equivariant" } else { "a slot" },
             )));
         }
         let optim = burn::optim::AdamConfig::new()
@@ -300,13 +356,15 @@ impl Learner {
 
     /// The current policy, exported (weights, log-std, normalisers, version).
     pub fn policy(&self) -> PolicyWeights {
-        let (actor, critic, log_std) = self.ppo.model.to_plain();
+        let (actor, critic, log_std, site_head) = self.ppo.model.to_plain();
         PolicyWeights {
             version: self.update,
+            obs_version: dupac_common::obs::OBS_VERSION,
             obs_dim: self.obs_dim,
             n_sites: self.n_sites,
             actor,
             critic,
+            site_head,
             log_std,
             obs_norm: self.obs_norm.clone(),
             reward_scaler: self.reward_scaler.clone(),
@@ -383,6 +441,7 @@ impl Learner {
         put("losses/entropy", stats.entropy);
         put("losses/entropy_move", stats.entropy_move);
         put("losses/entropy_site", stats.entropy_site);
+        put("losses/site_loss", stats.site_loss);
         put("losses/old_approx_kl", stats.old_approx_kl);
         put("losses/approx_kl", stats.approx_kl);
         put("losses/clipfrac", stats.clipfrac);
@@ -451,9 +510,13 @@ impl Learner {
         let t1 = Instant::now();
         let stats = self.ppo.update(&batch, lr, &mut rng);
         let update_s = t1.elapsed().as_secs_f64();
-        let (actor, critic, log_std) = self.ppo.model.to_plain();
-        let finite =
-            actor.all_finite() && critic.all_finite() && log_std.iter().all(|v| v.is_finite());
+        let (actor, critic, log_std, site) = self.ppo.model.to_plain();
+        let finite = actor.all_finite()
+            && critic.all_finite()
+            && log_std.iter().all(|v| v.is_finite())
+            && site
+                .as_ref()
+                .is_none_or(|h| h.mlp.all_finite() && h.embed.weight.iter().chain(&h.embed.bias).all(|v| v.is_finite()));
         if finite {
             return (stats, update_s, None);
         }
@@ -494,8 +557,15 @@ impl Learner {
         if self.reward_scaler.enabled {
             self.reward_scaler.stats.update(&returns_seen);
         }
+        // The all-sites gradient: the move's log-probs alone, every site's reward.
+        let all_sites = self.cfg.ppo.site_gradient == SiteGradient::AllSites
+            && self.n_sites > 0
+            && segments
+                .iter()
+                .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites);
         let mut batch = Batch {
             obs_dim: self.obs_dim,
+            n_sites: if all_sites { self.n_sites } else { 0 },
             ..Batch::default()
         };
         let mut norm = vec![0.0f32; self.obs_dim];
@@ -518,7 +588,9 @@ impl Learner {
                         .map(|(t, row)| {
                             let mut m = [0.0f32; MOVE_DIM];
                             m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
-                            policy.logprob(row, &m, tr.sites[t], &mut scratch)
+                            let (lp_move, lp_site) =
+                                policy.logprob_parts(row, &m, tr.sites[t], &mut scratch);
+                            if all_sites { lp_move } else { lp_move + lp_site }
                         })
                         .collect()
                 });
@@ -559,11 +631,28 @@ impl Learner {
                 policy.obs_norm.apply(row, &mut norm);
                 batch.obs.extend_from_slice(&norm);
             }
+            // Behaviour log-probs of what the ratio covers (the move alone under all-sites).
+            let behaviour: Vec<f32> = if all_sites {
+                tr.logprobs
+                    .iter()
+                    .zip(&tr.site_logprobs)
+                    .map(|(&j, &k)| j - k)
+                    .collect()
+            } else {
+                tr.logprobs.clone()
+            };
+            if all_sites {
+                batch.site_rewards.extend(
+                    tr.site_rewards
+                        .iter()
+                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
+                );
+            }
             match &prox {
                 Some(prox) => {
                     any_off_policy = true;
                     self.off_policy_samples += n as u64;
-                    for (&p, &b) in prox.iter().zip(&tr.logprobs) {
+                    for (&p, &b) in prox.iter().zip(&behaviour) {
                         let w = (f64::from(p) - f64::from(b))
                             .exp()
                             .min(dist.max_importance_weight);
@@ -572,7 +661,7 @@ impl Learner {
                     }
                 }
                 None => {
-                    batch.logprobs.extend_from_slice(&tr.logprobs);
+                    batch.logprobs.extend_from_slice(&behaviour);
                     batch.is_weights.extend(std::iter::repeat_n(1.0, n));
                 }
             }

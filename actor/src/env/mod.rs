@@ -14,14 +14,14 @@ mod reward;
 
 pub use association::{Associator, argmax};
 pub use info::{Outcome, StepInfo};
-pub use reward::step_reward;
+pub use reward::{RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig, NearestObstacle};
-use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
+use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, SITE_FEATURES, field, site_feature};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
-use dupac_radio::class::RsrpThresholds;
+use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::world::RadioWorld;
 use std::ops::Range;
 use std::sync::Arc;
@@ -89,6 +89,7 @@ struct Slots {
     serving_one_hot: Range<usize>,
     rsrp_all: Option<Range<usize>>,
     rsrp_serving: Option<Range<usize>>,
+    site_features: Option<Range<usize>>,
 }
 
 /// One UAV environment. Cheap to clone the shared parts (`Arc`), so many run in parallel.
@@ -102,6 +103,8 @@ pub struct Env {
     slots: Slots,
     sensor_dirs: [[f64; 3]; 26],
     ping_pong_steps: u32,
+    /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
+    route_penalty: [f64; 2],
     // Episode state.
     episode: Option<Episode>,
     position_m: [f64; 3],
@@ -120,6 +123,8 @@ pub struct Env {
     obs: Vec<f32>,
     /// Step records of the last `act`.
     substeps: Vec<StepInfo>,
+    /// Every site's reward of the last `act` (learned association only; empty otherwise).
+    site_rewards: Vec<f64>,
 }
 
 impl Env {
@@ -152,6 +157,7 @@ impl Env {
             serving_one_hot: req(field::SERVING_ONE_HOT),
             rsrp_all: layout.range(field::RSRP_ALL),
             rsrp_serving: layout.range(field::RSRP_SERVING),
+            site_features: layout.range(field::SITE_FEATURES),
         };
         let mut sensor_dirs = [[0.0; 3]; 26];
         for (d, s) in sensor_dirs.iter_mut().zip(SENSOR_DIRECTIONS) {
@@ -170,6 +176,7 @@ impl Env {
             slots,
             sensor_dirs,
             ping_pong_steps,
+            route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
             position_m: [0.0; 3],
             velocity_m: [0.0; 3],
@@ -185,6 +192,11 @@ impl Env {
             seed: 0,
             obs,
             substeps: Vec::new(),
+            site_rewards: if env.association == Association::Learned {
+                vec![0.0; m]
+            } else {
+                Vec::new()
+            },
             cfg: env,
             world,
             rsrp,
@@ -303,7 +315,8 @@ impl Env {
     /// One step of the paper's MDP (Δt = max_step_m / speed): moves, measures, rewards, and
     /// writes the next observation.
     pub fn step(&mut self, action: &Action) -> Result<Step, EnvError> {
-        let s = self.advance(action)?;
+        self.site_rewards.fill(0.0);
+        let s = self.advance(action, true)?;
         self.write_observation();
         Ok(s)
     }
@@ -315,10 +328,11 @@ impl Env {
     /// With `action_repeat = 1` this is [`Env::step`].
     pub fn act(&mut self, action: &Action) -> Result<Step, EnvError> {
         self.substeps.clear();
+        self.site_rewards.fill(0.0);
         let mut reward = 0.0;
         let mut last = None;
-        for _ in 0..self.cfg.action_repeat.max(1) {
-            let s = self.advance(action)?;
+        for k in 0..self.cfg.action_repeat.max(1) {
+            let s = self.advance(action, k == 0)?;
             reward += s.reward;
             self.substeps.push(s.info);
             let end = s.terminated || s.truncated;
@@ -337,8 +351,19 @@ impl Env {
         &self.substeps
     }
 
-    /// `step` without writing the observation.
-    fn advance(&mut self, action: &Action) -> Result<Step, EnvError> {
+    /// Every site's reward of the last [`Env::act`] (or [`Env::step`]): entry k is the reward
+    /// the decision would have had with site k chosen, the flight being the same (the site does
+    /// not move the UAV): the same Eq. (8), terminal and route terms, the site's own RSRP class
+    /// and regret, and the handover cost if k is not the site serving before the decision. The
+    /// chosen site's entry equals the reward returned. Empty unless `env.association =
+    /// "learned"` (issue 15: the site head learns from all of them).
+    pub fn site_rewards(&self) -> &[f64] {
+        &self.site_rewards
+    }
+
+    /// `step` without writing the observation; `first` = the first step of a decision (the
+    /// only one at which a choice of site can be a handover).
+    fn advance(&mut self, action: &Action, first: bool) -> Result<Step, EnvError> {
         if self.done {
             return Err(EnvError::EpisodeOver);
         }
@@ -409,18 +434,47 @@ impl Env {
         let class = self.thresholds.classify(serving_rsrp_dbm);
         let best_site = argmax(&self.rsrp_dbm);
 
-        let r = &self.cfg.reward;
-        let mut reward = match outcome {
+        let r = self.cfg.reward.clone();
+        let thresholds = self.thresholds;
+        let best_rsrp_dbm = self.rsrp_dbm[best_site.index()];
+        // Site-independent terms: terminal rewards, the goal, the route's connectivity term.
+        let crashed = outcome.is_some();
+        let mut common = match outcome {
             Some(Outcome::Collision) => r.collision_reward,
             Some(Outcome::OutOfBounds) => r.out_of_bounds_reward,
-            _ => step_reward(r, class, progress_m, serving_rsrp_dbm),
+            _ => 0.0,
         };
-        if handover {
-            reward += r.handover_reward;
+        if r.route_connectivity_weight > 0.0 {
+            let penalty = match self.thresholds.classify(best_rsrp_dbm) {
+                RsrpClass::Excellent => 0.0,
+                RsrpClass::Mediocre => self.route_penalty[0],
+                RsrpClass::Poor => self.route_penalty[1],
+            };
+            common -= r.mu1 * r.route_connectivity_weight * penalty * step_length_m;
         }
         if outcome.is_none() && self.distance_to_goal_m <= self.cfg.goal_radius_m {
             outcome = Some(Outcome::Goal);
-            reward += r.goal_reward;
+            common += r.goal_reward;
+        }
+        let term = |rsrp: f64, handover: bool| {
+            site_term(
+                &r,
+                &thresholds,
+                crashed,
+                progress_m,
+                rsrp,
+                best_rsrp_dbm,
+                handover,
+            )
+        };
+        let reward = common + term(serving_rsrp_dbm, handover);
+        if !self.site_rewards.is_empty() {
+            // The counterfactual of site k serves k from this decision's first step on.
+            let before_decision = before;
+            for (k, acc) in self.site_rewards.iter_mut().enumerate() {
+                let ho = first && k != before_decision.index();
+                *acc += common + term(self.rsrp_dbm[k], ho);
+            }
         }
         let terminated = outcome.is_some();
         let truncated = !terminated && self.step >= self.time_limit;
@@ -434,7 +488,7 @@ impl Env {
             serving: self.serving,
             serving_rsrp_dbm,
             best_site,
-            best_rsrp_dbm: self.rsrp_dbm[best_site.index()],
+            best_rsrp_dbm,
             class,
             los: self.world.los(self.serving, to),
             handover,
@@ -561,6 +615,57 @@ impl Env {
         }
         if let Some(r) = &s.rsrp_serving {
             obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
+        }
+        if let Some(r) = &s.site_features {
+            let out = &mut self.obs[r.clone()];
+            if self.site_rewards.is_empty() {
+                // Not a learned association: nothing reads them.
+                out.fill(0.0);
+            } else {
+                self.write_site_features(r.clone());
+            }
+        }
+    }
+
+    /// The `site_features` field (obs::site_feature): each site's own features on fixed
+    /// physical scales, for the equivariant site head.
+    fn write_site_features(&mut self, range: Range<usize>) {
+        let o = &self.cfg.observation;
+        let p = self.position_m;
+        let best = self.rsrp_dbm[argmax(&self.rsrp_dbm).index()].max(RSRP_FLOOR_DBM);
+        let unit2 = |x: f64, y: f64| {
+            let n = x.hypot(y);
+            (n > 1e-9).then(|| [x / n, y / n])
+        };
+        let goal = self
+            .episode
+            .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
+        let heading = unit2(self.velocity_m[0], self.velocity_m[1])
+            .or(goal)
+            .unwrap_or([1.0, 0.0]);
+        let goal = goal.unwrap_or(heading);
+        let serving = self.serving.index();
+        for (k, site) in self.world.sites.iter().enumerate() {
+            let f = &mut self.obs[range.start + k * SITE_FEATURES..][..SITE_FEATURES];
+            let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
+            let q = site.position_m;
+            let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
+            let u = unit2(d[0], d[1]).unwrap_or(heading);
+            let rel = |h: [f64; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
+            let (ch, sh) = rel(heading);
+            let (cg, sg) = rel(goal);
+            use site_feature::*;
+            f[RSRP] = ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32;
+            f[RSRP_MINUS_BEST] = ((w - best) / 10.0).clamp(-6.0, 0.0) as f32;
+            f[SERVING] = f32::from(u8::from(k == serving));
+            f[LOG_DISTANCE] = (d3d / 100.0).ln_1p() as f32;
+            f[SIN_ELEVATION] = (d[2] / d3d) as f32;
+            f[COS_BEARING_HEADING] = ch as f32;
+            f[SIN_BEARING_HEADING] = sh as f32;
+            f[COS_BEARING_GOAL] = cg as f32;
+            f[SIN_BEARING_GOAL] = sg as f32;
+            f[LOS] = f32::from(u8::from(self.world.los(SiteId(k as u16), p)));
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The paper's reward, Eq. (8), with the RSRP classes of spec/radio.md §3.
 
 use dupac_common::config::RewardConfig;
-use dupac_radio::class::RsrpClass;
+use dupac_radio::class::{RsrpClass, RsrpThresholds};
 
 /// Per-step reward of paper Eq. (8): excellent `μ1·Δd`; mediocre `μ1·Δd + μ2·w`; poor `μ3·w`,
 /// with `Δd` the progress towards the destination (m) and `w` the serving RSRP (dBm).
@@ -19,10 +19,45 @@ pub fn step_reward(
     }
 }
 
+/// RSRP below this (dBm) counts as this in rewards: a site that cannot be measured (−∞) gets a
+/// finite, very poor reward instead of a non-finite one.
+pub const RSRP_FLOOR_DBM: f64 = -200.0;
+
+/// Site regret (dB) above this adds no more to the regret term.
+pub const MAX_REGRET_DB: f64 = 60.0;
+
+/// The part of a step's reward that depends on the serving site (issue 15): Eq. (8) with that
+/// site's RSRP and class (nothing after a collision or leaving the area, whose reward replaces
+/// Eq. (8)), the handover cost `handover_reward` if serving it is a handover, and
+/// `−site_regret_weight · min(best − rsrp, 60 dB)`.
+pub fn site_term(
+    cfg: &RewardConfig,
+    thresholds: &RsrpThresholds,
+    crashed: bool,
+    progress_m: f64,
+    rsrp_dbm: f64,
+    best_rsrp_dbm: f64,
+    handover: bool,
+) -> f64 {
+    let w = rsrp_dbm.max(RSRP_FLOOR_DBM);
+    let mut r = if crashed {
+        0.0
+    } else {
+        step_reward(cfg, thresholds.classify(w), progress_m, w)
+    };
+    if handover {
+        r += cfg.handover_reward;
+    }
+    if cfg.site_regret_weight > 0.0 {
+        let regret = (best_rsrp_dbm.max(RSRP_FLOOR_DBM) - w).clamp(0.0, MAX_REGRET_DB);
+        r -= cfg.site_regret_weight * regret;
+    }
+    r
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dupac_radio::class::RsrpThresholds;
 
     fn r(rsrp: f64, progress: f64) -> f64 {
         let t = RsrpThresholds::default();
