@@ -69,9 +69,18 @@ fn world() -> Arc<RadioWorld> {
     ))
 }
 
+/// The paper's reward, Eq. (8) alone: no handover cost, site-regret or route term (the
+/// departures of issue 15, tested on their own below).
+fn paper_reward(cfg: &mut Config) {
+    cfg.env.reward.handover_reward = 0.0;
+    cfg.env.reward.site_regret_weight = 0.0;
+    cfg.env.reward.route_connectivity_weight = 0.0;
+}
+
 fn env_with(assoc: Association, f: fn(usize, [f64; 3]) -> f64) -> Env {
     let mut cfg = Config::default();
     cfg.env.association = assoc;
+    paper_reward(&mut cfg);
     Env::new(&cfg, world(), Arc::new(Field(f, 2))).expect("env")
 }
 
@@ -597,4 +606,105 @@ fn geofence_makes_the_area_edge_a_sensed_wall() {
     // Off (the spec): the edge is invisible.
     let (north, _, _, c_t, _) = sensed(false, NearestObstacle::Exact);
     assert_eq!((north, c_t), (1.0, 1.0));
+}
+
+/// A field where the sites trade places along y: site 0 falls from excellent to poor, site 1
+/// rises from poor to excellent.
+const CROSSING: fn(usize, [f64; 3]) -> f64 = |s, p| {
+    if s == 0 {
+        -70.0 - 0.5 * p[1]
+    } else {
+        -105.0 + 0.5 * p[1]
+    }
+};
+
+/// Issue 15: `Env::site_rewards` holds, for every site k, the reward the decision would have had
+/// with k chosen: replaying the same decisions with k chosen at decision t gives exactly that
+/// reward, and the chosen site's entry is the reward returned. The departures' terms (handover
+/// cost, site regret, route connectivity) are on, as by default.
+#[test]
+fn site_rewards_are_what_each_site_would_have_given() {
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    assert!(cfg.env.reward.handover_reward < 0.0 && cfg.env.reward.site_regret_weight > 0.0);
+    assert!(cfg.env.reward.route_connectivity_weight > 0.0);
+    let make = || Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+    let episode = ep([0.0, 0.0, 50.0], [0.0, 120.0, 50.0]);
+    // A scripted flight that switches sites now and then.
+    let plan: Vec<Action> = (0..16)
+        .map(|t| mv(0.0, 1.0, 0.0, [0, 0, 1, 1, 0, 1, 1, 1][t % 8]))
+        .collect();
+    let mut main = make();
+    main.reset(1, episode).expect("reset");
+    let mut classes = std::collections::HashSet::new();
+    for (t, a) in plan.iter().enumerate() {
+        let s = main.act(a).expect("act");
+        let sr = main.site_rewards().to_vec();
+        assert_eq!(sr.len(), 2);
+        assert!(
+            (sr[a.site.index()] - s.reward).abs() < 1e-9,
+            "decision {t}: chosen site's entry {} vs reward {}",
+            sr[a.site.index()],
+            s.reward
+        );
+        for (k, want) in sr.iter().enumerate() {
+            let mut alt = make();
+            alt.reset(1, episode).expect("reset");
+            for b in &plan[..t] {
+                alt.act(b).expect("replay");
+            }
+            let got = alt.act(&mv(0.0, 1.0, 0.0, k as u16)).expect("alt").reward;
+            assert!(
+                (got - want).abs() < 1e-9,
+                "decision {t} site {k}: counterfactual {got} vs recorded {want}"
+            );
+        }
+        classes.insert(format!("{:?}", s.info.class));
+        if s.terminated || s.truncated {
+            break;
+        }
+    }
+    assert!(classes.len() >= 2, "the flight crossed classes: {classes:?}");
+}
+
+/// The departures' reward terms, each on its own: the handover cost once per handover, the site
+/// regret −κ_s·(best − serving) per step, the route term −μ1·κ_r·penalty(best class)·metres.
+#[test]
+fn handover_cost_site_regret_and_route_terms() {
+    let make = |f: fn(&mut Config)| {
+        let mut cfg = Config::default();
+        cfg.env.association = Association::Learned;
+        paper_reward(&mut cfg);
+        f(&mut cfg);
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+            .expect("reset");
+        e
+    };
+    // Handover to site 1 (mediocre, −95): Eq. (8) 10 − 0.95, plus −2 once.
+    let mut e = make(|c| c.env.reward.handover_reward = -2.0);
+    let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
+    assert!((r - (10.0 - 0.95 - 2.0)).abs() < 1e-9, "{r}");
+    let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
+    assert!((r - (10.0 - 0.95)).abs() < 1e-9, "no handover, no cost: {r}");
+    // Site regret: serving −95 where −70 is best: −0.1 · 25 dB.
+    let mut e = make(|c| c.env.reward.site_regret_weight = 0.1);
+    let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
+    assert!((r - (10.0 - 0.95 - 2.5)).abs() < 1e-9, "{r}");
+    let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
+    assert!((r - 10.0).abs() < 1e-9, "the best site has no regret: {r}");
+    // Route term: the best site is excellent here, so nothing; under a field whose best is
+    // mediocre, −μ1 · κ_r · penalty_mediocre (1) per metre.
+    let mut e = make(|c| c.env.reward.route_connectivity_weight = 0.5);
+    let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
+    assert!((r - 10.0).abs() < 1e-9, "{r}");
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    paper_reward(&mut cfg);
+    cfg.env.reward.route_connectivity_weight = 0.5;
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(|_, _| -90.0, 2))).expect("env");
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
+    assert!((r - (10.0 - 0.9 - 5.0)).abs() < 1e-9, "{r}");
 }

@@ -127,6 +127,13 @@ pub fn policy_loss(
     (pg1.max_pair(pg2).mean(), ratio)
 }
 
+/// The all-sites site loss `−mean_b Σ_k π(k|s_b) · A_{b,k}` from log π `[B, M]` and the sites'
+/// advantages `[B, M]` (constants): its gradient in the logits is the exact expected policy
+/// gradient `−π_j (A_j − Σ_k π_k A_k) / B`.
+pub fn all_sites_loss(site_logp: Tensor<2>, adv: Tensor<2>) -> Tensor<1> {
+    (site_logp.exp() * adv).sum_dim(1).mean().neg()
+}
+
 /// Value loss `0.5 · mean(max((V − R)², (V_old + clip(V − V_old, ±ε) − R)²))`, or the
 /// unclipped `0.5 · mean((V − R)²)`.
 pub fn value_loss(
@@ -304,13 +311,7 @@ impl Ppo {
                     (Some(logp), true) => {
                         let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
                         let a = Tensor::<2>::from_data(TensorData::new(a, [b, m]), &self.device);
-                        Some(
-                            (logp.clone().exp() * a)
-                                .sum_dim(1)
-                                .mean()
-                                .neg()
-                                .mul_scalar(self.cfg.site_coef),
-                        )
+                        Some(all_sites_loss(logp.clone(), a).mul_scalar(self.cfg.site_coef))
                     }
                     _ => None,
                 };

@@ -627,8 +627,11 @@ impl Learner {
                 gamma,
                 lambda,
             );
+            let trunk = self.trunk_dim;
             for row in tr.obs.chunks_exact(self.obs_dim) {
                 policy.obs_norm.apply(row, &mut norm);
+                // The site features are read raw (fixed scales), as the actors read them.
+                norm[trunk..].copy_from_slice(&row[trunk..]);
                 batch.obs.extend_from_slice(&norm);
             }
             // Behaviour log-probs of what the ratio covers (the move alone under all-sites).

@@ -7,6 +7,7 @@ use dupac_actor::pairs::{Pair, eval_pairs, training_pool};
 use dupac_actor::planner::Planner;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, CityKind, Config, RadioMode};
+use dupac_actor::rollout::fly_policy;
 use dupac_learner::train::{Trainer, domain_stats};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
@@ -124,6 +125,36 @@ fn learns(association: Association) {
     );
     assert!(trained.success_rate >= random + 0.3, "random {random:.2}");
     assert!(trained.success_rate >= init + 0.3, "init {init:.2}");
+    if association == Association::Learned {
+        // Issue 15: the learned site choice keeps a smaller site regret (best − serving RSRP)
+        // than A3 does on the same policy's moves.
+        let policy = trainer.policy();
+        let regret = |assoc: Association| {
+            let mut c = cfg.clone();
+            c.env.association = assoc;
+            let (mut sum, mut n) = (0.0, 0usize);
+            for p in &held_out {
+                let mut env = Env::new(&c, world.clone(), rsrp.clone()).expect("env");
+                let ep = Episode {
+                    source_m: p.source_m,
+                    destination_m: p.destination_m,
+                    shortest_m: p.shortest_m,
+                };
+                let (_, steps) = fly_policy(&mut env, &policy, p.id, ep, p.id).expect("fly");
+                for s in &steps {
+                    sum += s.best_rsrp_dbm - s.serving_rsrp_dbm;
+                    n += 1;
+                }
+            }
+            sum / n.max(1) as f64
+        };
+        let (learned, a3) = (regret(Association::Learned), regret(Association::A3));
+        eprintln!("mean site regret: learned {learned:.2} dB, A3 {a3:.2} dB");
+        assert!(
+            learned < a3,
+            "learned site regret {learned:.2} dB vs A3 {a3:.2} dB"
+        );
+    }
 }
 
 #[test]

@@ -7,13 +7,15 @@ use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use dupac_common::policy::{
-    HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch,
+    HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead,
 };
 use dupac_learner::checkpoint::{
     CheckpointMeta, load_checkpoint, load_policy, save_checkpoint, save_policy,
 };
 use dupac_learner::model::{ActorCritic, init_plain, tensor_to_vec};
-use dupac_learner::ppo::{Batch, Ppo, clip_global_grad_norm, policy_loss, value_loss};
+use dupac_learner::ppo::{
+    Batch, Ppo, all_sites_loss, clip_global_grad_norm, policy_loss, site_advantages, value_loss,
+};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -37,10 +39,12 @@ fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
     }
     PolicyWeights {
         version: 0,
+        obs_version: dupac_common::obs::OBS_VERSION,
         obs_dim: OBS,
         n_sites,
         actor,
         critic,
+        site_head: None,
         log_std: [-0.3, 0.1, 0.4],
         obs_norm,
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
@@ -48,7 +52,38 @@ fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
 }
 
 fn model_of(p: &PolicyWeights, device: &Device) -> ActorCritic {
-    ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, device)
+    ActorCritic::from_plain(
+        &p.actor,
+        &p.critic,
+        p.log_std,
+        p.site_head.as_ref(),
+        p.n_sites,
+        device,
+    )
+}
+
+/// Features per site of the equivariant test policies.
+const FEATS: usize = 3;
+
+/// A policy with the equivariant site head: the MLPs read the first OBS values, the head the
+/// SITES × FEATS after them.
+fn equivariant_policy(seed: u64) -> PolicyWeights {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut p = plain_policy(seed, SITES, 1.0);
+    p.actor = init_plain(OBS, &[16, 16], MOVE_DIM, 1.0, &mut rng);
+    let embed = init_plain(16, &[], 5, 1.4, &mut rng).layers.remove(0);
+    p.site_head = Some(SiteHead {
+        features: FEATS,
+        embed,
+        mlp: init_plain(FEATS + 5, &[8], 1, 1.0, &mut rng),
+    });
+    p.obs_dim = OBS + SITES * FEATS;
+    let mut norm = ObsNormalizer::new(p.obs_dim, true, 10.0);
+    norm.stats.mean[..OBS].copy_from_slice(&p.obs_norm.stats.mean);
+    norm.stats.var[..OBS].copy_from_slice(&p.obs_norm.stats.var);
+    p.obs_norm = norm;
+    p.validate().expect("valid equivariant policy");
+    p
 }
 
 fn t1(v: Vec<f32>, device: &Device) -> Tensor<1> {
@@ -196,6 +231,109 @@ fn burn_model_and_plain_forward_agree() {
     }
 }
 
+/// The equivariant site head (issue 15): the burn model and the actors' plain forward give the
+/// same log-probabilities of every site to 1e-5, and permuting the sites' features permutes the
+/// logits (and nothing else: the move means and the value stay).
+#[test]
+fn equivariant_site_head_matches_plain_forward_and_permutes_with_the_sites() {
+    let device = Device::flex();
+    let p = equivariant_policy(4);
+    let model = model_of(&p, &device);
+    let d = p.obs_dim;
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let n = 32;
+    let raw: Vec<f32> = (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect();
+    let mut norm = vec![0.0f32; n * d];
+    for (r, o) in raw.chunks(d).zip(norm.chunks_mut(d)) {
+        p.obs_norm.apply(r, o);
+        // The head reads its features raw (fixed scales), as the actors do.
+        o[OBS..].copy_from_slice(&r[OBS..]);
+    }
+    let x = Tensor::<2>::from_data(TensorData::new(norm, [n, d]), &device);
+    let moves = Tensor::<2>::zeros([n, MOVE_DIM], &device);
+    let sites = Tensor::<1, Int>::zeros([n], &device);
+    let ev = model.evaluate(x, moves, sites);
+    let logp = tensor_to_vec(ev.site_logp.expect("site head"));
+    let mut s = Scratch::default();
+    let log_softmax = |l: &[f32]| {
+        let max = l.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        let lse = max + l.iter().map(|&v| (v - max).exp()).sum::<f32>().ln();
+        l.iter().map(|&v| v - lse).collect::<Vec<f32>>()
+    };
+    for k in 0..n {
+        let row = &raw[k * d..(k + 1) * d];
+        let (h, v) = p.forward(row, &mut s);
+        let lp = log_softmax(&h[MOVE_DIM..]);
+        for j in 0..SITES {
+            assert!(
+                (lp[j] - logp[k * SITES + j]).abs() < 1e-5,
+                "row {k} site {j}: plain {} burn {}",
+                lp[j],
+                logp[k * SITES + j]
+            );
+        }
+        // Permute the sites: (0 1 2 3) → (2 0 3 1).
+        let perm = [2usize, 0, 3, 1];
+        let mut row2 = row.to_vec();
+        for (to, &from) in perm.iter().enumerate() {
+            row2[OBS + to * FEATS..OBS + (to + 1) * FEATS]
+                .copy_from_slice(&row[OBS + from * FEATS..OBS + (from + 1) * FEATS]);
+        }
+        let (h2, v2) = p.forward(&row2, &mut s);
+        assert_eq!(&h2[..MOVE_DIM], &h[..MOVE_DIM], "the move does not see the sites' order");
+        assert_eq!(v2, v);
+        for (to, &from) in perm.iter().enumerate() {
+            assert!(
+                (h2[MOVE_DIM + to] - h[MOVE_DIM + from]).abs() < 1e-6,
+                "logit of the site moved from {from} to {to}"
+            );
+        }
+    }
+}
+
+/// The all-sites loss (issue 15) against a hand-computed case: its gradient in the logits is
+/// −π_j (A_j − Σ_k π_k A_k) / B, and `site_advantages` subtracts each row's best and divides by
+/// the root mean square.
+#[test]
+fn all_sites_gradient_matches_the_hand_computed_expectation() {
+    let device = Device::flex().autodiff();
+    // B = 2 rows, M = 3 sites.
+    let logits = vec![0.0f32, 1.0, -1.0, 0.5, 0.5, 0.5];
+    let rewards = vec![1.0f32, 3.0, 2.0, -4.0, -4.0, 2.0];
+    let a = site_advantages(&rewards, &[0, 1], 3, false);
+    assert_eq!(a, vec![-2.0, 0.0, -1.0, -6.0, -6.0, 0.0]);
+    let an = site_advantages(&rewards, &[0, 1], 3, true);
+    let rms = ((4.0 + 1.0 + 36.0 + 36.0) / 6.0f64).sqrt();
+    assert!((f64::from(an[0]) - (-2.0 / rms)).abs() < 1e-6);
+    // Only the listed rows, in their order.
+    assert_eq!(
+        site_advantages(&rewards, &[1], 3, false),
+        vec![-6.0, -6.0, 0.0]
+    );
+    let lt = Tensor::<2>::from_data(TensorData::new(logits.clone(), [2, 3]), &device).require_grad();
+    let at = Tensor::<2>::from_data(TensorData::new(a.clone(), [2, 3]), &device);
+    let loss = all_sites_loss(burn::tensor::activation::log_softmax(lt.clone(), 1), at);
+    let grads = loss.backward();
+    let g = tensor_to_vec(lt.grad(&grads).expect("gradient"));
+    for b in 0..2 {
+        let row = &logits[b * 3..(b + 1) * 3];
+        let z: f64 = row.iter().map(|&l| f64::from(l).exp()).sum();
+        let pi: Vec<f64> = row.iter().map(|&l| f64::from(l).exp() / z).collect();
+        let ab: Vec<f64> = a[b * 3..(b + 1) * 3].iter().map(|&x| f64::from(x)).collect();
+        let mean: f64 = pi.iter().zip(&ab).map(|(p, a)| p * a).sum();
+        for j in 0..3 {
+            let want = -pi[j] * (ab[j] - mean) / 2.0;
+            assert!(
+                (f64::from(g[b * 3 + j]) - want).abs() < 1e-6,
+                "row {b} site {j}: {} vs {want}",
+                g[b * 3 + j]
+            );
+        }
+    }
+    // The best site's logit rises, the others fall (row 0: site 1 is the best).
+    assert!(g[1] < 0.0 && g[0] > 0.0 && g[2] > 0.0);
+}
+
 /// Squared L2 norm of every gradient, visited independently of the code under test.
 struct Collect<'a>(&'a GradientsParams, Vec<Vec<f32>>);
 impl ModuleVisitor for Collect<'_> {
@@ -292,7 +430,7 @@ fn checkpoint_round_trip_gives_identical_actions_and_optimiser_state() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let stats = ppo.update(&small_batch(1, 64), 3e-4, &mut rng);
     assert_eq!(stats.minibatches, 4);
-    let (actor, critic, log_std) = ppo.model.to_plain();
+    let (actor, critic, log_std, _) = ppo.model.to_plain();
     let policy = PolicyWeights {
         actor,
         critic,
@@ -319,7 +457,7 @@ fn checkpoint_round_trip_gives_identical_actions_and_optimiser_state() {
     let (model2, optim2) = loaded
         .restore(&device, AdamConfig::new().with_epsilon(1e-5).init())
         .expect("restore");
-    let (a2, c2, l2) = model2.to_plain();
+    let (a2, c2, l2, _) = model2.to_plain();
     assert_eq!(
         (a2, c2, l2),
         (policy.actor.clone(), policy.critic.clone(), policy.log_std)
