@@ -21,10 +21,12 @@ fn policy() -> PolicyWeights {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     PolicyWeights {
         version: 0,
+        obs_version: dupac_common::obs::OBS_VERSION,
         obs_dim: OBS,
         n_sites: SITES,
         actor: init_plain(OBS, &[256, 256], MOVE_DIM + SITES, 0.01, &mut rng),
         critic: init_plain(OBS, &[256, 256], 1, 1.0, &mut rng),
+        site_head: None,
         log_std: [0.0; 3],
         obs_norm: ObsNormalizer::new(OBS, true, 10.0),
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
@@ -55,7 +57,7 @@ fn benches(c: &mut Criterion) {
         })
     });
     let device = Device::flex();
-    let model = ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, &device);
+    let model = ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, None, SITES, &device);
     g.bench_function("burn_forward_batch1", |b| {
         b.iter(|| {
             let x = Tensor::<2>::from_data(TensorData::new(obs[..OBS].to_vec(), [1, OBS]), &device);
@@ -86,6 +88,8 @@ fn benches(c: &mut Criterion) {
             .collect(),
         sites: (0..n).map(|_| rng.random_range(0..SITES as i64)).collect(),
         logprobs: (0..n).map(|_| rng.random_range(-8.0f32..-4.0)).collect(),
+        site_rewards: Vec::new(),
+        n_sites: SITES,
         values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
@@ -99,7 +103,7 @@ fn benches(c: &mut Criterion) {
     let ad = Device::flex().autodiff();
     let mut ppo = Ppo::new(
         cfg,
-        ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, &ad),
+        ActorCritic::from_plain(&p.actor, &p.critic, p.log_std, None, SITES, &ad),
         ad,
     );
     let mut g = c.benchmark_group("ppo_update");

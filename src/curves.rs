@@ -25,6 +25,11 @@ pub const PANELS: &[(&str, &str)] = &[
         "distance overhead (fraction, held-out successes)",
     ),
     ("domain/handovers_per_km", "handovers per km (train)"),
+    (
+        "eval/site_regret_db",
+        "site regret best − serving (dB, held-out)",
+    ),
+    ("losses/site_loss", "site loss (all-sites gradient)"),
     ("losses/value_loss", "value loss"),
     ("losses/entropy", "entropy (move + site, nats)"),
     ("losses/approx_kl", "approx KL"),
@@ -39,7 +44,7 @@ pub fn render_curves(rows: &MetricsTable, title: &str, path: &Path) -> Result<()
 }
 
 fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
-    let root = BitMapBackend::new(tmp, (1800, 1300)).into_drawing_area();
+    let root = BitMapBackend::new(tmp, (1800, 1700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(50);
     head.draw_text(
@@ -47,7 +52,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
         &("sans-serif", 26).into_font().color(&BLACK),
         (20, 12),
     )?;
-    let cells = body.split_evenly((3, 4));
+    let cells = body.split_evenly((4, 4));
     for (cell, (key, label)) in cells.iter().zip(PANELS) {
         let pts = rows.points("global_step", key);
         let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);

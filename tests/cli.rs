@@ -605,9 +605,38 @@ fn train_resume_and_fly_on_a_small_city() {
         .skip(1)
         .map(|l| l.split(',').next().unwrap_or(""))
         .collect();
+    // The learned-site policy's moves are also re-flown with A3 and with the oracle choosing the
+    // site (issue 15: route against association).
     assert_eq!(
         methods,
-        ["dupac", "coverage_l1", "shortest_a3", "shortest_oracle"],
+        [
+            "dupac",
+            "dupac+a3",
+            "dupac+oracle",
+            "coverage_l1",
+            "shortest_a3",
+            "shortest_oracle"
+        ],
+        "{summary}"
+    );
+    let col = |label: &str, name: &str| -> f64 {
+        let header: Vec<&str> = summary.lines().next().expect("header").split(',').collect();
+        let k = header.iter().position(|h| *h == name).expect("column");
+        let row = summary
+            .lines()
+            .find(|l| l.starts_with(&format!("{label},")))
+            .expect("row");
+        row.split(',')
+            .nth(k)
+            .expect("value")
+            .parse()
+            .expect("number")
+    };
+    assert_eq!(col("dupac+oracle", "site_regret_db"), 0.0, "{summary}");
+    assert_eq!(col("dupac+oracle", "pct_class_regret"), 0.0, "{summary}");
+    assert_eq!(
+        col("dupac+a3", "success"),
+        col("dupac", "success"),
         "{summary}"
     );
     let dupac_row: Vec<&str> = summary.lines().nth(1).expect("row").split(',').collect();

@@ -46,6 +46,8 @@ pub struct StepRecord {
     /// SINR of the serving site against all others ([`sinr_db`]).
     pub sinr_db: f32,
     pub class: RsrpClass,
+    /// Class of the best site's RSRP (class regret: best excellent, serving not).
+    pub best_class: RsrpClass,
     /// Geometric line of sight to the serving site.
     pub los: bool,
     pub handover: bool,
@@ -64,6 +66,7 @@ impl StepRecord {
             best_rsrp_dbm: info.best_rsrp_dbm as f32,
             sinr_db: sinr_db as f32,
             class: info.class,
+            best_class: info.best_class,
             los: info.los,
             handover: info.handover,
             ping_pong: info.ping_pong,
@@ -114,6 +117,12 @@ pub struct FlightMetrics {
     pub mean_sinr_db: f64,
     /// Fraction of flight time with SINR < −6 dB (below which an LTE link is hardly usable).
     pub frac_sinr_below_m6db: f64,
+    /// Mean site regret: best RSRP − serving RSRP over the steps (dB, issue 15).
+    pub mean_site_regret_db: f64,
+    /// Fraction of flight time with site regret over the threshold (`env.site_regret_threshold_db`).
+    pub frac_site_regret_high: f64,
+    /// Fraction of flight time with class regret: the best site excellent, the serving one not.
+    pub frac_class_regret: f64,
 }
 
 /// Handovers (changes of the serving site) and ping-pongs (a handover back to the site of the
@@ -140,18 +149,21 @@ pub fn count_handovers(serving: &[u16], window_steps: u32) -> (u32, u32) {
     (handovers, ping_pongs)
 }
 
-/// The metrics of `r`; `start_serving` is the serving site before the first step and
-/// `ping_pong_window_steps` the env's window in steps.
+/// The metrics of `r`; `start_serving` is the serving site before the first step,
+/// `ping_pong_window_steps` the env's window in steps and `site_regret_threshold_db` the regret
+/// that counts as high (`env.site_regret_threshold_db`).
 pub fn flight_metrics(
     r: &FlightRecord,
     start_serving: u16,
     ping_pong_window_steps: u32,
+    site_regret_threshold_db: f64,
 ) -> FlightMetrics {
     let n = r.steps.len().max(1) as f64;
     let mut distance_m = 0.0;
     let mut prev = r.source_m;
     let mut frac_class = [0.0; 3];
     let (mut rsrp, mut sinr, mut low_sinr) = (0.0, 0.0, 0.0);
+    let (mut regret, mut regret_high, mut class_regret) = (0.0, 0.0, 0.0);
     let mut serving = Vec::with_capacity(r.steps.len() + 1);
     serving.push(start_serving);
     for s in &r.steps {
@@ -164,6 +176,14 @@ pub fn flight_metrics(
         sinr += f64::from(s.sinr_db);
         if s.sinr_db < -6.0 {
             low_sinr += 1.0;
+        }
+        let r_db = f64::from(s.best_rsrp_dbm - s.serving_rsrp_dbm).max(0.0);
+        regret += r_db;
+        if r_db > site_regret_threshold_db {
+            regret_high += 1.0;
+        }
+        if s.best_class == RsrpClass::Excellent && s.class != RsrpClass::Excellent {
+            class_regret += 1.0;
         }
         serving.push(s.serving);
     }
@@ -185,6 +205,9 @@ pub fn flight_metrics(
         },
         mean_sinr_db: sinr,
         frac_sinr_below_m6db: low_sinr,
+        mean_site_regret_db: regret / n,
+        frac_site_regret_high: regret_high / n,
+        frac_class_regret: class_regret / n,
     }
 }
 
@@ -301,6 +324,7 @@ mod tests {
             best_rsrp_dbm: rsrp,
             sinr_db: sinr,
             class,
+            best_class: class,
             los: true,
             handover: false,
             ping_pong: false,
@@ -333,7 +357,18 @@ mod tests {
 
     #[test]
     fn class_fractions_distance_overhead_and_rsrp_of_a_hand_built_flight() {
-        let m = flight_metrics(&flight(), 3, 100);
+        let mut f = flight();
+        // Step 2 served at −85 dBm (mediocre) where site 7 gave −72 (excellent): 13 dB of site
+        // regret and class regret; step 4 at −105 where −103 was best: 2 dB, under the 3 dB
+        // threshold, no class regret (the best is poor too).
+        f.steps[1].best_site = 7;
+        f.steps[1].best_rsrp_dbm = -72.0;
+        f.steps[1].best_class = RsrpClass::Excellent;
+        f.steps[3].best_rsrp_dbm = -103.0;
+        let m = flight_metrics(&f, 3, 100, 3.0);
+        assert!((m.mean_site_regret_db - 15.0 / 5.0).abs() < 1e-9);
+        assert!((m.frac_site_regret_high - 0.2).abs() < 1e-9);
+        assert!((m.frac_class_regret - 0.2).abs() < 1e-9);
         assert!((m.distance_m - 6.0).abs() < 1e-9);
         assert!((m.overhead - 0.3).abs() < 1e-9, "(6 + 0.5) / 5 − 1");
         assert_eq!(m.frac_class, [0.6, 0.2, 0.2]);

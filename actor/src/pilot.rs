@@ -23,6 +23,12 @@ impl Flight {
     }
 }
 
+/// A waypoint closer than this counts as reached (m). Waypoints recorded in f32 (a policy's
+/// flight re-flown by `dupac eval`) are off by up to ≈ 6e-5 m at 1 km from the origin: a step of
+/// exactly `max_step_m` towards one lands that far short, and a tighter tolerance would spend a
+/// whole extra step on the remainder.
+pub const REACHED_M: f64 = 1e-3;
+
 /// Flies `waypoints_m` (the first is normally the source) from `episode.source_m`, moving
 /// straight at full speed towards the next waypoint each step (the action is the direction to
 /// it scaled to length ≤ 1, so every step is at most `max_step_m` long, exactly along the
@@ -42,8 +48,8 @@ pub fn fly_waypoints(
     let mut episodic_return = 0.0;
     loop {
         let p = env.position_m();
-        // Skip waypoints already reached.
-        while next < waypoints_m.len() && dist(p, waypoints_m[next]) < 1e-6 {
+        // Skip waypoints already reached (within `REACHED_M`).
+        while next < waypoints_m.len() && dist(p, waypoints_m[next]) < REACHED_M {
             next += 1;
         }
         let target = waypoints_m

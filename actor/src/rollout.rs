@@ -27,10 +27,27 @@ pub struct EpisodeAccumulator {
     distance_flown_m: f64,
     remaining_m: f64,
     episodic_return: f64,
+    regret_sum_db: f64,
+    regret_high: u32,
+    class_regret: u32,
+    /// `env.site_regret_threshold_db`.
+    regret_threshold_db: f64,
 }
 
 impl EpisodeAccumulator {
+    /// An empty accumulator with the metric thresholds of `env`.
+    pub fn new(env: &dupac_common::config::EnvConfig) -> EpisodeAccumulator {
+        EpisodeAccumulator {
+            regret_threshold_db: env.site_regret_threshold_db,
+            ..EpisodeAccumulator::default()
+        }
+    }
+
     pub fn push(&mut self, info: &StepInfo) {
+        let regret_db = info.site_regret_db();
+        self.regret_sum_db += regret_db;
+        self.regret_high += u32::from(regret_db > self.regret_threshold_db);
+        self.class_regret += u32::from(info.class_regret());
         self.steps += 1;
         self.rsrp_sum_dbm += info.serving_rsrp_dbm;
         let k = match info.class {
@@ -62,8 +79,14 @@ impl EpisodeAccumulator {
             frac_poor: f64::from(self.class_counts[2]) / n,
             handovers: self.handovers,
             ping_pongs: self.ping_pongs,
+            mean_site_regret_db: self.regret_sum_db / n,
+            frac_site_regret_high: f64::from(self.regret_high) / n,
+            frac_class_regret: f64::from(self.class_regret) / n,
         };
-        *self = EpisodeAccumulator::default();
+        *self = EpisodeAccumulator {
+            regret_threshold_db: self.regret_threshold_db,
+            ..EpisodeAccumulator::default()
+        };
         s
     }
 }
@@ -116,6 +139,7 @@ impl Worker {
         if pool.is_empty() {
             return Err(RolloutError::EmptyPool);
         }
+        let acc = EpisodeAccumulator::new(env.config());
         let mut w = Worker {
             index,
             env,
@@ -123,7 +147,7 @@ impl Worker {
             rng: ChaCha8Rng::seed_from_u64(seed),
             scratch: Scratch::default(),
             obs: Vec::new(),
-            acc: EpisodeAccumulator::default(),
+            acc,
             pair_id: 0,
             shortest_m: 1.0,
         };
@@ -162,7 +186,7 @@ impl Worker {
         )?;
         self.obs.clear();
         self.obs.extend_from_slice(obs);
-        self.acc = EpisodeAccumulator::default();
+        self.acc = EpisodeAccumulator::new(self.env.config());
         Ok(())
     }
 
@@ -264,7 +288,7 @@ pub fn fly_policy(
 ) -> Result<(EpisodeSummary, Vec<StepInfo>), RolloutError> {
     let mut scratch = Scratch::default();
     let mut obs = env.reset(seed, episode)?.to_vec();
-    let mut acc = EpisodeAccumulator::default();
+    let mut acc = EpisodeAccumulator::new(env.config());
     let mut steps = Vec::new();
     loop {
         let a = policy.act_deterministic(&obs, &mut scratch);

@@ -664,7 +664,10 @@ fn site_rewards_are_what_each_site_would_have_given() {
             break;
         }
     }
-    assert!(classes.len() >= 2, "the flight crossed classes: {classes:?}");
+    assert!(
+        classes.len() >= 2,
+        "the flight crossed classes: {classes:?}"
+    );
 }
 
 /// The departures' reward terms, each on its own: the handover cost once per handover, the site
@@ -686,7 +689,10 @@ fn handover_cost_site_regret_and_route_terms() {
     let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
     assert!((r - (10.0 - 0.95 - 2.0)).abs() < 1e-9, "{r}");
     let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
-    assert!((r - (10.0 - 0.95)).abs() < 1e-9, "no handover, no cost: {r}");
+    assert!(
+        (r - (10.0 - 0.95)).abs() < 1e-9,
+        "no handover, no cost: {r}"
+    );
     // Site regret: serving −95 where −70 is best: −0.1 · 25 dB.
     let mut e = make(|c| c.env.reward.site_regret_weight = 0.1);
     let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;

@@ -595,6 +595,9 @@ pub struct EnvConfig {
     pub radio_mode: RadioMode,
     /// A return to the previous site within this time is a ping-pong (s).
     pub ping_pong_window_s: f64,
+    /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
+    /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
+    pub site_regret_threshold_db: f64,
     pub reward: RewardConfig,
     pub observation: ObservationConfig,
 }
@@ -615,6 +618,7 @@ impl Default for EnvConfig {
             association: Association::Learned,
             radio_mode: RadioMode::Cache,
             ping_pong_window_s: 1.0,
+            site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
             observation: ObservationConfig::default(),
         }
@@ -1233,6 +1237,7 @@ impl Config {
         positive("env.goal_radius_m", e.goal_radius_m)?;
         positive("env.time_limit_factor", e.time_limit_factor)?;
         positive("env.ping_pong_window_s", e.ping_pong_window_s)?;
+        positive("env.site_regret_threshold_db", e.site_regret_threshold_db)?;
         let rw = &e.reward;
         for (k, v) in [
             ("env.reward.mu1", rw.mu1),

@@ -60,6 +60,12 @@ pub struct EpisodeSummary {
     pub frac_poor: f64,
     pub handovers: u32,
     pub ping_pongs: u32,
+    /// Mean site regret over the steps: best RSRP − serving RSRP (dB, issue 15).
+    pub mean_site_regret_db: f64,
+    /// Fraction of steps whose site regret exceeds `env.site_regret_threshold_db`.
+    pub frac_site_regret_high: f64,
+    /// Fraction of steps with class regret: the best site is excellent, the serving one is not.
+    pub frac_class_regret: f64,
 }
 
 impl EpisodeSummary {
@@ -79,6 +85,9 @@ impl EpisodeSummary {
             self.frac_excellent,
             self.frac_mediocre,
             self.frac_poor,
+            self.mean_site_regret_db,
+            self.frac_site_regret_high,
+            self.frac_class_regret,
         ]
         .iter()
         .all(|v| v.is_finite())

@@ -23,6 +23,8 @@ fn valid() -> Vec<u8> {
             moves: vec![0.1; t * 3],
             sites: vec![1; t],
             logprobs: vec![-1.0; t],
+            site_logprobs: vec![-0.5; t],
+            site_rewards: vec![],
             values: vec![0.5; t],
             rewards: vec![1.0; t],
             terminated: vec![false; t],

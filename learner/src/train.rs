@@ -81,6 +81,12 @@ pub struct DomainStats {
     pub handovers_per_km: f64,
     /// Mean distance overhead over the shortest path of the successful episodes (fraction).
     pub distance_overhead: f64,
+    /// Mean site regret over all steps: best − serving RSRP (dB, issue 15).
+    pub site_regret_db: f64,
+    /// Percent of steps with site regret over `env.site_regret_threshold_db`.
+    pub pct_site_regret_high: f64,
+    /// Percent of steps with class regret (best site excellent, serving one not).
+    pub pct_class_regret: f64,
 }
 
 /// Aggregates episode summaries (step-weighted for RSRP and classes).
@@ -120,6 +126,9 @@ pub fn domain_stats(eps: &[EpisodeSummary]) -> DomainStats {
         } else {
             ok.iter().map(|e| e.overhead()).sum::<f64>() / ok.len() as f64
         },
+        site_regret_db: w(&|e| e.mean_site_regret_db),
+        pct_site_regret_high: 100.0 * w(&|e| e.frac_site_regret_high),
+        pct_class_regret: 100.0 * w(&|e| e.frac_class_regret),
     }
 }
 
@@ -246,7 +255,13 @@ impl Learner {
         let pp = &cfg.ppo;
         let (trunk_dim, head_features) = trunk_shape(&cfg, obs_dim, n_sites);
         let slot_logits = if head_features.is_some() { 0 } else { n_sites };
-        let actor = init_plain(trunk_dim, &pp.hidden, MOVE_DIM + slot_logits, 0.01, &mut rng);
+        let actor = init_plain(
+            trunk_dim,
+            &pp.hidden,
+            MOVE_DIM + slot_logits,
+            0.01,
+            &mut rng,
+        );
         let critic = init_plain(trunk_dim, &pp.hidden, 1, 1.0, &mut rng);
         let log_std = [pp.init_log_std as f32; MOVE_DIM];
         let site = head_features.map(|f| {
@@ -258,14 +273,8 @@ impl Learner {
                 mlp: init_plain(f + pp.site_embed, &pp.site_hidden, 1, 0.01, &mut rng),
             }
         });
-        let model = ActorCritic::from_plain(
-            &actor,
-            &critic,
-            log_std,
-            site.as_ref(),
-            n_sites,
-            device,
-        );
+        let model =
+            ActorCritic::from_plain(&actor, &critic, log_std, site.as_ref(), n_sites, device);
         let ppo = Ppo::new(pp.clone(), model, device.clone());
         Learner {
             obs_norm: ObsNormalizer::new(obs_dim, pp.normalize_obs, pp.obs_clip),
@@ -304,10 +313,18 @@ impl Learner {
                 "checkpoint policy has {} observations, {} site logits and {} site head; this configuration gives {}, {} and {} (ppo.site_head)",
                 p.obs_dim,
                 p.n_sites,
-                if p.site_head.is_some() { "an equivariant" } else { "a slot" },
+                if p.site_head.is_some() {
+                    "an equivariant"
+                } else {
+                    "a slot"
+                },
                 self.obs_dim,
                 self.n_sites,
-                if self.ppo.model.site.is_some() { "an equivariant" } else { "a slot" },
+                if self.ppo.model.site.is_some() {
+                    "an equivariant"
+                } else {
+                    "a slot"
+                },
             )));
         }
         let optim = burn::optim::AdamConfig::new()
@@ -514,9 +531,14 @@ impl Learner {
         let finite = actor.all_finite()
             && critic.all_finite()
             && log_std.iter().all(|v| v.is_finite())
-            && site
-                .as_ref()
-                .is_none_or(|h| h.mlp.all_finite() && h.embed.weight.iter().chain(&h.embed.bias).all(|v| v.is_finite()));
+            && site.as_ref().is_none_or(|h| {
+                h.mlp.all_finite()
+                    && h.embed
+                        .weight
+                        .iter()
+                        .chain(&h.embed.bias)
+                        .all(|v| v.is_finite())
+            });
         if finite {
             return (stats, update_s, None);
         }
@@ -590,7 +612,11 @@ impl Learner {
                             m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
                             let (lp_move, lp_site) =
                                 policy.logprob_parts(row, &m, tr.sites[t], &mut scratch);
-                            if all_sites { lp_move } else { lp_move + lp_site }
+                            if all_sites {
+                                lp_move
+                            } else {
+                                lp_move + lp_site
+                            }
                         })
                         .collect()
                 });
@@ -815,6 +841,9 @@ pub fn put_domain(row: &mut MetricsRow, prefix: &str, d: &DomainStats) {
     put("pct_poor", d.pct_poor);
     put("handovers_per_km", d.handovers_per_km);
     put("distance_overhead", d.distance_overhead);
+    put("site_regret_db", d.site_regret_db);
+    put("pct_site_regret_high", d.pct_site_regret_high);
+    put("pct_class_regret", d.pct_class_regret);
 }
 
 fn make_workers(
@@ -874,6 +903,8 @@ mod tests {
             moves,
             sites,
             logprobs,
+            site_logprobs: vec![0.0; t],
+            site_rewards: vec![],
             values: vec![0.5, 0.25, 0.125],
             rewards: vec![1.0, -1.0, 2.0],
             terminated: vec![false; t],

@@ -280,7 +280,11 @@ fn equivariant_site_head_matches_plain_forward_and_permutes_with_the_sites() {
                 .copy_from_slice(&row[OBS + from * FEATS..OBS + (from + 1) * FEATS]);
         }
         let (h2, v2) = p.forward(&row2, &mut s);
-        assert_eq!(&h2[..MOVE_DIM], &h[..MOVE_DIM], "the move does not see the sites' order");
+        assert_eq!(
+            &h2[..MOVE_DIM],
+            &h[..MOVE_DIM],
+            "the move does not see the sites' order"
+        );
         assert_eq!(v2, v);
         for (to, &from) in perm.iter().enumerate() {
             assert!(
@@ -310,7 +314,8 @@ fn all_sites_gradient_matches_the_hand_computed_expectation() {
         site_advantages(&rewards, &[1], 3, false),
         vec![-6.0, -6.0, 0.0]
     );
-    let lt = Tensor::<2>::from_data(TensorData::new(logits.clone(), [2, 3]), &device).require_grad();
+    let lt =
+        Tensor::<2>::from_data(TensorData::new(logits.clone(), [2, 3]), &device).require_grad();
     let at = Tensor::<2>::from_data(TensorData::new(a.clone(), [2, 3]), &device);
     let loss = all_sites_loss(burn::tensor::activation::log_softmax(lt.clone(), 1), at);
     let grads = loss.backward();
@@ -319,7 +324,10 @@ fn all_sites_gradient_matches_the_hand_computed_expectation() {
         let row = &logits[b * 3..(b + 1) * 3];
         let z: f64 = row.iter().map(|&l| f64::from(l).exp()).sum();
         let pi: Vec<f64> = row.iter().map(|&l| f64::from(l).exp() / z).collect();
-        let ab: Vec<f64> = a[b * 3..(b + 1) * 3].iter().map(|&x| f64::from(x)).collect();
+        let ab: Vec<f64> = a[b * 3..(b + 1) * 3]
+            .iter()
+            .map(|&x| f64::from(x))
+            .collect();
         let mean: f64 = pi.iter().zip(&ab).map(|(p, a)| p * a).sum();
         for j in 0..3 {
             let want = -pi[j] * (ab[j] - mean) / 2.0;
@@ -409,6 +417,8 @@ fn small_batch(seed: u64, n: usize) -> Batch {
             .collect(),
         sites: (0..n).map(|_| rng.random_range(0..SITES as i64)).collect(),
         logprobs: (0..n).map(|_| rng.random_range(-8.0f32..-4.0)).collect(),
+        site_rewards: Vec::new(),
+        n_sites: SITES,
         values: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),

@@ -68,11 +68,15 @@ pub struct EvalArgs {
     pub dupac_label: String,
     #[arg(long, default_value = "base")]
     pub base_label: String,
+    /// Do not re-fly a learned-site policy's moves with A3 and the oracle (`LABEL+a3`,
+    /// `LABEL+oracle`, the report's "Route or association").
+    #[arg(long)]
+    pub no_replay: bool,
 }
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
 const RECORDS_MAGIC: &[u8; 8] = b"DUPACEVR";
-const RECORDS_VERSION: u32 = 2;
+const RECORDS_VERSION: u32 = 3;
 
 /// The records of one method and seed, with what the metrics need from the configuration.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
@@ -80,6 +84,8 @@ struct RecordsFile {
     method: String,
     seed: u32,
     ping_pong_window_steps: u32,
+    /// `env.site_regret_threshold_db` of the run (dB).
+    site_regret_threshold_db: f64,
     /// Serving site before the first step, per flight (same order as `flights`).
     start_serving: Vec<u16>,
     flights: Vec<FlightRecord>,
@@ -256,7 +262,23 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
             Kind::Shortest(a) => *a,
         };
         if let Kind::Policy(p) = &method.kind {
-            let probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
+            let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
+            if probe.layout().len() != p.obs_dim && p.site_head.is_none() {
+                // A policy of the paper's slot head may have been trained without the per-site
+                // features (docs/paper_dupac.toml): fly it with the layout it was trained on.
+                let o = &mut mcfg.env.observation;
+                o.site_features = !o.site_features;
+                probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
+                if probe.layout().len() != p.obs_dim {
+                    mcfg.env.observation.site_features = cfg.env.observation.site_features;
+                } else {
+                    tracing::info!(
+                        label = %method.label,
+                        site_features = mcfg.env.observation.site_features,
+                        "flying the policy with the observation layout it was trained on"
+                    );
+                }
+            }
             if probe.layout().len() != p.obs_dim {
                 bail!(
                     "policy {} (seed {}): it expects {} observations, this configuration gives {} (evaluate with the configuration it was trained with)",
@@ -282,18 +304,29 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
             })
             .collect::<Result<_>>()?;
         pb.finish_and_clear();
-        let rec = RecordsFile {
-            method: method.label.clone(),
-            seed: method.seed,
-            ping_pong_window_steps: window,
-            start_serving: start_serving.clone(),
-            flights,
+        // A learned site choice: the same moves re-flown with the A3 rule and with the
+        // best-RSRP oracle choosing the site, so the report separates route from association.
+        let replays = match &method.kind {
+            Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
+                replay_associations(cfg, &world, &rsrp, &planner, method, &pairs, &flights)?
+            }
+            _ => Vec::new(),
         };
-        let bytes = codec::encode(RECORDS_MAGIC, RECORDS_VERSION, &rec, "eval records")?;
-        write_atomic(
-            &dir.join(format!("{}__seed{}.bin", method.label, method.seed)),
-            &bytes,
-        )?;
+        for (label, flights) in std::iter::once((method.label.clone(), flights)).chain(replays) {
+            let rec = RecordsFile {
+                method: label,
+                seed: method.seed,
+                ping_pong_window_steps: window,
+                site_regret_threshold_db: cfg.env.site_regret_threshold_db,
+                start_serving: start_serving.clone(),
+                flights,
+            };
+            let bytes = codec::encode(RECORDS_MAGIC, RECORDS_VERSION, &rec, "eval records")?;
+            write_atomic(
+                &dir.join(format!("{}__seed{}.bin", rec.method, rec.seed)),
+                &bytes,
+            )?;
+        }
         eprintln!(
             "{} seed {}: {} flights recorded",
             method.label,
@@ -302,6 +335,54 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
         );
     }
     Ok(())
+}
+
+/// The positions of every flight of `method` re-flown with the A3 rule (`LABEL+a3`) and with
+/// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
+/// A replay follows the recorded positions (f32, so within 0.1 mm) and keeps the policy flight's
+/// length, outcome and remaining distance, so only the serving site and what follows from it
+/// differ.
+fn replay_associations(
+    cfg: &Config,
+    world: &Arc<dupac_radio::world::RadioWorld>,
+    rsrp: &Arc<dyn RsrpSource + Send + Sync>,
+    planner: &Planner,
+    method: &Method,
+    pairs: &[Pair],
+    flights: &[FlightRecord],
+) -> Result<Vec<(String, Vec<FlightRecord>)>> {
+    [(Association::A3, "a3"), (Association::BestRsrp, "oracle")]
+        .into_iter()
+        .map(|(assoc, suffix)| {
+            let mut rcfg = cfg.clone();
+            rcfg.env.association = assoc;
+            let label = format!("{}+{suffix}", method.label);
+            let replay = Method {
+                label: label.clone(),
+                seed: method.seed,
+                kind: Kind::Shortest(assoc),
+            };
+            let v = pairs
+                .par_iter()
+                .zip(flights)
+                .map(|(p, f)| {
+                    let w: Vec<[f64; 3]> = f
+                        .steps
+                        .iter()
+                        .map(|s| s.position_m.map(f64::from))
+                        .collect();
+                    let mut r = fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))?;
+                    if r.steps.len() >= f.steps.len() {
+                        r.steps.truncate(f.steps.len());
+                        r.outcome = f.outcome;
+                        r.remaining_m = f.remaining_m;
+                    }
+                    Ok(r)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Ok((label, v))
+        })
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -393,6 +474,7 @@ fn read_records(dir: &Path) -> Result<Vec<RecordsFile>> {
 }
 
 /// The metrics of every flight of a method, all seeds together.
+#[derive(Clone)]
 struct MethodData {
     label: String,
     seeds: u32,
@@ -451,8 +533,10 @@ fn gather(files: &[RecordsFile]) -> Vec<MethodData> {
         });
         d.seeds += 1;
         for (r, &s0) in f.flights.iter().zip(&f.start_serving) {
-            d.flights
-                .push((r.bin_m, flight_metrics(r, s0, f.ping_pong_window_steps)));
+            d.flights.push((
+                r.bin_m,
+                flight_metrics(r, s0, f.ping_pong_window_steps, f.site_regret_threshold_db),
+            ));
         }
     }
     // Policies first (as given), planners after.
@@ -508,7 +592,7 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
     write_atomic_with(&out.join("summary.csv"), |w| {
         writeln!(
             w,
-            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db"
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret"
         )?;
         for d in &data {
             let s = d.rate(Outcome::Goal);
@@ -518,7 +602,7 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
             let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 d.label,
                 d.seeds,
                 d.flights.len(),
@@ -538,6 +622,9 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
                 pp_km,
                 d.all_ci(|m| m.mean_sinr_db).mean,
                 100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+                d.all_ci(|m| m.mean_site_regret_db).mean,
+                100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
+                100.0 * d.all_ci(|m| m.frac_class_regret).mean,
             )?;
         }
         Ok(())
@@ -574,12 +661,19 @@ fn write_report(out: &Path, files: &[RecordsFile], dupac: &str, base: &str) -> R
         Ok(())
     })?;
     write_failures(&out.join("failures.csv"), files)?;
-    draw_fig3(out, &data, &bins)?;
-    draw_fig4(out, &data, &bins)?;
-    draw_pareto(out, &data)?;
+    // The figures show methods; the association replays (`LABEL+a3`, `LABEL+oracle`) are in the
+    // tables only.
+    let methods: Vec<MethodData> = data
+        .iter()
+        .filter(|d| !d.label.contains('+'))
+        .cloned()
+        .collect();
+    draw_fig3(out, &methods, &bins)?;
+    draw_fig4(out, &methods, &bins)?;
+    draw_pareto(out, &methods)?;
     write_atomic(
         &out.join("report.md"),
-        report_md(&data, dupac, base).as_bytes(),
+        report_md(&data, dupac, base, regret_threshold_db(files)).as_bytes(),
     )?;
     Ok(())
 }
@@ -594,7 +688,12 @@ fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<()> {
             w,
             "method,seed,pair_id,bin_m,outcome,steps,straight_m,remaining_m,progress,x_m,y_m,z_m,last_move_x_m,last_move_y_m,last_move_z_m,angle_to_goal_deg"
         )?;
-        for f in files.iter().flat_map(|r| &r.flights) {
+        // The association replays (`LABEL+a3`, `LABEL+oracle`) are the policy's own flights.
+        let flights = files
+            .iter()
+            .filter(|r| !r.method.contains('+'))
+            .flat_map(|r| &r.flights);
+        for f in flights {
             if f.outcome == Outcome::Goal {
                 continue;
             }
@@ -645,7 +744,13 @@ fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<()> {
     })
 }
 
-fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
+/// The site-regret threshold of the records (the first file's; every file of one evaluation
+/// has the same).
+fn regret_threshold_db(files: &[RecordsFile]) -> f64 {
+    files.first().map_or(3.0, |f| f.site_regret_threshold_db)
+}
+
+fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# DUPAC evaluation report\n");
     let _ = writeln!(
@@ -654,17 +759,17 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
     );
     let _ = writeln!(
         s,
-        "| method | seeds | flights | success | collision | timeout | overhead (%) | mean RSRP (dBm) | excellent (%) | handovers/km | ping-pongs/km | mean SINR (dB) | SINR < −6 dB (%) |"
+        "| method | seeds | flights | success | collision | timeout | overhead (%) | mean RSRP (dBm) | excellent (%) | handovers/km | ping-pongs/km | mean SINR (dB) | SINR < −6 dB (%) | site regret (dB) | regret > {regret_db} dB (%) | class regret (%) |"
     );
     let _ = writeln!(
         s,
-        "|---|---:|---:|---|---:|---:|---|---|---|---:|---:|---:|---:|"
+        "|---|---:|---:|---|---:|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"
     );
     for d in data {
         let (ho_km, pp_km) = d.per_km();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
             d.label,
             d.seeds,
             d.flights.len(),
@@ -678,8 +783,12 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
             pp_km,
             d.all_ci(|m| m.mean_sinr_db).mean,
             100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+            d.all_ci(|m| m.mean_site_regret_db).mean,
+            100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
+            100.0 * d.all_ci(|m| m.frac_class_regret).mean,
         );
     }
+    route_or_association(&mut s, data);
     let find = |l: &str| data.iter().find(|d| d.label == l);
     let _ = writeln!(s, "\n## Against the paper\n");
     match (find(dupac), find(base)) {
@@ -759,6 +868,52 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str) -> String {
         "\nFigures: `fig3.png` (Fig. 3: flight distance, overhead and mean RSRP against the shortest distance), `fig4.png` (Fig. 4: time per RSRP class per bin), `pareto.png` (overhead against time in excellent RSRP, every method). Data: `summary.csv`, `fig3_fig4_bins.csv`; every step: `records/*.bin` (`dupac eval --report-only --out DIR` recomputes this report from them)."
     );
     s
+}
+
+/// "Route or association": each learned-site policy beside its own moves re-flown with A3 and
+/// with the best-RSRP oracle choosing the site (the replays `LABEL+a3`, `LABEL+oracle`).
+fn route_or_association(s: &mut String, data: &[MethodData]) {
+    let policies: Vec<&MethodData> = data
+        .iter()
+        .filter(|d| {
+            data.iter()
+                .any(|r| r.label == format!("{}+oracle", d.label))
+        })
+        .collect();
+    if policies.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Route or association\n\nEach learned-site policy's own moves, re-flown with the A3 rule and with the best-RSRP oracle choosing the site. The route is the same in the three rows, so the oracle row is the best this route allows, and the gap from the policy's row to it is the association's alone; the gap between policies' oracle rows is the routes'. Excellent time over successful flights, the rest over all flights.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| policy | site by | excellent (%) | mean RSRP (dBm) | SINR < −6 dB (%) | handovers/km | ping-pongs/km | site regret (dB) |\n|---|---|---|---|---:|---:|---:|---:|"
+    );
+    for p in policies {
+        for (by, label) in [
+            ("policy", p.label.clone()),
+            ("A3", format!("{}+a3", p.label)),
+            ("oracle", format!("{}+oracle", p.label)),
+        ] {
+            let Some(d) = data.iter().find(|d| d.label == label) else {
+                continue;
+            };
+            let (ho_km, pp_km) = d.per_km();
+            let _ = writeln!(
+                s,
+                "| {} | {by} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
+                p.label,
+                fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
+                fmt_ci(d.all_ci(|m| m.mean_rsrp_dbm), 1.0, 1),
+                100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+                ho_km,
+                pp_km,
+                d.all_ci(|m| m.mean_site_regret_db).mean,
+            );
+        }
+    }
 }
 
 const COLORS: [RGBColor; 10] = [

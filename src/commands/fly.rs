@@ -142,7 +142,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let base = fly_waypoints(&mut a3_env, p.id, episode, &shortest.waypoints_m, |e| {
         e.serving()
     })?;
-    let mut acc = EpisodeAccumulator::default();
+    let mut acc = EpisodeAccumulator::new(&a3_cfg.env);
     base.steps.iter().for_each(|s| acc.push(s));
     let base_summary = acc.finish(p.id, p.shortest_m, base.outcome);
 
@@ -233,7 +233,7 @@ fn fly_following(
 ) -> Result<(EpisodeSummary, Vec<StepInfo>, Vec<u64>)> {
     let mut scratch = Scratch::default();
     let mut obs = env.reset(pair_id, episode)?.to_vec();
-    let mut acc = EpisodeAccumulator::default();
+    let mut acc = EpisodeAccumulator::new(env.config());
     let (mut steps, mut versions) = (Vec::new(), Vec::new());
     loop {
         if let Some(p) = follower.newer()? {

@@ -60,7 +60,7 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
             );
             let _ = writeln!(
                 t,
-                "return {:.1}  success {:.1} %  collision {:.1} %  RSRP {:.1} dBm  excellent/mediocre/poor {:.0}/{:.0}/{:.0} %  handovers {:.1}/km",
+                "return {:.1}  success {:.1} %  collision {:.1} %  RSRP {:.1} dBm  excellent/mediocre/poor {:.0}/{:.0}/{:.0} %  handovers {:.1}/km  site regret {:.2} dB (> threshold {:.0} %, class {:.0} %)",
                 metric(s, "charts/episodic_return"),
                 100.0 * metric(s, "domain/success_rate"),
                 100.0 * metric(s, "domain/collision_rate"),
@@ -69,6 +69,9 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
                 metric(s, "domain/pct_mediocre"),
                 metric(s, "domain/pct_poor"),
                 metric(s, "domain/handovers_per_km"),
+                metric(s, "domain/site_regret_db"),
+                metric(s, "domain/pct_site_regret_high"),
+                metric(s, "domain/pct_class_regret"),
             );
             let _ = writeln!(
                 t,

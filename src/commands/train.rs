@@ -269,7 +269,7 @@ pub fn eval_due(cfg: &Config, update: u64, last: bool) -> bool {
 pub fn summary_line(learner: &Learner, last: &MetricsRow) -> String {
     let g = |k: &str| last.get(k).copied().unwrap_or(f64::NAN);
     format!(
-        "done: {} updates, {} timesteps (decisions), {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %",
+        "done: {} updates, {} timesteps (decisions), {:.0} s; held-out: success {:.1} %, collisions {:.1} %, overhead {:.1} %, mean RSRP {:.1} dBm, excellent {:.1} %, site regret {:.2} dB",
         learner.update,
         learner.global_step,
         learner.train_seconds,
@@ -278,6 +278,7 @@ pub fn summary_line(learner: &Learner, last: &MetricsRow) -> String {
         100.0 * g("eval/distance_overhead"),
         g("eval/mean_rsrp_dbm"),
         g("eval/pct_excellent"),
+        g("eval/site_regret_db"),
     )
 }
 

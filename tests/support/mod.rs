@@ -358,6 +358,8 @@ pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk 
             moves: vec![0.0; t * 3],
             sites: vec![0; t],
             logprobs: vec![-3.0; t],
+            site_logprobs: vec![0.0; t],
+            site_rewards: vec![],
             values: vec![0.0; t],
             rewards: vec![0.0; t],
             terminated: vec![false; t],

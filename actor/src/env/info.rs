@@ -20,6 +20,9 @@ pub struct StepInfo {
     pub best_rsrp_dbm: f64,
     /// Class of the serving RSRP.
     pub class: RsrpClass,
+    /// Class of the best site's RSRP (issue 15's class regret: the best site is excellent, the
+    /// serving one is not).
+    pub best_class: RsrpClass,
     /// Whether the serving link is line of sight (geometric).
     pub los: bool,
     pub handover: bool,
@@ -33,4 +36,16 @@ pub struct StepInfo {
     pub distance_to_goal_m: f64,
     pub reward: f64,
     pub outcome: Option<Outcome>,
+}
+
+impl StepInfo {
+    /// Site regret: the best site's RSRP minus the serving one's (dB, ≥ 0), issue 15.
+    pub fn site_regret_db(&self) -> f64 {
+        (self.best_rsrp_dbm - self.serving_rsrp_dbm).max(0.0)
+    }
+
+    /// Class regret: the best site is excellent, the serving one is not.
+    pub fn class_regret(&self) -> bool {
+        self.best_class == RsrpClass::Excellent && self.class != RsrpClass::Excellent
+    }
 }

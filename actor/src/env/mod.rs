@@ -490,6 +490,7 @@ impl Env {
             best_site,
             best_rsrp_dbm,
             class,
+            best_class: self.thresholds.classify(best_rsrp_dbm),
             los: self.world.los(self.serving, to),
             handover,
             ping_pong,
