@@ -23,12 +23,6 @@ impl Flight {
     }
 }
 
-/// A waypoint closer than this counts as reached (m). Waypoints recorded in f32 (a policy's
-/// flight re-flown by `dupac eval`) are off by up to ≈ 6e-5 m at 1 km from the origin: a step of
-/// exactly `max_step_m` towards one lands that far short, and a tighter tolerance would spend a
-/// whole extra step on the remainder.
-pub const REACHED_M: f64 = 1e-3;
-
 /// Flies `waypoints_m` (the first is normally the source) from `episode.source_m`, moving
 /// straight at full speed towards the next waypoint each step (the action is the direction to
 /// it scaled to length ≤ 1, so every step is at most `max_step_m` long, exactly along the
@@ -48,8 +42,8 @@ pub fn fly_waypoints(
     let mut episodic_return = 0.0;
     loop {
         let p = env.position_m();
-        // Skip waypoints already reached (within `REACHED_M`).
-        while next < waypoints_m.len() && dist(p, waypoints_m[next]) < REACHED_M {
+        // Skip waypoints already reached.
+        while next < waypoints_m.len() && dist(p, waypoints_m[next]) < 1e-6 {
             next += 1;
         }
         let target = waypoints_m
@@ -77,4 +71,45 @@ pub fn fly_waypoints(
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Re-flies a recorded flight: one step per recorded position, each the move from where the UAV
+/// is to that position (a position the flight held is a zero move), so the replay has the
+/// recording's steps, time limit and end, with `env`'s association choosing the site (what
+/// `dupac eval` uses to fly a policy's moves with A3 or the oracle). Stops when the episode ends
+/// or the positions run out; `Flight::outcome` is then the episode's, or `TimeLimit` when the
+/// positions ran out first.
+pub fn replay_positions(
+    env: &mut Env,
+    seed: u64,
+    episode: Episode,
+    positions_m: &[[f64; 3]],
+    mut site: impl FnMut(&Env) -> SiteId,
+) -> Result<Flight, EnvError> {
+    env.reset(seed, episode)?;
+    let max_step = env.config().max_step_m;
+    let mut steps = Vec::with_capacity(positions_m.len());
+    let mut episodic_return = 0.0;
+    for &target in positions_m {
+        let p = env.position_m();
+        let action = Action {
+            move_: [0, 1, 2].map(|k| (target[k] - p[k]) / max_step),
+            site: site(env),
+        };
+        let s = env.step(&action)?;
+        episodic_return += s.reward;
+        steps.push(s.info);
+        if let Some(outcome) = s.info.outcome {
+            return Ok(Flight {
+                steps,
+                outcome,
+                episodic_return,
+            });
+        }
+    }
+    Ok(Flight {
+        steps,
+        outcome: Outcome::TimeLimit,
+        episodic_return,
+    })
 }

@@ -18,7 +18,7 @@ use dupac_actor::eval::{
     mean_ci95, sinr_db, wilson95,
 };
 use dupac_actor::pairs::Pair;
-use dupac_actor::pilot::fly_waypoints;
+use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::codec;
@@ -94,6 +94,8 @@ struct RecordsFile {
 enum Kind {
     Policy(Box<PolicyWeights>),
     Shortest(Association),
+    /// A recorded flight's positions re-flown with this association (`replay_associations`).
+    Replay(Association),
     Coverage(f64),
 }
 
@@ -259,7 +261,7 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
         mcfg.env.association = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
             Kind::Policy(_) | Kind::Coverage(_) => Association::A3,
-            Kind::Shortest(a) => *a,
+            Kind::Shortest(a) | Kind::Replay(a) => *a,
         };
         if let Kind::Policy(p) = &method.kind {
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
@@ -339,9 +341,8 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
 
 /// The positions of every flight of `method` re-flown with the A3 rule (`LABEL+a3`) and with
 /// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
-/// A replay follows the recorded positions (f32, so within 0.1 mm) and keeps the policy flight's
-/// length, outcome and remaining distance, so only the serving site and what follows from it
-/// differ.
+/// A replay takes one step to each recorded position in turn (`pilot::replay_positions`), so it
+/// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
 fn replay_associations(
     cfg: &Config,
     world: &Arc<dupac_radio::world::RadioWorld>,
@@ -360,7 +361,7 @@ fn replay_associations(
             let replay = Method {
                 label: label.clone(),
                 seed: method.seed,
-                kind: Kind::Shortest(assoc),
+                kind: Kind::Replay(assoc),
             };
             let v = pairs
                 .par_iter()
@@ -371,13 +372,7 @@ fn replay_associations(
                         .iter()
                         .map(|s| s.position_m.map(f64::from))
                         .collect();
-                    let mut r = fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))?;
-                    if r.steps.len() >= f.steps.len() {
-                        r.steps.truncate(f.steps.len());
-                        r.outcome = f.outcome;
-                        r.remaining_m = f.remaining_m;
-                    }
-                    Ok(r)
+                    fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))
                 })
                 .collect::<Result<Vec<_>>>()?;
             Ok((label, v))
@@ -406,6 +401,10 @@ fn fly_one(
         Kind::Shortest(_) => {
             let w = shortest.ok_or_else(|| anyhow!("pair {}: no shortest path", p.id))?;
             fly_waypoints(&mut env, p.id, episode, w, |e| e.serving())?.steps
+        }
+        Kind::Replay(_) => {
+            let w = shortest.ok_or_else(|| anyhow!("pair {}: no positions to replay", p.id))?;
+            replay_positions(&mut env, p.id, episode, w, |e| e.serving())?.steps
         }
         Kind::Coverage(l) => {
             let path = planner
