@@ -33,14 +33,12 @@ pub fn fly_waypoints(
     seed: u64,
     episode: Episode,
     waypoints_m: &[[f64; 3]],
-    mut site: impl FnMut(&Env) -> SiteId,
+    site: impl FnMut(&Env) -> SiteId,
 ) -> Result<Flight, EnvError> {
     env.reset(seed, episode)?;
     let max_step = env.config().max_step_m;
     let mut next = 0usize;
-    let mut steps = Vec::new();
-    let mut episodic_return = 0.0;
-    loop {
+    fly(env, site, |env| {
         let p = env.position_m();
         // Skip waypoints already reached.
         while next < waypoints_m.len() && dist(p, waypoints_m[next]) < 1e-6 {
@@ -50,13 +48,24 @@ pub fn fly_waypoints(
             .get(next)
             .copied()
             .unwrap_or(episode.destination_m);
-        let v = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
         let scale = dist(target, p).max(max_step);
-        let action = Action {
-            move_: [v[0] / scale, v[1] / scale, v[2] / scale],
+        Some([0, 1, 2].map(|k| (target[k] - p[k]) / scale))
+    })
+}
+
+/// Steps `env` (already reset) with the moves of `next_move` until the episode ends, or until
+/// `next_move` has none left (the flight then ends as `TimeLimit`).
+fn fly(
+    env: &mut Env,
+    mut site: impl FnMut(&Env) -> SiteId,
+    mut next_move: impl FnMut(&Env) -> Option<[f64; 3]>,
+) -> Result<Flight, EnvError> {
+    let (mut steps, mut episodic_return) = (Vec::new(), 0.0);
+    while let Some(move_) = next_move(env) {
+        let s = env.step(&Action {
+            move_,
             site: site(env),
-        };
-        let s = env.step(&action)?;
+        })?;
         episodic_return += s.reward;
         steps.push(s.info);
         if let Some(outcome) = s.info.outcome {
@@ -67,6 +76,11 @@ pub fn fly_waypoints(
             });
         }
     }
+    Ok(Flight {
+        steps,
+        outcome: Outcome::TimeLimit,
+        episodic_return,
+    })
 }
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -84,32 +98,15 @@ pub fn replay_positions(
     seed: u64,
     episode: Episode,
     positions_m: &[[f64; 3]],
-    mut site: impl FnMut(&Env) -> SiteId,
+    site: impl FnMut(&Env) -> SiteId,
 ) -> Result<Flight, EnvError> {
     env.reset(seed, episode)?;
     let max_step = env.config().max_step_m;
-    let mut steps = Vec::with_capacity(positions_m.len());
-    let mut episodic_return = 0.0;
-    for &target in positions_m {
+    let mut targets = positions_m.iter();
+    fly(env, site, |env| {
         let p = env.position_m();
-        let action = Action {
-            move_: [0, 1, 2].map(|k| (target[k] - p[k]) / max_step),
-            site: site(env),
-        };
-        let s = env.step(&action)?;
-        episodic_return += s.reward;
-        steps.push(s.info);
-        if let Some(outcome) = s.info.outcome {
-            return Ok(Flight {
-                steps,
-                outcome,
-                episodic_return,
-            });
-        }
-    }
-    Ok(Flight {
-        steps,
-        outcome: Outcome::TimeLimit,
-        episodic_return,
+        targets
+            .next()
+            .map(|t| [0, 1, 2].map(|k| (t[k] - p[k]) / max_step))
     })
 }

@@ -4,7 +4,7 @@
 
 use dupac_actor::env::{Env, Episode, Outcome};
 use dupac_actor::pairs::eval_pairs;
-use dupac_actor::pilot::fly_waypoints;
+use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Association, Config, RadioMode};
 use dupac_radio::cache::RsrpSource;
@@ -60,7 +60,38 @@ fn scripted_pilot_reaches_the_goal_on_every_evaluation_pair() {
                     // The flight follows the plan: flown + the last < 10 m equals the plan.
                     let last = f.steps.last().map(|s| s.distance_to_goal_m).unwrap_or(0.0);
                     let gap = (f.distance_m() + last - path.length_m).abs();
-                    (gap > 10.0).then(|| format!("pair {}: flew {gap:.1} m off the plan", p.id))
+                    if gap > 10.0 {
+                        return Some(format!("pair {}: flew {gap:.1} m off the plan", p.id));
+                    }
+                    // Replaying the flight's positions as `dupac eval` records them (f32)
+                    // reproduces it: the same steps, end and positions (issue 15's replays).
+                    let pos: Vec<[f64; 3]> = f
+                        .steps
+                        .iter()
+                        .map(|s| s.position_m.map(|v| f64::from(v as f32)))
+                        .collect();
+                    let r = replay_positions(&mut env, p.id, ep, &pos, |e| e.serving())
+                        .expect("replay");
+                    let dev = r
+                        .steps
+                        .iter()
+                        .zip(&f.steps)
+                        .flat_map(|(a, b)| {
+                            (0..3).map(move |k| (a.position_m[k] - b.position_m[k]).abs())
+                        })
+                        .fold(0.0, f64::max);
+                    (r.steps.len() != f.steps.len() || r.outcome != f.outcome || dev > 1e-3).then(
+                        || {
+                            format!(
+                                "pair {}: replay {} steps {:?} (flight {} {:?}), {dev:.2e} m apart",
+                                p.id,
+                                r.steps.len(),
+                                r.outcome,
+                                f.steps.len(),
+                                f.outcome
+                            )
+                        },
+                    )
                 }
                 Ok(f) => Some(format!(
                     "pair {}: {:?} after {} steps",
