@@ -388,7 +388,8 @@ fn fly_one(
     planner: &Planner,
     method: &Method,
     p: &Pair,
-    shortest: Option<&[[f64; 3]]>,
+    // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
+    waypoints_m: Option<&[[f64; 3]]>,
 ) -> Result<FlightRecord> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
     let episode = Episode {
@@ -399,11 +400,11 @@ fn fly_one(
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
-            let w = shortest.ok_or_else(|| anyhow!("pair {}: no shortest path", p.id))?;
+            let w = waypoints_m.ok_or_else(|| anyhow!("pair {}: no shortest path", p.id))?;
             fly_waypoints(&mut env, p.id, episode, w, |e| e.serving())?.steps
         }
         Kind::Replay(_) => {
-            let w = shortest.ok_or_else(|| anyhow!("pair {}: no positions to replay", p.id))?;
+            let w = waypoints_m.ok_or_else(|| anyhow!("pair {}: no positions to replay", p.id))?;
             replay_positions(&mut env, p.id, episode, w, |e| e.serving())?.steps
         }
         Kind::Coverage(l) => {
