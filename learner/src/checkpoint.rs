@@ -139,14 +139,7 @@ impl LoadedCheckpoint {
             message,
         };
         let p = &self.meta.policy;
-        let skeleton = ActorCritic::from_plain(
-            &p.actor,
-            &p.critic,
-            p.log_std,
-            p.site_head.as_ref(),
-            p.n_sites,
-            device,
-        );
+        let skeleton = ActorCritic::from_policy(p, device);
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(self.model.clone()))
             .map_err(|e| rec(format!("{e:?}")))?;
         let model = skeleton

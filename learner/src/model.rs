@@ -159,6 +159,18 @@ pub struct Evaluated {
 }
 
 impl ActorCritic {
+    /// The networks of an exported policy (its MLPs, site head and log-std).
+    pub fn from_policy(p: &dupac_common::policy::PolicyWeights, device: &Device) -> ActorCritic {
+        ActorCritic::from_plain(
+            &p.actor,
+            &p.critic,
+            p.log_std,
+            p.site_head.as_ref(),
+            p.n_sites,
+            device,
+        )
+    }
+
     /// Weights from plain ones (see [`init_plain`]); `n_sites` site logits, from `site` when
     /// given, else from the actor's outputs after the 3 means.
     pub fn from_plain(

@@ -52,14 +52,7 @@ fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
 }
 
 fn model_of(p: &PolicyWeights, device: &Device) -> ActorCritic {
-    ActorCritic::from_plain(
-        &p.actor,
-        &p.critic,
-        p.log_std,
-        p.site_head.as_ref(),
-        p.n_sites,
-        device,
-    )
+    ActorCritic::from_policy(p, device)
 }
 
 /// Features per site of the equivariant test policies.
