@@ -68,13 +68,22 @@ fn benches(c: &mut Criterion) {
     });
     g.bench_function("decode", |b| {
         b.iter(|| {
-            decode_msg::<TrajectoryChunk>(black_box(&bytes), 1 << 26, "bench").expect("decode")
+            decode_msg::<TrajectoryChunk>(
+                black_box(&bytes),
+                dupac_common::msg::MsgLimits::both(1 << 26),
+                "bench",
+            )
+            .expect("decode")
         })
     });
     g.bench_function("decode_and_validate", |b| {
         b.iter(|| {
-            let c =
-                decode_msg::<TrajectoryChunk>(black_box(&bytes), 1 << 26, "bench").expect("decode");
+            let c = decode_msg::<TrajectoryChunk>(
+                black_box(&bytes),
+                dupac_common::msg::MsgLimits::both(1 << 26),
+                "bench",
+            )
+            .expect("decode");
             validate_chunk(&c, &expect).expect("valid");
             c
         })
@@ -104,7 +113,14 @@ fn benches(c: &mut Criterion) {
         b.iter(|| encode_msg(black_box(&w)).expect("encode"))
     });
     g.bench_function("decode", |b| {
-        b.iter(|| decode_msg::<WeightsMsg>(black_box(&wb), 1 << 26, "bench").expect("decode"))
+        b.iter(|| {
+            decode_msg::<WeightsMsg>(
+                black_box(&wb),
+                dupac_common::msg::MsgLimits::both(1 << 26),
+                "bench",
+            )
+            .expect("decode")
+        })
     });
     g.finish();
     eprintln!("chunk {} bytes, weights {} bytes", bytes.len(), wb.len());

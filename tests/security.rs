@@ -187,8 +187,12 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
     let mut genuine_seen = 0;
     while t0.elapsed() < Duration::from_secs(1) {
         if let Ok(Some(s)) = weights_seen.recv_timeout(Duration::from_millis(100)) {
-            let w: WeightsMsg = decode_msg(&s.payload().to_bytes(), 1 << 26, "weights")
-                .expect("only the learner's weights reach subscribers");
+            let w: WeightsMsg = decode_msg(
+                &s.payload().to_bytes(),
+                dupac_common::msg::MsgLimits::both(1 << 26),
+                "weights",
+            )
+            .expect("only the learner's weights reach subscribers");
             assert!(
                 w.header.policy_version < 1_000_000_000,
                 "forged weights reached a subscriber"
@@ -202,7 +206,12 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
     }
     let drained: Vec<_> = weights_seen.drain().collect();
     for s in drained {
-        let w: WeightsMsg = decode_msg(&s.payload().to_bytes(), 1 << 26, "weights").expect("w");
+        let w: WeightsMsg = decode_msg(
+            &s.payload().to_bytes(),
+            dupac_common::msg::MsgLimits::both(1 << 26),
+            "weights",
+        )
+        .expect("w");
         assert!(
             w.header.policy_version < 1_000_000_000,
             "forged weights seen"

@@ -16,8 +16,8 @@ use dupac_common::ActorId;
 use dupac_common::config::Config;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, StatsMsg, TrajectoryChunk,
-    WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
+    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, MsgLimits, StatsMsg,
+    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_radio::cache::RsrpSource;
@@ -90,10 +90,10 @@ struct Current {
 fn accept_weights(
     bytes: &[u8],
     expect: &ChunkExpect,
-    limit: usize,
+    limits: MsgLimits,
     origin: &str,
 ) -> Result<Option<WeightsMsg>, ActorError> {
-    let w: WeightsMsg = match decode_msg(bytes, limit, origin) {
+    let w: WeightsMsg = match decode_msg(bytes, limits, origin) {
         Ok(w) => w,
         Err(e) => {
             tracing::warn!("weights ignored: {e}");
@@ -154,7 +154,7 @@ impl Wiring {
         let (actors, actors_sub) = track_alive(&session, &keys, Role::Actor, false)?;
         let stop = Arc::new(AtomicBool::new(false));
         let ctrl_sub = {
-            let (stop, limit) = (stop.clone(), cfg.distributed.max_message_bytes());
+            let (stop, limit) = (stop.clone(), MsgLimits::small(cfg));
             let key = keys.ctrl();
             session
                 .declare_subscriber(keys.ctrl())
@@ -214,7 +214,7 @@ impl Wiring {
     fn query_weights(
         &self,
         expect: &ChunkExpect,
-        limit: usize,
+        limit: MsgLimits,
     ) -> Result<Option<WeightsMsg>, ActorError> {
         let replies = self
             .session
@@ -297,12 +297,12 @@ pub fn run_actor(
     stop: &AtomicBool,
 ) -> Result<ActorReport, ActorError> {
     let d = &cfg.distributed;
-    let limit = d.max_message_bytes();
     let probe = Env::new(cfg, world.clone(), rsrp.clone())?;
     let n_sites = match cfg.env.association {
         dupac_common::config::Association::Learned => probe.num_sites(),
         _ => 0,
     };
+    let limit = MsgLimits::weights(cfg, probe.layout().len(), n_sites);
     let expect = ChunkExpect {
         run_id: d.run.clone(),
         incarnation: 0,
@@ -320,6 +320,8 @@ pub fn run_actor(
         .map_err(|e| ActorError::Threads(e.to_string()))?;
     // A restarted actor must not replay its earlier episodes: the salt differs per start.
     let salt = unix_ms() ^ u64::from(std::process::id()).rotate_left(32);
+    // This process's id in chunk headers: the learner's replay check is per (actor, this).
+    let sender_incarnation = stream_seed(salt, u64::from(opts.id.0), 0x5e9d_e1ca);
     // Training rollouts: the sphere grown by env.training_margin_m.
     let train_cfg = cfg.training();
     let mut workers: Vec<Worker> = (0..d.actor_envs)
@@ -462,6 +464,7 @@ pub fn run_actor(
                 .collect::<Result<_, _>>()
         })?;
         let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
+        header.sender_incarnation = sender_incarnation;
         header.seq = seq;
         header.policy_version = version;
         let chunk = TrajectoryChunk {
@@ -484,6 +487,7 @@ pub fn run_actor(
         if last_stats.elapsed().as_secs_f64() >= d.stats_every_s {
             let dt = last_stats.elapsed().as_secs_f64();
             let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
+            header.sender_incarnation = sender_incarnation;
             header.policy_version = version;
             header.seq = seq;
             let stats = ActorStats {
@@ -516,7 +520,7 @@ pub fn run_actor(
 pub struct Follower {
     wiring: Wiring,
     expect: ChunkExpect,
-    limit: usize,
+    limit: MsgLimits,
     current: Option<(u64, u64)>,
 }
 
@@ -544,7 +548,7 @@ impl Follower {
                 max_envs: d.actor_envs,
                 max_steps: d.chunk_steps,
             },
-            limit: d.max_message_bytes(),
+            limit: MsgLimits::weights(cfg, obs_dim, n_sites),
             current: None,
         })
     }

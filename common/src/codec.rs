@@ -20,6 +20,12 @@ pub enum CodecError {
     },
     #[error("{what}: not a {expected} blob (bad magic)")]
     BadMagic { what: String, expected: String },
+    #[error("{what}: decoding would allocate more than its budget of {budget} bytes: {message}")]
+    OverBudget {
+        what: String,
+        budget: usize,
+        message: String,
+    },
     #[error("{what}: format version {got}, this build reads {want}")]
     Version { what: String, got: u32, want: u32 },
     #[error("{what}: cannot decode: {message}")]
@@ -63,6 +69,39 @@ pub fn encode<T: Serialize>(
 /// Decodes a blob written by [`encode`] with the same `magic` and `version`, at most `limit`
 /// bytes; `what` names the source (file, message) in errors.
 pub fn decode<T: DeserializeOwned>(
+    magic: &[u8; 8],
+    version: u32,
+    bytes: &[u8],
+    limit: usize,
+    what: &str,
+) -> Result<T, CodecError> {
+    decode_inner(magic, version, bytes, limit, what)
+}
+
+/// [`decode`] with at most `budget_bytes` allocated for the value's collections (checked while
+/// decoding, before each allocation: [`crate::budget`]); network messages are decoded so.
+pub fn decode_budgeted<T: DeserializeOwned>(
+    magic: &[u8; 8],
+    version: u32,
+    bytes: &[u8],
+    limit: usize,
+    budget_bytes: usize,
+    what: &str,
+) -> Result<T, CodecError> {
+    let (out, exceeded) = crate::budget::with_budget(budget_bytes, || {
+        decode_inner(magic, version, bytes, limit, what)
+    });
+    match out {
+        Err(CodecError::Decode { what, message }) if exceeded => Err(CodecError::OverBudget {
+            what,
+            budget: budget_bytes,
+            message,
+        }),
+        out => out,
+    }
+}
+
+fn decode_inner<T: DeserializeOwned>(
     magic: &[u8; 8],
     version: u32,
     bytes: &[u8],

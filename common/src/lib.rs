@@ -4,8 +4,10 @@
 //! Units are in names (`_m`, `_dbm`, `_deg`, `_ghz`) and the frame is east-north-up metres with
 //! the origin at the scenario centre (x east, y north, z up = height above flat ground).
 
+pub mod budget;
 pub mod codec;
 pub mod config;
+pub mod dedup;
 pub mod fault;
 pub mod fingerprint;
 pub mod ids;

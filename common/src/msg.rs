@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 /// Version of every message layout below; bump on any change.
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -102,34 +102,47 @@ pub struct EnvTrajectory {
     pub env: u32,
     pub obs_dim: usize,
     /// Raw (unnormalised) observations `[T × obs_dim]`.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub obs: Vec<f32>,
     /// Unclipped moves `[T × 3]`.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub moves: Vec<f32>,
     /// Chosen site per step (0 without a site head).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub sites: Vec<u32>,
     /// log μ(a|s) of the behaviour policy (move and site together).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub logprobs: Vec<f32>,
     /// log μ(site|s) alone (0 without a site head); `logprobs − site_logprobs` is the move's.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub site_logprobs: Vec<f32>,
     /// Every site's decision reward `[T × n_sites]`, site-major per step: the reward the decision
     /// would have had with site k serving (`site_rewards[t·M + sites[t]] == rewards[t]`); empty
     /// when the site is not learned (issue 15, `Env::site_rewards`).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub site_rewards: Vec<f32>,
     /// V(s) of the behaviour policy's critic.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub values: Vec<f32>,
     /// Raw rewards (scaling is the learner's).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub rewards: Vec<f32>,
     /// Episode ended in a terminal state (goal, collision, out of bounds).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub terminated: Vec<bool>,
     /// Episode cut by the time limit (the learner bootstraps).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub truncated: Vec<bool>,
     /// V(s_{t+1}) of the state each step reached (the final observation when the episode
     /// ended; meaningless, 0, after a termination).
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub next_values: Vec<f32>,
     /// The raw observation after the last step (the state the next chunk starts from): the
     /// learner re-evaluates the last step's bootstrap value on it with its current critic.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub bootstrap_obs: Vec<f32>,
     /// Episodes that ended during this rollout.
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub episodes: Vec<EpisodeSummary>,
 }
 
@@ -174,12 +187,17 @@ pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
     pub schema_version: u32,
     /// `distributed.run` of the sender.
+    #[serde(deserialize_with = "crate::budget::string")]
     pub run_id: String,
     /// Random id of the learner process the data belongs to (changes on every learner start;
     /// chunks acted with an earlier incarnation's weights are dropped).
     pub learner_incarnation: u64,
     /// The sending actor (`ActorId::LEARNER` for the learner).
     pub actor: ActorId,
+    /// Random id of the sending process, new on every start (an actor restarted under the same
+    /// id restarts `seq`): the learner keeps a sequence high-water mark per (actor, sender
+    /// incarnation) and drops replays ([`crate::dedup`], issue 16).
+    pub sender_incarnation: u64,
     /// Per-sender sequence number (chunks: 0, 1, 2, …).
     pub seq: u64,
     /// Policy version the data was produced with (weights: the version carried).
@@ -197,6 +215,7 @@ impl Header {
             run_id: run_id.to_string(),
             learner_incarnation: incarnation,
             actor,
+            sender_incarnation: 0,
             seq: 0,
             policy_version: 0,
             config_fingerprint: fingerprint,
@@ -217,6 +236,7 @@ pub fn unix_ms() -> u64 {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrajectoryChunk {
     pub header: Header,
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub trajectories: Vec<EnvTrajectory>,
 }
 
@@ -273,9 +293,12 @@ pub struct LearnerStats {
     pub env_steps_per_s: f64,
     pub accepted_chunks: u64,
     /// Dropped messages by [`DropReason`] name.
+    #[serde(deserialize_with = "crate::budget::map")]
     pub drops: BTreeMap<String, u64>,
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub actors: Vec<ActorRow>,
     /// The last update's metrics row (CleanRL names, `domain/*`, `eval/*`, `time/*`).
+    #[serde(deserialize_with = "crate::budget::map")]
     pub metrics: BTreeMap<String, f64>,
     /// The run has reached `train.total_timesteps`.
     pub done: bool,
@@ -344,13 +367,100 @@ pub fn encode_msg<M: Message>(msg: &M) -> Result<Vec<u8>, CodecError> {
     codec::encode(M::MAGIC, SCHEMA_VERSION, msg, M::NAME)
 }
 
-/// Decodes a message of at most `limit` bytes; `origin` (the key expression) names it in errors.
-pub fn decode_msg<M: Message>(bytes: &[u8], limit: usize, origin: &str) -> Result<M, CodecError> {
-    codec::decode(
+/// How much of a message a receiver reads: its size on the wire, and what decoding it may
+/// allocate (checked while decoding: [`crate::budget`]). Both derive from the receiver's
+/// configuration, never from the message (issue 16).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MsgLimits {
+    /// Largest message read (bytes); larger ones are dropped unread.
+    pub bytes: usize,
+    /// Most bytes decoding one message may allocate for its collections.
+    pub budget_bytes: usize,
+}
+
+impl MsgLimits {
+    /// `bytes` on the wire and as decoding budget (tools and tests that know their messages).
+    pub fn both(bytes: usize) -> MsgLimits {
+        MsgLimits {
+            bytes,
+            budget_bytes: bytes,
+        }
+    }
+
+    /// Trajectory chunks as the learner expects them: [`ChunkExpect::budget_bytes`] for both,
+    /// never above `distributed.max_message_mib`.
+    pub fn chunk(cfg: &crate::Config, x: &ChunkExpect) -> MsgLimits {
+        let need = x.budget_bytes();
+        MsgLimits {
+            bytes: need.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: need,
+        }
+    }
+
+    /// Weights of a policy with this configuration's networks
+    /// ([`crate::policy::weights_budget_bytes`]).
+    pub fn weights(cfg: &crate::Config, obs_dim: usize, n_sites: usize) -> MsgLimits {
+        let p = &cfg.ppo;
+        let need = crate::policy::weights_budget_bytes(
+            obs_dim,
+            n_sites,
+            &p.hidden,
+            p.site_embed,
+            &p.site_hidden,
+        );
+        MsgLimits {
+            bytes: need.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: need,
+        }
+    }
+
+    /// Stats and control messages: a header, a metrics row and one row per tracked actor.
+    pub fn small(cfg: &crate::Config) -> MsgLimits {
+        MsgLimits {
+            bytes: STATS_BUDGET_BYTES.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: STATS_BUDGET_BYTES,
+        }
+    }
+
+    /// The largest message of a run with this configuration (a router's or a session's
+    /// receive limit: zenoh's `transport/link/rx/max_message_size`).
+    pub fn run_max_bytes(cfg: &crate::Config, obs_dim: usize, n_sites: usize) -> usize {
+        let x = ChunkExpect {
+            run_id: String::new(),
+            incarnation: 0,
+            fingerprint: 0,
+            obs_dim,
+            n_sites,
+            max_envs: cfg.distributed.actor_envs.max(cfg.train.num_envs),
+            max_steps: cfg.distributed.chunk_steps.max(cfg.train.num_steps),
+        };
+        [
+            MsgLimits::chunk(cfg, &x).bytes,
+            MsgLimits::weights(cfg, obs_dim, n_sites).bytes,
+            MsgLimits::small(cfg).bytes,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0)
+    }
+}
+
+/// Budget of a stats or control message (bytes): ≈ 100 metrics and up to
+/// [`crate::dedup::MAX_TRACKED_SENDERS`] actor rows fit with room to spare.
+pub const STATS_BUDGET_BYTES: usize = 4 << 20;
+
+/// Decodes a message within `limits`; `origin` (the key expression) names it in errors.
+pub fn decode_msg<M: Message>(
+    bytes: &[u8],
+    limits: MsgLimits,
+    origin: &str,
+) -> Result<M, CodecError> {
+    codec::decode_budgeted(
         M::MAGIC,
         SCHEMA_VERSION,
         bytes,
-        limit,
+        limits.bytes,
+        limits.budget_bytes,
         &format!("{} on {origin}", M::NAME),
     )
 }
@@ -358,7 +468,8 @@ pub fn decode_msg<M: Message>(bytes: &[u8], limit: usize, origin: &str) -> Resul
 /// Why a received message was not used. Counted by name in [`LearnerStats::drops`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum DropReason {
-    /// Larger than `distributed.max_message_mib`.
+    /// Larger than its limit on the wire, or decoding it would allocate more than its budget
+    /// ([`MsgLimits`]).
     TooLarge,
     /// Not a message of this kind, or a body that does not decode.
     Garbage,
@@ -376,12 +487,16 @@ pub enum DropReason {
     Dimensions,
     /// A NaN or infinity.
     NonFinite,
-    /// The receive queue was full (the oldest chunk was dropped).
+    /// The receive queue, or its sender's share of it, was full (the sender's oldest message
+    /// was dropped), or the learner already tracks `dedup::MAX_TRACKED_SENDERS` senders.
     Overflow,
+    /// A chunk whose (actor, sender incarnation, sequence number) was already accepted: a
+    /// duplicate or a replay (at-most-once, issue 16).
+    Replay,
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 10] = [
+    pub const ALL: [DropReason; 11] = [
         DropReason::TooLarge,
         DropReason::Garbage,
         DropReason::Schema,
@@ -392,6 +507,7 @@ impl DropReason {
         DropReason::Dimensions,
         DropReason::NonFinite,
         DropReason::Overflow,
+        DropReason::Replay,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -406,13 +522,14 @@ impl DropReason {
             DropReason::Dimensions => "dimensions",
             DropReason::NonFinite => "non_finite",
             DropReason::Overflow => "overflow",
+            DropReason::Replay => "replay",
         }
     }
 
     /// The reason a decoding error stands for.
     pub fn of_codec(e: &CodecError) -> DropReason {
         match e {
-            CodecError::TooLarge { .. } => DropReason::TooLarge,
+            CodecError::TooLarge { .. } | CodecError::OverBudget { .. } => DropReason::TooLarge,
             CodecError::Version { .. } => DropReason::Schema,
             _ => DropReason::Garbage,
         }
@@ -451,6 +568,30 @@ pub struct ChunkExpect {
     pub max_envs: usize,
     pub max_steps: usize,
 }
+
+impl ChunkExpect {
+    /// Upper bound (bytes) on what a valid chunk allocates when decoded, and on its encoded size:
+    /// `max_envs` trajectories of `max_steps` steps with every per-step vector full and one
+    /// episode summary per step, plus the header. A wire value is never larger than its
+    /// decoded form here (f32 4 → 4 bytes, bool 1 → 1, varint lengths ≤ 9 bytes against a
+    /// 24-byte `Vec`), so the same figure caps the message size and the decoding budget.
+    pub fn budget_bytes(&self) -> usize {
+        let f = size_of::<f32>();
+        let per_step = f * (self.obs_dim + MOVE_DIM + self.n_sites)
+            + size_of::<u32>()
+            + 5 * f
+            + 2 * size_of::<bool>()
+            + size_of::<EpisodeSummary>();
+        let per_env =
+            size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);
+        self.max_envs
+            .saturating_mul(per_env)
+            .saturating_add(HEADER_BUDGET_BYTES)
+    }
+}
+
+/// Decoding budget of a header and a small message (stats, control): run names are short.
+pub const HEADER_BUDGET_BYTES: usize = 64 * 1024;
 
 fn reject(reason: DropReason, detail: impl Into<String>) -> Rejection {
     Rejection {
@@ -509,6 +650,12 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
     for (k, tr) in c.trajectories.iter().enumerate() {
         let t = tr.len();
         let at = |what: &str| format!("trajectory {k}: {what}");
+        if tr.env as usize >= x.max_envs {
+            return Err(dims(at(&format!(
+                "environment id {} outside 0..{}",
+                tr.env, x.max_envs
+            ))));
+        }
         if t == 0 || t > x.max_steps {
             return Err(dims(at(&format!(
                 "{t} steps (1..={} allowed)",
@@ -587,6 +734,13 @@ pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection
 mod tests {
     use super::*;
 
+    fn lim(bytes: usize) -> MsgLimits {
+        MsgLimits {
+            bytes,
+            budget_bytes: bytes,
+        }
+    }
+
     fn expect() -> ChunkExpect {
         ChunkExpect {
             run_id: "r".into(),
@@ -628,7 +782,7 @@ mod tests {
     fn a_valid_chunk_round_trips_and_passes() {
         let c = chunk();
         let bytes = encode_msg(&c).expect("encode");
-        let d: TrajectoryChunk = decode_msg(&bytes, 1 << 20, "k").expect("decode");
+        let d: TrajectoryChunk = decode_msg(&bytes, lim(1 << 20), "k").expect("decode");
         assert_eq!(d, c);
         assert_eq!(validate_chunk(&d, &expect()), Ok(()));
     }
@@ -674,6 +828,10 @@ mod tests {
             Err(DropReason::Dimensions)
         );
         assert_eq!(
+            reason(&|c| c.trajectories[0].env = 4),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
             reason(&|c| c.trajectories[0].rewards[0] = f32::NAN),
             Err(DropReason::NonFinite)
         );
@@ -686,18 +844,18 @@ mod tests {
     #[test]
     fn decoding_names_garbage_schema_and_size() {
         let bytes = encode_msg(&chunk()).expect("encode");
-        let e = decode_msg::<TrajectoryChunk>(b"not a message at all", 1 << 20, "k")
+        let e = decode_msg::<TrajectoryChunk>(b"not a message at all", lim(1 << 20), "k")
             .expect_err("garbage");
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
         let mut old = bytes.clone();
         old[8..12].copy_from_slice(&0u32.to_le_bytes());
-        let e = decode_msg::<TrajectoryChunk>(&old, 1 << 20, "k").expect_err("schema");
+        let e = decode_msg::<TrajectoryChunk>(&old, lim(1 << 20), "k").expect_err("schema");
         assert_eq!(DropReason::of_codec(&e), DropReason::Schema);
-        let e = decode_msg::<TrajectoryChunk>(&bytes, 16, "k").expect_err("size");
+        let e = decode_msg::<TrajectoryChunk>(&bytes, lim(16), "k").expect_err("size");
         assert_eq!(DropReason::of_codec(&e), DropReason::TooLarge);
         let mut cut = bytes.clone();
         cut.truncate(bytes.len() - 3);
-        let e = decode_msg::<TrajectoryChunk>(&cut, 1 << 20, "k").expect_err("cut");
+        let e = decode_msg::<TrajectoryChunk>(&cut, lim(1 << 20), "k").expect_err("cut");
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
         // A message of another kind is not a chunk.
         let w = encode_msg(&ControlMsg {
@@ -705,7 +863,97 @@ mod tests {
             command: Command::Stop,
         })
         .expect("encode");
-        let e = decode_msg::<TrajectoryChunk>(&w, 1 << 20, "k").expect_err("kind");
+        let e = decode_msg::<TrajectoryChunk>(&w, lim(1 << 20), "k").expect_err("kind");
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+    }
+
+    /// A chunk with every vector at its largest: `max_envs × max_steps` steps, site rewards,
+    /// one episode per step.
+    fn maximal(x: &ChunkExpect) -> TrajectoryChunk {
+        let t = x.max_steps;
+        let summary = EpisodeSummary {
+            pair_id: u64::MAX,
+            outcome: Outcome::TimeLimit,
+            episodic_return: 1.0,
+            length: u32::MAX,
+            distance_flown_m: 1.0,
+            shortest_m: 1.0,
+            remaining_m: 1.0,
+            mean_rsrp_dbm: -70.0,
+            frac_excellent: 1.0,
+            frac_mediocre: 0.0,
+            frac_poor: 0.0,
+            handovers: u32::MAX,
+            ping_pongs: u32::MAX,
+            mean_site_regret_db: 0.0,
+            frac_site_regret_high: 0.0,
+            frac_class_regret: 0.0,
+        };
+        let mut h = Header::new(&"r".repeat(64), u64::MAX, ActorId(u32::MAX), u64::MAX);
+        h.seq = u64::MAX;
+        h.sender_incarnation = u64::MAX;
+        TrajectoryChunk {
+            header: h,
+            trajectories: (0..x.max_envs)
+                .map(|k| EnvTrajectory {
+                    env: k as u32,
+                    obs_dim: x.obs_dim,
+                    obs: vec![1.0; t * x.obs_dim],
+                    moves: vec![1.0; t * MOVE_DIM],
+                    sites: vec![x.n_sites as u32 - 1; t],
+                    logprobs: vec![1.0; t],
+                    site_logprobs: vec![1.0; t],
+                    site_rewards: vec![1.0; t * x.n_sites],
+                    values: vec![1.0; t],
+                    rewards: vec![1.0; t],
+                    terminated: vec![true; t],
+                    truncated: vec![false; t],
+                    next_values: vec![1.0; t],
+                    bootstrap_obs: vec![1.0; x.obs_dim],
+                    episodes: vec![summary.clone(); t],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn the_largest_valid_chunk_fits_its_derived_limits() {
+        let x = ChunkExpect {
+            run_id: "r".repeat(64),
+            obs_dim: 404,
+            n_sites: 30,
+            max_envs: 4,
+            max_steps: 128,
+            ..expect()
+        };
+        let c = maximal(&x);
+        let bytes = encode_msg(&c).expect("encode");
+        let need = x.budget_bytes();
+        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
+        let limits = MsgLimits {
+            bytes: need,
+            budget_bytes: need,
+        };
+        let d: TrajectoryChunk = decode_msg(&bytes, limits, "k").expect("fits its budget");
+        assert_eq!(d.samples(), 4 * 128);
+        // The bound is not wildly loose either: within 2× of the real size.
+        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
+    }
+
+    #[test]
+    fn an_amplifying_chunk_is_refused_while_decoding() {
+        // 200 000 empty trajectories: ≈ 3 MB on the wire, ≈ 70 MB decoded. Under a byte
+        // limit that admits it, the budget of a 4 × 128-step chunk refuses it.
+        let x = expect();
+        let mut c = chunk();
+        c.trajectories = vec![EnvTrajectory::default(); 200_000];
+        let bytes = encode_msg(&c).expect("encode");
+        let limits = MsgLimits {
+            bytes: 64 << 20,
+            budget_bytes: x.budget_bytes(),
+        };
+        let e = decode_msg::<TrajectoryChunk>(&bytes, limits, "k").expect_err("amplifying");
+        assert!(e.to_string().contains("budget"), "{e}");
+        assert_eq!(DropReason::of_codec(&e), DropReason::TooLarge);
     }
 }

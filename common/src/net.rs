@@ -46,6 +46,11 @@ pub struct ConnectOpts {
     pub listen: Vec<String>,
     /// Turn multicast scouting off (loopback runs and multi-host runs with explicit endpoints).
     pub no_multicast_scouting: bool,
+    /// zenoh's receive limit (`transport/link/rx/max_message_size`, bytes): a larger message is
+    /// dropped by zenoh while it is reassembled, before it reaches DUPAC. Set from the run's
+    /// configuration ([`crate::msg::MsgLimits::run_max_bytes`]); `None` keeps the file's or
+    /// zenoh's default (1 GiB).
+    pub rx_max_message_bytes: Option<usize>,
 }
 
 fn json_list(items: &[String]) -> String {
@@ -81,6 +86,9 @@ impl ConnectOpts {
         if self.no_multicast_scouting {
             set("scouting/multicast/enabled", "false".into())?;
         }
+        if let Some(n) = self.rx_max_message_bytes {
+            set("transport/link/rx/max_message_size", n.to_string())?;
+        }
         Ok(c)
     }
 
@@ -104,9 +112,15 @@ mod tests {
             mode: Some(Mode::Client),
             connect: vec!["tcp/127.0.0.1:7447".into()],
             no_multicast_scouting: true,
+            rx_max_message_bytes: Some(3 << 20),
             ..ConnectOpts::default()
         };
         let c = o.zenoh_config().expect("config");
+        assert_eq!(
+            c.get_json("transport/link/rx/max_message_size")
+                .expect("rx limit"),
+            (3 << 20).to_string()
+        );
         assert_eq!(c.get_json("mode").expect("mode"), "\"client\"");
         assert!(
             c.get_json("connect/endpoints")

@@ -39,7 +39,9 @@ pub fn tanh_f32(x: f32) -> f32 {
 pub struct Dense {
     pub n_in: usize,
     pub n_out: usize,
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub weight: Vec<f32>,
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub bias: Vec<f32>,
 }
 
@@ -77,6 +79,7 @@ impl Dense {
 /// An MLP: tanh after every layer but the last.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Mlp {
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub layers: Vec<Dense>,
 }
 
@@ -244,7 +247,9 @@ impl SiteHead {
 /// Running mean and variance (parallel Welford / Chan et al.), the statistics of a normaliser.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunningMeanStd {
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub mean: Vec<f64>,
+    #[serde(deserialize_with = "crate::budget::vec")]
     pub var: Vec<f64>,
     /// Number of samples seen (starts at a tiny ε so the first batch dominates, as in CleanRL).
     pub count: f64,
@@ -421,6 +426,34 @@ pub struct Scratch {
     layers: [Vec<f32>; 2],
     hidden: Vec<f32>,
     site: SiteScratch,
+}
+
+/// Upper bound (bytes) on what a [`PolicyWeights`] of this shape allocates decoded (and on its
+/// encoded size): every dense layer of the actor, the critic and the site head bounded by the
+/// widest width `w` of the configuration, `(w + 1) · w` f32 parameters each, plus the
+/// observation normaliser (two f64 vectors). Loose by design (a 10× margin on the default
+/// network); it exists so that a weights message a peer sends cannot make an actor or pilot
+/// allocate more than its own configuration could ever need (issue 16).
+pub fn weights_budget_bytes(
+    obs_dim: usize,
+    n_sites: usize,
+    hidden: &[usize],
+    site_embed: usize,
+    site_hidden: &[usize],
+) -> usize {
+    let w = hidden
+        .iter()
+        .chain(site_hidden)
+        .copied()
+        .chain([obs_dim, MOVE_DIM + n_sites, site_embed + obs_dim])
+        .max()
+        .unwrap_or(0);
+    let layers = 2 * (hidden.len() + 1) + site_hidden.len() + 2;
+    let per_layer = size_of::<Dense>() + size_of::<f32>() * (w + 1).saturating_mul(w);
+    layers
+        .saturating_mul(per_layer)
+        .saturating_add(2 * size_of::<f64>() * obs_dim)
+        .saturating_add(crate::msg::HEADER_BUDGET_BYTES)
 }
 
 impl PolicyWeights {

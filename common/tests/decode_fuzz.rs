@@ -1,14 +1,65 @@
 //! Property tests of the network decoder (issue 5's "network input never panics a process"):
 //! arbitrary bytes, and valid messages with bytes flipped, cut or extended, either decode to a
-//! value the validator can judge or give an error: never a panic, never an unbounded allocation
-//! (serde caps preallocation at 1 MiB; the codec caps the claimed size).
+//! value the validator can judge or give an error: never a panic, never an unbounded allocation.
+//! Issue 16: inputs large enough to amplify (hundreds of thousands of empty trajectories,
+//! episode lists, site vectors) are decoded under a counting allocator, and what decoding
+//! allocates must stay within the budget derived from the configuration.
 
 use dupac_common::ActorId;
 use dupac_common::msg::{
-    ChunkExpect, ControlMsg, EnvTrajectory, Header, StatsMsg, TrajectoryChunk, WeightsMsg,
-    decode_msg, encode_msg, validate_chunk,
+    ChunkExpect, ControlMsg, EnvTrajectory, EpisodeSummary, Header, MsgLimits, Outcome, StatsMsg,
+    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, validate_chunk,
 };
 use proptest::prelude::*;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+/// Counts the bytes this thread holds allocated, and their peak.
+struct Counting;
+
+thread_local! {
+    static HELD: Cell<usize> = const { Cell::new(0) };
+    static PEAK: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count(add: usize, sub: usize) {
+    let _ = HELD.try_with(|h| {
+        let now = h.get().saturating_add(add).saturating_sub(sub);
+        h.set(now);
+        let _ = PEAK.try_with(|p| p.set(p.get().max(now)));
+    });
+}
+
+// SAFETY: every call forwards to the system allocator unchanged; the counters only observe.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        count(l.size(), 0);
+        // SAFETY: same layout as asked.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        count(0, l.size());
+        // SAFETY: `p` was allocated by `System` with `l`.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        count(new, l.size());
+        // SAFETY: `p` was allocated by `System` with `l`.
+        unsafe { System.realloc(p, l, new) }
+    }
+}
+
+#[global_allocator]
+static ALLOC: Counting = Counting;
+
+/// Peak bytes allocated by `f` on this thread beyond what was held before it.
+fn peak_of<R>(f: impl FnOnce() -> R) -> usize {
+    let base = HELD.with(|h| h.get());
+    PEAK.with(|p| p.set(base));
+    let out = f();
+    drop(out);
+    PEAK.with(|p| p.get()) - base
+}
 
 fn valid() -> Vec<u8> {
     let mut h = Header::new("r", 7, ActorId(1), 9);
@@ -49,13 +100,57 @@ fn expect() -> ChunkExpect {
     }
 }
 
+fn lim(bytes: usize) -> MsgLimits {
+    MsgLimits {
+        bytes,
+        budget_bytes: bytes,
+    }
+}
+
 fn judge(bytes: &[u8]) {
-    if let Ok(c) = decode_msg::<TrajectoryChunk>(bytes, 1 << 20, "fuzz") {
+    if let Ok(c) = decode_msg::<TrajectoryChunk>(bytes, lim(1 << 20), "fuzz") {
         let _ = validate_chunk(&c, &expect());
     }
-    let _ = decode_msg::<WeightsMsg>(bytes, 1 << 20, "fuzz");
-    let _ = decode_msg::<StatsMsg>(bytes, 1 << 20, "fuzz");
-    let _ = decode_msg::<ControlMsg>(bytes, 1 << 20, "fuzz");
+    let _ = decode_msg::<WeightsMsg>(bytes, lim(1 << 20), "fuzz");
+    let _ = decode_msg::<StatsMsg>(bytes, lim(1 << 20), "fuzz");
+    let _ = decode_msg::<ControlMsg>(bytes, lim(1 << 20), "fuzz");
+}
+
+fn summary() -> EpisodeSummary {
+    EpisodeSummary {
+        pair_id: 1,
+        outcome: Outcome::Goal,
+        episodic_return: 1.0,
+        length: 1,
+        distance_flown_m: 1.0,
+        shortest_m: 1.0,
+        remaining_m: 0.0,
+        mean_rsrp_dbm: -70.0,
+        frac_excellent: 1.0,
+        frac_mediocre: 0.0,
+        frac_poor: 0.0,
+        handovers: 0,
+        ping_pongs: 0,
+        mean_site_regret_db: 0.0,
+        frac_site_regret_high: 0.0,
+        frac_class_regret: 0.0,
+    }
+}
+
+/// A chunk built to amplify: `n` trajectories, each with `sites` sites and `episodes` episode
+/// summaries (varint sites are 1 byte on the wire and 4 in memory; an empty trajectory ≈ 14
+/// and 330).
+fn amplifying(n: usize, sites: usize, episodes: usize) -> Vec<u8> {
+    let tr = EnvTrajectory {
+        sites: vec![0; sites],
+        episodes: vec![summary(); episodes],
+        ..EnvTrajectory::default()
+    };
+    encode_msg(&TrajectoryChunk {
+        header: Header::new("r", 7, ActorId(1), 9),
+        trajectories: vec![tr; n],
+    })
+    .expect("encode")
 }
 
 proptest! {
@@ -97,5 +192,30 @@ fn a_huge_claimed_length_is_refused_without_allocating_it() {
     // The frame of a chunk, then a header whose run-id string claims 2^60 bytes.
     let mut bytes = valid()[..12].to_vec();
     bytes.extend_from_slice(&[1, 0xff, 0, 0, 0, 0, 0, 0, 0, 0x10]);
-    assert!(decode_msg::<TrajectoryChunk>(&bytes, 1 << 20, "fuzz").is_err());
+    assert!(decode_msg::<TrajectoryChunk>(&bytes, lim(1 << 20), "fuzz").is_err());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Checked to fail with the budget's charge made a no-op (peaks of 60–110 MB for a budget
+    /// of 0.2 MB).
+    #[test]
+    fn decoding_allocates_within_the_configured_budget(
+        n in 1usize..300_000,
+        sites in 0usize..64,
+        episodes in 0usize..3,
+        flip in any::<(usize, u8)>(),
+    ) {
+        let mut bytes = amplifying(n, sites, episodes);
+        if flip.1 != 0 {
+            let at = 12 + flip.0 % (bytes.len() - 12);
+            bytes[at] ^= flip.1;
+        }
+        let budget = expect().budget_bytes();
+        let limits = MsgLimits { bytes: 64 << 20, budget_bytes: budget };
+        let peak = peak_of(|| decode_msg::<TrajectoryChunk>(&bytes, limits, "fuzz"));
+        // The budget, plus the error message and bincode's bookkeeping.
+        prop_assert!(peak <= budget + (64 << 10), "peak {peak} B for a budget of {budget} B, {} B input", bytes.len());
+    }
 }

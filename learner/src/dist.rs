@@ -1,9 +1,13 @@
 //! The learner's side of the Zenoh actor/learner system (issue 5).
 //!
-//! * A receive thread drains `dupac/<run>/traj/*` continuously (never behind a PPO update: a
-//!   blocked `Block` sender gets its transport closed after 5 s), rejects oversized messages
-//!   unread, decodes and validates the rest ([`dupac_common::msg::validate_chunk`]) and queues
-//!   them; a full queue drops its oldest chunk (`overflow`).
+//! * zenoh's receive callback takes `dupac/<run>/traj/*` without ever blocking (a blocked
+//!   `Block` sender gets its transport closed after 5 s): it drops messages over the chunk
+//!   limit unread and queues the rest under byte budgets per sender and in total
+//!   ([`InboxBudget`]; over budget, the sender's own oldest message goes, then the biggest
+//!   holder's: `overflow`). A decode thread decodes each within its allocation budget
+//!   ([`MsgLimits::chunk`], issue 16), validates it ([`dupac_common::msg::validate_chunk`]),
+//!   drops replays ([`SeqTracker`]: at most once per (actor, sender incarnation, seq)) and
+//!   queues it for PPO (at most `distributed.queue_chunks`).
 //! * [`LearnerNode::next_batch`] takes queued chunks until the batch (`train.num_envs ×
 //!   train.num_steps` samples) is full, dropping data more than `distributed.max_policy_lag`
 //!   versions old (`stale`).
@@ -14,10 +18,12 @@
 
 use dupac_common::ActorId;
 use dupac_common::config::Config;
+use dupac_common::dedup::{MAX_TRACKED_SENDERS, SeqTracker, Verdict};
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
     ActorRow, ActorState, ChunkExpect, Command, ControlMsg, DropReason, Header, LearnerStats,
-    StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_chunk,
+    MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms,
+    validate_chunk,
 };
 use dupac_common::policy::PolicyWeights;
 use std::collections::{BTreeMap, VecDeque};
@@ -46,21 +52,182 @@ fn z(e: impl std::fmt::Display) -> NodeError {
 pub struct Received {
     pub chunk: TrajectoryChunk,
     pub at: Instant,
+    /// The sender (from the key) and the bytes charged to it until the chunk is taken.
+    sender: ActorId,
+    charge: usize,
 }
 
-/// What the receive thread and the PPO loop share.
+/// A message as received, not yet decoded.
+struct Raw {
+    key: String,
+    sender: ActorId,
+    payload: zenoh::bytes::ZBytes,
+    charge: usize,
+}
+
+/// Byte budgets of the inbox (issue 16): what one sender, and all together, may hold queued
+/// (received and not yet decoded, or decoded and not yet trained), counted in message bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct InboxBudget {
+    /// Largest message accepted (the chunk limit).
+    pub message_bytes: usize,
+    /// One sender (an actor id, from the key): a learner batch plus one chunk: an actor never
+    /// usefully has more than its share of a batch in flight.
+    pub per_sender_bytes: usize,
+    /// Everyone: two batches plus two chunks.
+    pub total_bytes: usize,
+    /// Decoded chunks held at most (`distributed.queue_chunks`).
+    pub max_chunks: usize,
+}
+
+impl InboxBudget {
+    /// The budget of a learner with `limits` for chunks and batches of `batch_samples` samples,
+    /// chunks being at most `chunk_samples` samples.
+    pub fn new(
+        limits: MsgLimits,
+        batch_samples: usize,
+        chunk_samples: usize,
+        max_chunks: usize,
+    ) -> InboxBudget {
+        let per_sample = limits.bytes.div_ceil(chunk_samples.max(1));
+        let batch_bytes = batch_samples.saturating_mul(per_sample);
+        InboxBudget {
+            message_bytes: limits.bytes,
+            per_sender_bytes: batch_bytes.saturating_add(limits.bytes),
+            total_bytes: batch_bytes.saturating_add(limits.bytes).saturating_mul(2),
+            max_chunks,
+        }
+    }
+}
+
+/// The queues between zenoh's receive callback, the decode thread and the PPO loop, with the
+/// bytes each sender holds in them.
 #[derive(Default)]
+struct Queues {
+    raw: VecDeque<Raw>,
+    decoded: VecDeque<Received>,
+    held: BTreeMap<ActorId, usize>,
+    total: usize,
+}
+
+impl Queues {
+    fn release(&mut self, sender: ActorId, charge: usize) {
+        self.total = self.total.saturating_sub(charge);
+        if let Some(h) = self.held.get_mut(&sender) {
+            *h = h.saturating_sub(charge);
+            if *h == 0 {
+                self.held.remove(&sender);
+            }
+        }
+    }
+
+    /// Drops `sender`'s oldest queued message (undecoded first). False when it holds none.
+    fn evict_oldest_of(&mut self, sender: ActorId) -> bool {
+        if let Some(i) = self.raw.iter().position(|r| r.sender == sender)
+            && let Some(r) = self.raw.remove(i)
+        {
+            self.release(r.sender, r.charge);
+            return true;
+        }
+        if let Some(i) = self.decoded.iter().position(|r| r.sender == sender)
+            && let Some(r) = self.decoded.remove(i)
+        {
+            self.release(r.sender, r.charge);
+            return true;
+        }
+        false
+    }
+
+    /// Makes room for `charge` more bytes of `sender`: its own oldest messages go first when it
+    /// is over its share, then the oldest of whoever holds the most when all are over the
+    /// total. Returns the messages dropped.
+    fn make_room(&mut self, sender: ActorId, charge: usize, b: &InboxBudget) -> u64 {
+        let mut dropped = 0;
+        while self.held.get(&sender).copied().unwrap_or(0) + charge > b.per_sender_bytes
+            && self.evict_oldest_of(sender)
+        {
+            dropped += 1;
+        }
+        while self.total + charge > b.total_bytes {
+            let Some((&biggest, _)) = self.held.iter().max_by_key(|(_, h)| **h) else {
+                break;
+            };
+            if !self.evict_oldest_of(biggest) {
+                break;
+            }
+            dropped += 1;
+        }
+        dropped
+    }
+}
+
+/// What the receive callback, the decode thread and the PPO loop share.
 struct Inbox {
-    queue: Mutex<VecDeque<Received>>,
+    queues: Mutex<Queues>,
+    /// A decoded chunk is ready (PPO loop) / a raw message arrived (decode thread).
     ready: Condvar,
+    arrived: Condvar,
     drops: Mutex<BTreeMap<DropReason, u64>>,
+    budget: InboxBudget,
 }
 
 impl Inbox {
-    fn drop_one(&self, reason: DropReason) {
-        if let Ok(mut d) = self.drops.lock() {
-            *d.entry(reason).or_insert(0) += 1;
+    fn new(budget: InboxBudget) -> Inbox {
+        Inbox {
+            queues: Mutex::default(),
+            ready: Condvar::new(),
+            arrived: Condvar::new(),
+            drops: Mutex::default(),
+            budget,
         }
+    }
+
+    fn drop_n(&self, reason: DropReason, n: u64) {
+        if n > 0
+            && let Ok(mut d) = self.drops.lock()
+        {
+            *d.entry(reason).or_insert(0) += n;
+        }
+    }
+
+    fn drop_one(&self, reason: DropReason) {
+        self.drop_n(reason, 1);
+    }
+
+    /// zenoh's receive callback: size and key checks, then the byte budgets; never blocks on
+    /// the decoder (a blocked `Block` sender would lose its transport).
+    fn admit(&self, keys: &KeySpace, sample: &zenoh::sample::Sample) {
+        let key = sample.key_expr().as_str();
+        let len = sample.payload().len();
+        let Some(sender) = keys.actor_of_traj(key) else {
+            self.drop_one(DropReason::Garbage);
+            return;
+        };
+        if len > self.budget.message_bytes {
+            self.drop_one(DropReason::TooLarge);
+            tracing::warn!(
+                key,
+                len,
+                limit = self.budget.message_bytes,
+                "oversized message dropped unread"
+            );
+            return;
+        }
+        let Ok(mut q) = self.queues.lock() else {
+            return;
+        };
+        let evicted = q.make_room(sender, len, &self.budget);
+        q.raw.push_back(Raw {
+            key: key.to_string(),
+            sender,
+            payload: sample.payload().clone(),
+            charge: len,
+        });
+        *q.held.entry(sender).or_insert(0) += len;
+        q.total += len;
+        drop(q);
+        self.drop_n(DropReason::Overflow, evicted);
+        self.arrived.notify_one();
     }
 }
 
@@ -106,6 +273,7 @@ pub struct LearnerNode {
     _token: zenoh::liveliness::LivelinessToken,
     _queryable: zenoh::query::Queryable<()>,
     _alive_sub: zenoh::pubsub::Subscriber<()>,
+    _traj_sub: zenoh::pubsub::Subscriber<()>,
     receiver: Option<std::thread::JoinHandle<()>>,
     closing: Arc<AtomicBool>,
     accepted_chunks: u64,
@@ -144,25 +312,38 @@ impl LearnerNode {
             max_envs: d.actor_envs.max(cfg.train.num_envs),
             max_steps: d.chunk_steps.max(cfg.train.num_steps),
         };
-        let inbox = Arc::new(Inbox::default());
+        let limits = MsgLimits::chunk(cfg, &expect);
+        let budget = InboxBudget::new(
+            limits,
+            cfg.train.num_envs * cfg.train.num_steps,
+            expect.max_envs * expect.max_steps,
+            d.queue_chunks,
+        );
+        tracing::info!(
+            message_bytes = limits.bytes,
+            decode_budget_bytes = limits.budget_bytes,
+            per_sender_bytes = budget.per_sender_bytes,
+            total_bytes = budget.total_bytes,
+            "receive limits"
+        );
+        let inbox = Arc::new(Inbox::new(budget));
         let closing = Arc::new(AtomicBool::new(false));
         let actors: ActorTable = Arc::default();
 
-        // Receive thread: a FIFO large enough that zenoh's reception never waits on us for long.
-        let sub = session
-            .declare_subscriber(keys.traj_all())
-            .with(zenoh::handlers::FifoChannel::new(d.queue_chunks.max(16)))
-            .wait()
-            .map_err(z)?;
+        // zenoh's callback only queues (bounded by the byte budgets); a thread decodes.
+        let sub = {
+            let (inbox, keys) = (inbox.clone(), keys.clone());
+            session
+                .declare_subscriber(keys.traj_all())
+                .callback(move |sample| inbox.admit(&keys, &sample))
+                .wait()
+                .map_err(z)?
+        };
         let receiver = {
-            let (inbox, closing, expect, keys) =
-                (inbox.clone(), closing.clone(), expect.clone(), keys.clone());
-            let (limit, cap) = (d.max_message_bytes(), d.queue_chunks);
+            let (inbox, closing, expect) = (inbox.clone(), closing.clone(), expect.clone());
             std::thread::Builder::new()
                 .name("dupac-recv".into())
-                .spawn(move || {
-                    receive_loop(sub, &inbox, &closing, &expect, &keys, limit, cap);
-                })
+                .spawn(move || decode_loop(&inbox, &closing, &expect, limits))
                 .map_err(|e| NodeError::Zenoh(format!("cannot start the receive thread: {e}")))?
         };
 
@@ -212,6 +393,10 @@ impl LearnerNode {
                     let Ok(id) = id.parse::<u32>() else { return };
                     let id = ActorId(id);
                     let Ok(mut t) = actors.lock() else { return };
+                    if !t.contains_key(&id) && t.len() >= MAX_TRACKED_SENDERS {
+                        tracing::warn!(actor = %id, "too many actor ids: liveliness ignored");
+                        return;
+                    }
                     match sample.kind() {
                         SampleKind::Put => {
                             tracing::info!(actor = %id, "actor joined");
@@ -241,6 +426,7 @@ impl LearnerNode {
             _token: token,
             _queryable: queryable,
             _alive_sub: alive_sub,
+            _traj_sub: sub,
             receiver: Some(receiver),
             closing,
             accepted_chunks: 0,
@@ -299,16 +485,20 @@ impl LearnerNode {
                 idle(self);
             }
             let next = {
-                let Ok(mut q) = self.inbox.queue.lock() else {
+                let Ok(mut q) = self.inbox.queues.lock() else {
                     return None;
                 };
-                if q.is_empty() {
+                if q.decoded.is_empty() {
                     q = match self.inbox.ready.wait_timeout(q, Duration::from_millis(100)) {
                         Ok((q, _)) => q,
                         Err(_) => return None,
                     };
                 }
-                q.pop_front()
+                let r = q.decoded.pop_front();
+                if let Some(r) = &r {
+                    q.release(r.sender, r.charge);
+                }
+                r
             };
             let Some(r) = next else { continue };
             let c = r.chunk;
@@ -462,6 +652,7 @@ impl LearnerNode {
     /// Stops the receive thread and closes the session.
     pub fn close(mut self) {
         self.closing.store(true, Ordering::Relaxed);
+        self.inbox.arrived.notify_all();
         let _ = self.session.close().wait();
         if let Some(h) = self.receiver.take() {
             let _ = h.join();
@@ -469,63 +660,85 @@ impl LearnerNode {
     }
 }
 
-/// The receive thread: bytes → size cap → decode → validate → queue.
-fn receive_loop(
-    sub: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-    inbox: &Inbox,
-    closing: &AtomicBool,
-    expect: &ChunkExpect,
-    keys: &KeySpace,
-    limit: usize,
-    cap: usize,
-) {
+/// The decode thread: queued bytes → decode within the budget → validate → at-most-once →
+/// decoded queue. The message keeps its charge against its sender until the PPO loop takes it.
+fn decode_loop(inbox: &Inbox, closing: &AtomicBool, expect: &ChunkExpect, limits: MsgLimits) {
+    let mut seqs = SeqTracker::new();
     while !closing.load(Ordering::Relaxed) {
-        let sample = match sub.recv_timeout(Duration::from_millis(200)) {
-            Ok(Some(s)) => s,
-            Ok(None) => continue,
-            Err(_) => break, // subscriber gone: the session closed
+        let raw = {
+            let Ok(mut q) = inbox.queues.lock() else {
+                break;
+            };
+            if q.raw.is_empty() {
+                q = match inbox.arrived.wait_timeout(q, Duration::from_millis(200)) {
+                    Ok((q, _)) => q,
+                    Err(_) => break,
+                };
+            }
+            q.raw.pop_front()
         };
-        let key = sample.key_expr().as_str().to_string();
-        let payload = sample.payload();
-        if payload.len() > limit {
-            inbox.drop_one(DropReason::TooLarge);
-            tracing::warn!(
-                key,
-                len = payload.len(),
-                limit,
-                "oversized message dropped unread"
-            );
-            continue;
-        }
-        let bytes = payload.to_bytes();
-        let chunk: TrajectoryChunk = match decode_msg(&bytes, limit, &key) {
+        let Some(raw) = raw else { continue };
+        let refuse = |reason: DropReason| {
+            inbox.drop_one(reason);
+            if let Ok(mut q) = inbox.queues.lock() {
+                q.release(raw.sender, raw.charge);
+            }
+        };
+        let chunk: TrajectoryChunk = match decode_msg(&raw.payload.to_bytes(), limits, &raw.key) {
             Ok(c) => c,
             Err(e) => {
-                inbox.drop_one(DropReason::of_codec(&e));
+                refuse(DropReason::of_codec(&e));
                 tracing::warn!("{e}");
                 continue;
             }
         };
-        if keys.actor_of_traj(&key) != Some(chunk.header.actor) {
-            inbox.drop_one(DropReason::Garbage);
-            tracing::warn!(key, actor = %chunk.header.actor, "chunk published on another actor's key");
+        if chunk.header.actor != raw.sender {
+            refuse(DropReason::Garbage);
+            tracing::warn!(key = raw.key, actor = %chunk.header.actor, "chunk published on another actor's key");
             continue;
         }
         if let Err(r) = validate_chunk(&chunk, expect) {
-            inbox.drop_one(r.reason);
-            tracing::warn!(key, "chunk rejected: {r}");
+            refuse(r.reason);
+            tracing::warn!(key = raw.key, "chunk rejected: {r}");
             continue;
         }
-        let Ok(mut q) = inbox.queue.lock() else { break };
-        q.push_back(Received {
+        let h = &chunk.header;
+        match seqs.accept(h.actor, h.sender_incarnation, h.seq) {
+            Verdict::Accept => {}
+            Verdict::Replay { high_water } => {
+                refuse(DropReason::Replay);
+                tracing::warn!(
+                    key = raw.key,
+                    seq = h.seq,
+                    high_water,
+                    "chunk already received: dropped (replay)"
+                );
+                continue;
+            }
+            Verdict::TooManySenders => {
+                refuse(DropReason::Overflow);
+                tracing::warn!(key = raw.key, "too many actor ids: chunk dropped");
+                continue;
+            }
+        }
+        let Ok(mut q) = inbox.queues.lock() else {
+            break;
+        };
+        q.decoded.push_back(Received {
             chunk,
             at: Instant::now(),
+            sender: raw.sender,
+            charge: raw.charge,
         });
-        if q.len() > cap {
-            q.pop_front();
-            inbox.drop_one(DropReason::Overflow);
+        let mut evicted = 0;
+        while q.decoded.len() > inbox.budget.max_chunks {
+            if let Some(old) = q.decoded.pop_front() {
+                q.release(old.sender, old.charge);
+                evicted += 1;
+            }
         }
         drop(q);
+        inbox.drop_n(DropReason::Overflow, evicted);
         inbox.ready.notify_one();
     }
 }

@@ -495,3 +495,40 @@ fn corrupt_checkpoint_is_a_clear_error() {
     let e = load_policy(&f).expect_err("must fail").to_string();
     assert!(e.contains("bad.bin") && e.contains("magic"), "{e}");
 }
+
+/// Issue 16: the weights limit an actor derives from its configuration admits the learner's
+/// real weights (for both site heads and wider networks), so a tight limit never drops them.
+#[test]
+fn real_weights_fit_the_limits_derived_from_the_configuration() {
+    use dupac_common::config::{Config, SiteHead};
+    use dupac_common::msg::{Header, MsgLimits, WeightsMsg, decode_msg, encode_msg};
+    use dupac_common::obs::ObsLayout;
+    let device = Device::flex();
+    for (head, hidden) in [
+        (SiteHead::Equivariant, vec![64, 64]),
+        (SiteHead::Slots, vec![64, 64]),
+        (SiteHead::Equivariant, vec![256, 256, 256]),
+    ] {
+        let mut cfg = Config::default();
+        cfg.ppo.site_head = head;
+        cfg.ppo.hidden = hidden;
+        let n_sites = 30;
+        let obs_dim = ObsLayout::new(&cfg.env.observation, n_sites).len();
+        let learner = dupac_learner::train::Learner::new(cfg.clone(), obs_dim, n_sites, &device);
+        let msg = WeightsMsg {
+            header: Header::new("r", 1, dupac_common::ActorId::LEARNER, 2),
+            policy: learner.policy(),
+        };
+        let bytes = encode_msg(&msg).expect("encode");
+        let limits = MsgLimits::weights(&cfg, obs_dim, n_sites);
+        assert!(
+            bytes.len() <= limits.bytes,
+            "{head:?}: {} > {}",
+            bytes.len(),
+            limits.bytes
+        );
+        let back: WeightsMsg = decode_msg(&bytes, limits, "weights").expect("within budget");
+        assert_eq!(back.policy.version, msg.policy.version);
+        assert!(limits.bytes <= MsgLimits::run_max_bytes(&cfg, obs_dim, n_sites));
+    }
+}

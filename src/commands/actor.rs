@@ -59,7 +59,13 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     };
     // Stopped before it could join (Ctrl-C or the orchestrator's SIGTERM at the end of a run):
     // leave cleanly, with the summary line of an actor that sent nothing.
-    let joined = args.net.open_retrying(&stop);
+    let probe = dupac_actor::env::Env::new(&cfg, world.clone(), rsrp.clone())?;
+    let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
+    drop(probe);
+    let joined = args.net.open_retrying(
+        &stop,
+        dupac_common::msg::MsgLimits::run_max_bytes(&cfg, obs_dim, n_sites),
+    );
     if stop.load(std::sync::atomic::Ordering::Relaxed) {
         println!(
             "actor {}: 0 chunks, 0 timesteps, 0 weight swaps, 0 shares re-sent; stopped before joining",

@@ -64,7 +64,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
             let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
             let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
             let stop = super::net::stop_flag()?;
-            let session = args.net.open_retrying(&stop)?;
+            let session = args.net.open_retrying(
+                &stop,
+                dupac_common::msg::MsgLimits::run_max_bytes(&cfg, obs_dim, n_sites),
+            )?;
             let mut f = Follower::new(
                 session,
                 &cfg,

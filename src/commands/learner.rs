@@ -64,7 +64,10 @@ pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
             cfg.train.seed, world.city.name
         ),
     )?;
-    let session = args.net.open_retrying(&stop)?;
+    let session = args.net.open_retrying(
+        &stop,
+        dupac_common::msg::MsgLimits::run_max_bytes(&cfg, obs_dim, n_sites),
+    )?;
     let incarnation = new_incarnation();
     let mut node = LearnerNode::start(session, &cfg, obs_dim, n_sites, fingerprint, incarnation)?;
     node.publish_weights(&learner.policy())?;

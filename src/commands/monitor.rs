@@ -138,8 +138,10 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
     }
     let cfg = global.config()?;
     let keys = KeySpace::new(&cfg.distributed.run);
-    let limit = cfg.distributed.max_message_bytes();
-    let session = args.net.open_retrying(&stop)?;
+    let limit = dupac_common::msg::MsgLimits::small(&cfg);
+    let session = args
+        .net
+        .open_retrying(&stop, cfg.distributed.max_message_bytes())?;
     let _token = session
         .liveliness()
         .declare_token(keys.alive(Role::Monitor, &session.zid().to_string()))

@@ -51,13 +51,20 @@ impl ConnectArgs {
             connect: self.connect.clone(),
             listen: self.listen.clone(),
             no_multicast_scouting: self.no_multicast_scouting,
+            rx_max_message_bytes: None,
         }
     }
 
     /// Opens the session, retrying every second until `stop` while the endpoint is not up yet
-    /// (a client started before its router).
-    pub fn open_retrying(&self, stop: &AtomicBool) -> Result<zenoh::Session> {
-        let opts = self.opts();
+    /// (a client started before its router). zenoh drops received messages over
+    /// `rx_max_message_bytes` (the run's largest message, issue 16).
+    pub fn open_retrying(
+        &self,
+        stop: &AtomicBool,
+        rx_max_message_bytes: usize,
+    ) -> Result<zenoh::Session> {
+        let mut opts = self.opts();
+        opts.rx_max_message_bytes = Some(rx_max_message_bytes);
         let mut logged = false;
         loop {
             match opts.open() {
@@ -97,14 +104,18 @@ pub struct RouterArgs {
 
 /// `dupac router`: a Zenoh router in this process (what `zenohd` does, without its plugins),
 /// for multi-machine runs where no `zenohd` is installed.
-pub fn run_router(_global: &GlobalArgs, args: &RouterArgs) -> Result<ExitCode> {
+pub fn run_router(global: &GlobalArgs, args: &RouterArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
     let mut net = args.net.clone();
     net.mode = Some(ModeArg::Router);
     if net.listen.is_empty() && net.zenoh_config.is_none() {
         net.listen = vec!["tcp/0.0.0.0:7447".into()];
     }
-    let session = net.opts().open()?;
+    // The router relays every message of the run: its limit is the configured cap.
+    let cfg = global.config()?;
+    let mut opts = net.opts();
+    opts.rx_max_message_bytes = Some(cfg.distributed.max_message_bytes());
+    let session = opts.open()?;
     let listen = if net.listen.is_empty() {
         "the endpoints of --zenoh-config".to_string()
     } else {

@@ -139,7 +139,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     // Connected lazily: the learner may still be starting, or may fail before it listens.
     let mut session: Option<zenoh::Session> = None;
     let mut sub = None;
-    let limit = cfg.distributed.max_message_bytes();
+    let limit = dupac_common::msg::MsgLimits::small(&cfg);
     let mut forwarded = false;
     let status = loop {
         if let Some(st) = learner.try_wait().context("waiting for the learner")? {

@@ -285,8 +285,11 @@ impl Watcher {
         let mut last = None;
         while t0.elapsed() < Duration::from_secs(secs) {
             if let Ok(Some(s)) = self.stats.recv_timeout(Duration::from_millis(200))
-                && let Ok(StatsMsg::Learner(st)) =
-                    decode_msg::<StatsMsg>(&s.payload().to_bytes(), 1 << 26, "stats")
+                && let Ok(StatsMsg::Learner(st)) = decode_msg::<StatsMsg>(
+                    &s.payload().to_bytes(),
+                    dupac_common::msg::MsgLimits::both(1 << 26),
+                    "stats",
+                )
             {
                 if ok(&st) {
                     return st;
@@ -310,7 +313,12 @@ impl Watcher {
             .expect("query");
         let reply = replies.recv().expect("a weights reply");
         let sample = reply.result().expect("ok reply");
-        decode_msg(&sample.payload().to_bytes(), 1 << 26, "weights").expect("weights decode")
+        decode_msg(
+            &sample.payload().to_bytes(),
+            dupac_common::msg::MsgLimits::both(1 << 26),
+            "weights",
+        )
+        .expect("weights decode")
     }
 
     pub fn publish(&self, actor: u32, bytes: Vec<u8>) {
