@@ -108,7 +108,9 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     let mut old_schema = encode_msg(&good(now)).expect("encode");
     old_schema[8..12].copy_from_slice(&999u32.to_le_bytes());
     w.publish(99, old_schema);
-    w.publish(99, vec![0u8; 2 << 20]); // 2 MiB > distributed.max_message_mib = 1
+    // 512 KiB: over the chunk limit this configuration implies (≈ 0.2 MB), under zenoh's
+    // receive limit (distributed.max_message_mib = 1): dropped unread by the learner.
+    w.publish(99, vec![0u8; 512 << 10]);
     let mut dims = good(now);
     dims.trajectories[0].obs.pop();
     w.publish(99, encode_msg(&dims).expect("encode"));
@@ -198,6 +200,131 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
         swaps >= 10,
         "actor 0 swapped weights only {swaps} times: {out}"
     );
+}
+
+/// Peak resident memory (VmHWM) of a process, in bytes.
+fn peak_rss_bytes(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("proc status");
+    let kib: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .expect("VmHWM");
+    kib * 1024
+}
+
+/// A chunk of `n` empty trajectories, written straight as bytes (building it as a value would
+/// take the test `n × 330` bytes): the amplifying message of issue 16.
+fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Vec<u8> {
+    let mut c = valid_chunk(w, actor, w.policy.version);
+    c.trajectories.clear();
+    let mut bytes = encode_msg(&c).expect("encode");
+    assert_eq!(bytes.pop(), Some(0), "the empty vector's length is the last byte");
+    bytes.push(0xfc); // bincode varint: a u32 follows
+    bytes.extend_from_slice(&n.to_le_bytes());
+    let one = encode_msg(&dupac_common::msg::TrajectoryChunk {
+        header: c.header.clone(),
+        trajectories: vec![dupac_common::msg::EnvTrajectory::default()],
+    })
+    .expect("encode");
+    let empty = &one[bytes.len() - 4..]; // one empty trajectory's bytes
+    for _ in 0..n {
+        bytes.extend_from_slice(empty);
+    }
+    bytes
+}
+
+/// Issue 16's hostile peer: a client of the learner's router sends, for a bounded time,
+/// messages at the configured cap (48 MiB of empty trajectories: 1.6 GB if decoded), amplifying
+/// chunks just under the learner's chunk limit, garbage, well-formed chunks under 300 invented
+/// actor ids and replays of a real actor's chunk. The learner's peak resident memory stays
+/// within its normal footprint + 64 MiB, the replays are counted and never trained, and the
+/// honest actor's chunks are still trained throughout.
+#[test]
+fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
+    use zenoh::Wait;
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-hostile";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    // The default message cap (64 MiB), not the 1 MiB of the other tests.
+    let text = std::fs::read_to_string(&p.config)
+        .expect("config")
+        .replace("max_message_mib = 1.0", "max_message_mib = 64.0");
+    std::fs::write(&p.config, text).expect("config");
+    p.learner("learner", &[]);
+    p.actor(0);
+    let w = Watcher::new(&p.endpoint, run);
+    // A real chunk of actor 0, to replay.
+    let tap = w
+        .session
+        .declare_subscriber(w.keys.traj(ActorId(0)))
+        .with(zenoh::handlers::FifoChannel::new(64))
+        .wait()
+        .expect("subscribe");
+    let warm = w.wait_for(&p, "10 updates with actor 0", 120, |s| {
+        s.update >= 10 && s.actors.iter().any(|a| a.actor == ActorId(0) && a.chunks > 2)
+    });
+    let real = tap
+        .recv_timeout(Duration::from_secs(10))
+        .ok()
+        .flatten()
+        .expect("a chunk of actor 0")
+        .payload()
+        .to_bytes()
+        .to_vec();
+    drop(tap);
+    let pid = p.child("learner").id();
+    let normal = peak_rss_bytes(pid);
+    let weights = w.weights();
+    let chunks_of_0 = |s: &LearnerStats| {
+        s.actors
+            .iter()
+            .find(|a| a.actor == ActorId(0))
+            .map_or(0, |a| a.chunks)
+    };
+
+    // 48 MiB on the wire: dropped by zenoh's receive limit before the learner sees it.
+    let huge = amplifying_chunk(&weights, 66, 48 * (1 << 20) / 14);
+    // Just under the chunk limit the learner derives (≈ 0.2 MB): 20× that if decoded.
+    let amplifying = amplifying_chunk(&weights, 67, 12_000);
+    let t0 = Instant::now();
+    let mut sent = 0u64;
+    let mut fake = 1000u32;
+    while t0.elapsed() < Duration::from_secs(8) {
+        w.publish(66, huge.clone());
+        for _ in 0..20 {
+            w.publish(67, amplifying.clone());
+            w.publish(68, vec![0xa5; 1 << 20]);
+            w.publish(0, real.clone());
+            for _ in 0..15 {
+                w.publish(fake, encode_msg(&valid_chunk(&weights, fake, weights.policy.version)).expect("encode"));
+                fake = 1000 + (fake + 1) % 300;
+            }
+            sent += 1;
+        }
+    }
+    let during = w.wait_for(&p, "the learner's stats after the attack", 30, |_| true);
+    let peak = peak_rss_bytes(pid);
+    eprintln!(
+        "hostile peer: {sent} rounds in 8 s; learner peak RSS {:.1} MiB before, {:.1} MiB after; drops {:?}",
+        normal as f64 / 1048576.0,
+        peak as f64 / 1048576.0,
+        during.drops
+    );
+    assert!(
+        peak <= normal + (64 << 20),
+        "learner peak RSS grew from {normal} to {peak} bytes{}",
+        p.logs()
+    );
+    assert!(drops(&during, "too_large") >= sent, "{:?}", during.drops);
+    assert!(drops(&during, "replay") >= 1, "{:?}", during.drops);
+    // Honest training went on: actor 0's chunks keep being trained, updates advance.
+    let after = w.wait_for(&p, "actor 0 still trained", 60, |s| {
+        chunks_of_0(s) >= chunks_of_0(&during) + 3 && s.update >= during.update + 3
+    });
+    assert!(chunks_of_0(&after) > chunks_of_0(&warm));
+    assert!(p.child("learner").try_wait().expect("wait").is_none());
+    p.signal_and_wait("learner", "-INT");
 }
 
 /// The learner killed with SIGKILL and restarted with `--resume`: versions continue from the
