@@ -15,7 +15,6 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{FontStyle, FontTransform};
 use std::path::Path;
 use std::sync::OnceLock;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Lower end of the colour scale (dBm); weaker values are drawn in its colour.
 pub const RSRP_SCALE_MIN_DBM: f64 = -130.0;
@@ -210,32 +209,21 @@ pub fn render_coverage_png(
 }
 
 /// Renders with `draw` into a temporary `.png` next to `path` (the bitmap encoder picks the
-/// format from the extension), then renames it over `path`: a reader never sees half a PNG.
+/// format from the extension), then commits it like every other file
+/// ([`dupac_common::fsio::write_atomic_via_path`]): a reader never sees half a PNG.
 pub(crate) fn write_png_atomic(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("cannot create directory {}", dir.display()))?;
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let file_name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "plot".into());
-    let tmp = dir.join(format!(
-        ".{file_name}.{}.{}.tmp.png",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let result = draw(&tmp).and_then(|()| {
-        std::fs::rename(&tmp, path)
-            .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+    let mut failure = None;
+    let written = dupac_common::fsio::write_atomic_via_path(path, |tmp| {
+        draw(tmp).map_err(|e| {
+            let io = std::io::Error::other(format!("{e:#}"));
+            failure = Some(e);
+            io
+        })
     });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    match (written, failure) {
+        (_, Some(e)) => Err(e),
+        (r, None) => Ok(r?),
     }
-    result
 }
 
 /// Draws the whole figure into `file` (a .png path).

@@ -219,7 +219,11 @@ fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Ve
     let mut c = valid_chunk(w, actor, w.policy.version);
     c.trajectories.clear();
     let mut bytes = encode_msg(&c).expect("encode");
-    assert_eq!(bytes.pop(), Some(0), "the empty vector's length is the last byte");
+    assert_eq!(
+        bytes.pop(),
+        Some(0),
+        "the empty vector's length is the last byte"
+    );
     bytes.push(0xfc); // bincode varint: a u32 follows
     bytes.extend_from_slice(&n.to_le_bytes());
     let one = encode_msg(&dupac_common::msg::TrajectoryChunk {
@@ -262,7 +266,10 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
         .wait()
         .expect("subscribe");
     let warm = w.wait_for(&p, "10 updates with actor 0", 120, |s| {
-        s.update >= 10 && s.actors.iter().any(|a| a.actor == ActorId(0) && a.chunks > 2)
+        s.update >= 10
+            && s.actors
+                .iter()
+                .any(|a| a.actor == ActorId(0) && a.chunks > 2)
     });
     let real = tap
         .recv_timeout(Duration::from_secs(10))
@@ -297,7 +304,11 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
             w.publish(68, vec![0xa5; 1 << 20]);
             w.publish(0, real.clone());
             for _ in 0..15 {
-                w.publish(fake, encode_msg(&valid_chunk(&weights, fake, weights.policy.version)).expect("encode"));
+                w.publish(
+                    fake,
+                    encode_msg(&valid_chunk(&weights, fake, weights.policy.version))
+                        .expect("encode"),
+                );
                 fake = 1000 + (fake + 1) % 300;
             }
             sent += 1;
@@ -324,6 +335,67 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
     });
     assert!(chunks_of_0(&after) > chunks_of_0(&warm));
     assert!(p.child("learner").try_wait().expect("wait").is_none());
+    p.signal_and_wait("learner", "-INT");
+}
+
+/// One learner per run (issue 16): a second learner on the same run directory is refused by the
+/// directory's lock, naming the directory and the holder; one on another directory but the same
+/// run name is refused by the live learner's liveliness token, naming it. The first learner
+/// trains on untouched. (Checked to fail with the lock, then the liveliness check, removed.)
+#[test]
+fn a_second_learner_of_the_same_run_is_refused() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-two-learners";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    p.learner("learner", &[]);
+    p.actor(0);
+    let w = Watcher::new(&p.endpoint, run);
+    let before = w.wait_for(&p, "3 updates", 120, |s| s.update >= 3);
+    let ep = p.endpoint.clone();
+    let same_dir = dir.path().join("run").display().to_string();
+    let other_dir = dir.path().join("other").display().to_string();
+    // Resuming a run that is still live, and a fresh run under the same name.
+    for (name, out, resume) in [
+        ("same-dir", &same_dir, true),
+        ("same-run", &other_dir, false),
+    ] {
+        let mut args = vec![
+            "learner",
+            "--out",
+            out,
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+            "--no-multicast-scouting",
+        ];
+        if resume {
+            args.push("--resume");
+        }
+        p.spawn(name, &args);
+        let st = p.wait_exit(name, 60);
+        assert!(!st.success(), "{name}: a second learner ran{}", p.logs());
+    }
+    let err = p.read("same-dir.err");
+    assert!(
+        err.contains("in use by another learner")
+            && err.contains(&same_dir)
+            && err.contains("pid "),
+        "{err}"
+    );
+    let err = p.read("same-run.err");
+    assert!(
+        err.contains("another learner is live on run") && err.contains("alive/learner/"),
+        "{err}"
+    );
+    w.wait_for(&p, "the first learner trains on", 60, |s| {
+        s.update >= before.update + 3
+    });
+    let updates = metric_updates(&dir.path().join("run/metrics.jsonl"));
+    assert!(
+        updates.windows(2).all(|w| w[1] == w[0] + 1),
+        "one writer of the learning curve"
+    );
     p.signal_and_wait("learner", "-INT");
 }
 

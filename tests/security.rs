@@ -36,8 +36,10 @@ fn open(c: zenoh::Config) -> zenoh::Result<zenoh::Session> {
 /// go on; a monitor that publishes trajectories is denied too (the learner never sees them).
 #[test]
 fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
-    if Command::new("openssl").arg("version").output().is_err() {
-        eprintln!("SKIPPED: openssl not found (deploy/tls/make-certs.sh needs it)");
+    if !prerequisite(
+        "openssl (deploy/tls/make-certs.sh needs it)",
+        Command::new("openssl").arg("version").output().is_ok(),
+    ) {
         return;
     }
     let dir = tempfile::tempdir().expect("tmp");

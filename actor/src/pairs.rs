@@ -33,7 +33,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::io::{BufRead, Write};
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
 /// Domain tag of the evaluation set's random streams ("eval").
@@ -357,38 +357,22 @@ pub fn training_pool(
     out
 }
 
-/// Writes one JSON object per line, atomically: a temporary file in the same directory, synced,
-/// then renamed over `path` (parent directories are created).
+/// Writes one JSON object per line, atomically ([`dupac_common::fsio`]; parent directories are
+/// created).
 pub fn write_pairs_jsonl(path: &Path, pairs: &[Pair]) -> Result<(), PairsError> {
     let err = |source: std::io::Error| PairsError::Write {
         path: path.to_path_buf(),
         source,
     };
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
-    if let Some(dir) = dir {
-        std::fs::create_dir_all(dir).map_err(err)?;
-    }
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "pairs.jsonl".into());
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(file);
+    dupac_common::fsio::write_atomic_with(path, |w| {
         for p in pairs {
             let line = serde_json::to_string(p).map_err(std::io::Error::other)?;
             w.write_all(line.as_bytes())?;
             w.write_all(b"\n")?;
         }
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(err)
+        Ok(())
+    })
+    .map_err(|e| err(std::io::Error::other(e.to_string())))
 }
 
 /// Reads and validates a pairs file (ours or a user's; see the module documentation for the

@@ -6,7 +6,6 @@
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
-use std::io::Write;
 use std::path::Path;
 
 /// Errors of encoding, decoding and the atomic file helpers; each names what it was reading.
@@ -34,6 +33,8 @@ pub enum CodecError {
     Trailing { what: String, len: usize },
     #[error("cannot encode {what}: {message}")]
     Encode { what: String, message: String },
+    #[error(transparent)]
+    Fs(#[from] crate::fsio::FsError),
     #[error("{path}: {source}")]
     Io {
         path: String,
@@ -143,27 +144,10 @@ fn decode_inner<T: DeserializeOwned>(
     Ok(value)
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same directory, synced, then
-/// renamed over `path` (parents created). A crash leaves the old file or the new one, never a
-/// mix.
+/// Writes `bytes` to `path` atomically ([`crate::fsio::write_atomic`]: temporary file, fsync,
+/// rename, directory fsync).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CodecError> {
-    let io = |source| CodecError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).map_err(io)?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    let (first, second) = bytes.split_at(bytes.len() / 2);
-    tmp.write_all(first).map_err(io)?;
-    crate::fault::crash_point("atomic-write");
-    tmp.write_all(second).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+    Ok(crate::fsio::write_atomic(path, bytes)?)
 }
 
 /// Reads a whole file, refusing files over `limit` bytes before reading them.

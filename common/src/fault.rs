@@ -4,7 +4,7 @@
 //! Unset, a crash point costs one relaxed atomic load.
 //!
 //! Crash points:
-//! - `atomic-write`: inside [`crate::codec::write_atomic`], after half of the bytes went to the
+//! - `atomic-write`: inside [`crate::fsio::write_atomic`] (checkpoints and policies), after half of the bytes went to the
 //!   temporary file and before the rename (checkpoints, exported policies).
 
 use std::sync::OnceLock;

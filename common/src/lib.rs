@@ -10,6 +10,7 @@ pub mod config;
 pub mod dedup;
 pub mod fault;
 pub mod fingerprint;
+pub mod fsio;
 pub mod ids;
 pub mod keys;
 pub mod msg;

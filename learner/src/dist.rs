@@ -41,6 +41,37 @@ pub enum NodeError {
     Zenoh(String),
     #[error(transparent)]
     Codec(#[from] dupac_common::codec::CodecError),
+    #[error(
+        "another learner is live on run {run:?} ({key}): stop it, or give this run another distributed.run"
+    )]
+    AnotherLearner { run: String, key: String },
+}
+
+/// The liveliness key of a live learner of this run, if any: asked twice a second apart, so a
+/// learner that has just died (its token not yet withdrawn) does not block its successor.
+fn live_learner(session: &zenoh::Session, keys: &KeySpace) -> Result<Option<String>, NodeError> {
+    let mut found = None;
+    for attempt in 0..2 {
+        if attempt > 0 {
+            std::thread::sleep(Duration::from_secs(1));
+        }
+        let replies = session
+            .liveliness()
+            .get(keys.alive_role(Role::Learner))
+            .timeout(Duration::from_secs(2))
+            .wait()
+            .map_err(z)?;
+        found = None;
+        while let Ok(r) = replies.recv() {
+            if let Ok(s) = r.result() {
+                found = Some(s.key_expr().as_str().to_string());
+            }
+        }
+        if found.is_none() {
+            break;
+        }
+    }
+    Ok(found)
 }
 
 fn z(e: impl std::fmt::Display) -> NodeError {
@@ -303,6 +334,13 @@ impl LearnerNode {
     ) -> Result<LearnerNode, NodeError> {
         let d = &cfg.distributed;
         let keys = KeySpace::new(&d.run);
+        // One learner per run name (issue 16): actors would flip between two.
+        if let Some(key) = live_learner(&session, &keys)? {
+            return Err(NodeError::AnotherLearner {
+                run: d.run.clone(),
+                key,
+            });
+        }
         let expect = ChunkExpect {
             run_id: d.run.clone(),
             incarnation,

@@ -23,7 +23,6 @@ use dupac_common::config::CacheConfig;
 use memmap2::Mmap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// File magic of the cache format.
@@ -184,20 +183,19 @@ impl RsrpCache {
         }
     }
 
-    /// Writes the cache to `path` atomically (temporary file in the same directory, then rename).
+    /// Writes the cache to `path` atomically ([`dupac_common::fsio`]); temporary files of
+    /// interrupted writes older than an hour are swept first (another process may be writing
+    /// one now: the cache directory can be shared).
     pub fn save(&self, path: &Path) -> Result<(), RadioError> {
-        let err = |e: std::io::Error| RadioError::io(path, e);
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(err)?;
+            let _ =
+                dupac_common::fsio::sweep_temporaries(dir, std::time::Duration::from_secs(3600));
         }
         let header = serde_json::to_vec(&self.header).map_err(|e| RadioError::Cache {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
-        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-        let result = (|| -> std::io::Result<()> {
-            let file = std::fs::File::create(&tmp)?;
-            let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
+        dupac_common::fsio::write_atomic_with(path, |w| {
             w.write_all(CACHE_MAGIC)?;
             w.write_all(&(header.len() as u32).to_le_bytes())?;
             w.write_all(&header)?;
@@ -211,14 +209,9 @@ impl RsrpCache {
                 }
                 w.write_all(&bytes)?;
             }
-            let file = w.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()?;
-            std::fs::rename(&tmp, path)
-        })();
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        result.map_err(err)
+            Ok(())
+        })
+        .map_err(|e| RadioError::io(path, std::io::Error::other(e.to_string())))
     }
 
     /// Opens `path` and checks it against `expected`.

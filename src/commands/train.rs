@@ -210,12 +210,63 @@ pub struct RunOutput {
     rows: MetricsTable,
     metrics: std::fs::File,
     title: String,
+    /// `<out>/.lock`, held exclusively while the run directory is in use (issue 16: one
+    /// learner per run directory); released when the process ends, however it ends.
+    _lock: std::fs::File,
+}
+
+/// Takes the exclusive lock of run directory `out` (`<out>/.lock`, `flock`), or says who holds
+/// it. The lock dies with its process, so a crashed learner never leaves a stale one.
+fn lock_run_dir(out: &std::path::Path) -> Result<std::fs::File> {
+    use std::io::{Read, Seek, Write};
+    let path = out.join(".lock");
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .with_context(|| format!("opening {}", path.display()))?;
+    match f.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => {
+            let mut holder = String::new();
+            let _ = f.read_to_string(&mut holder);
+            anyhow::bail!(
+                "{} is in use by another learner ({}); give this run another --out",
+                out.display(),
+                match holder.trim() {
+                    "" => "process unknown".to_string(),
+                    h => h.to_string(),
+                }
+            );
+        }
+        Err(std::fs::TryLockError::Error(e)) => {
+            return Err(e).with_context(|| format!("locking {}", path.display()));
+        }
+    }
+    let me = format!(
+        "pid {} on {}",
+        std::process::id(),
+        std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .map(|h| h.trim().to_string())
+            .unwrap_or_else(|_| "this host".into())
+    );
+    f.set_len(0)
+        .and_then(|()| f.rewind())
+        .and_then(|()| f.write_all(me.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(f)
 }
 
 impl RunOutput {
     pub fn open(cfg: &Config, start_update: u64, title: String) -> Result<RunOutput> {
         let out = cfg.train.out_dir.clone();
         std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+        let lock = lock_run_dir(&out)?;
+        // The only writer of the directory now: whatever temporary files are here are the
+        // leftovers of a killed process.
+        dupac_common::fsio::sweep_temporaries(&out, std::time::Duration::ZERO)?;
         write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
         let metrics_path = out.join("metrics.jsonl");
         let mut rows = read_rows(&metrics_path)?;
@@ -234,6 +285,7 @@ impl RunOutput {
             rows,
             metrics,
             title,
+            _lock: lock,
         })
     }
 
