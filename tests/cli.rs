@@ -734,3 +734,58 @@ fn train_resume_and_fly_on_a_small_city() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("checkpoint.bin"));
 }
+
+/// Issue 16: every line of `dupac radio link` is judged on its own: a line that is not UTF-8, one
+/// longer than 64 KiB, coordinates out of physical range, a UAV below the ground and a carrier
+/// frequency outside the models' range are each an error naming the line; the other lines are
+/// answered, and the exit status says some failed.
+#[test]
+fn link_calculator_refuses_unphysical_and_undecodable_lines_one_by_one() {
+    let good = b"{\"bs_xyz\":[0,0,25],\"uav_xyz\":[100,0,50],\"scenario\":\"uma\",\"los\":true}\n";
+    let mut input = Vec::new();
+    input.extend_from_slice(good);
+    input.extend_from_slice(
+        b"{\"bs_xyz\":[0,0,25],\"uav_xyz\":[1e308,0,50],\"scenario\":\"uma\",\"los\":true}\n",
+    );
+    input.extend_from_slice(b"{\"bs_xyz\":[0,0,25],\"uav_xyz\":[100,0,50],\"scenario\":\"uma\",\"los\":true,\"fc_ghz\":1e-300}\n");
+    input.extend_from_slice(
+        b"{\"bs_xyz\":[0,0,25],\"uav_xyz\":[100,0,-5],\"scenario\":\"uma\",\"los\":true}\n",
+    );
+    input.extend_from_slice(
+        b"{\"bs_xyz\":[0,0,25],\"uav_xyz\":[100,0,\xff50],\"scenario\":\"uma\"}\n",
+    );
+    input.extend_from_slice(&vec![b' '; 100_000]);
+    input.extend_from_slice(b"\n");
+    input.extend_from_slice(good);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        .args(["radio", "link"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn dupac");
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(&input)
+        .expect("write stdin");
+    let out = child.wait_with_output().expect("wait dupac");
+    assert!(!out.status.success());
+    assert_eq!(json_lines(&out).len(), 2, "the good lines are answered");
+    let err = String::from_utf8_lossy(&out.stderr);
+    for (line, what) in [
+        (2, "from the scenario centre"),
+        (3, "fc_ghz"),
+        (4, "above the ground"),
+        (5, "not UTF-8"),
+        (6, "longer than"),
+    ] {
+        assert!(
+            err.lines()
+                .any(|l| l.starts_with(&format!("line {line}:")) && l.contains(what)),
+            "line {line} ({what}): {err}"
+        );
+    }
+}

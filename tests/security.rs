@@ -34,6 +34,10 @@ fn open(c: zenoh::Config) -> zenoh::Result<zenoh::Session> {
 /// TCP, cannot open a session; an authenticated actor that publishes weights (and a Stop) is
 /// denied at the router: subscribers never see the forged weights, the learner's weights and run
 /// go on; a monitor that publishes trajectories is denied too (the learner never sees them).
+/// Least privilege (issue 16): a monitor subscribing to trajectories receives none; actor 0's
+/// certificate can neither publish on actor 1's key nor declare actor 7's token; a flood of
+/// weights queries gets replies at the learner's rate. Checked to fail with each rule widened in
+/// the router's config (see docs/reliability.md).
 #[test]
 fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
     if !prerequisite(
@@ -97,7 +101,7 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
             "--threads",
             "1",
             "--zenoh-config",
-            &cfg("actor"),
+            &cfg("actor-1"),
             "--connect",
             &ep,
         ],
@@ -149,9 +153,55 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
         .expect("scouting");
     assert!(open(plain).is_err(), "plain TCP opened a session");
 
-    // The rogue: an authenticated actor publishing forged weights (version 10^9) and a Stop.
+    // Least privilege (issue 16): a monitor reads no trajectory, though actor 1 is sending.
+    let traj_tap = monitor
+        .session
+        .declare_subscriber(keys.traj_all())
+        .with(zenoh::handlers::FifoChannel::new(64))
+        .wait()
+        .expect("subscribe (denied at the router, not locally)");
+    std::thread::sleep(Duration::from_secs(1));
+    assert!(
+        traj_tap.try_recv().ok().flatten().is_none(),
+        "a monitor received a trajectory chunk"
+    );
+    // The weights queryable answers a flood at its rate (10/s, burst 20), not at the flood's.
+    let t0 = Instant::now();
+    let mut replies = 0usize;
+    let flood: Vec<_> = (0..100)
+        .map(|_| {
+            monitor
+                .session
+                .get(keys.weights())
+                .timeout(Duration::from_secs(3))
+                .wait()
+                .expect("query")
+        })
+        .collect();
+    for r in flood {
+        while let Ok(reply) = r.recv() {
+            replies += usize::from(reply.result().is_ok());
+        }
+    }
+    let limit = 20.0 + 10.0 * t0.elapsed().as_secs_f64() + 1.0;
+    assert!(
+        replies >= 1 && replies as f64 <= limit,
+        "{replies} replies to 100 queries in {:.1} s (at most {limit:.0})",
+        t0.elapsed().as_secs_f64()
+    );
+    // The flood spent the bucket; two seconds refill it for the queries below.
+    std::thread::sleep(Duration::from_secs(2));
+
+    // The rogue: actor 0's certificate publishing forged weights (version 10^9), a Stop,
+    // garbage on actor 1's key and actor 7's liveliness token.
     let genuine: WeightsMsg = monitor.weights();
-    let rogue = Watcher::with_config(role_config(&certs, "actor", &ep), run);
+    let rogue = Watcher::with_config(role_config(&certs, "actor-0", &ep), run);
+    let _fake_token = rogue
+        .session
+        .liveliness()
+        .declare_token(keys.alive(dupac_common::keys::Role::Actor, "7"))
+        .wait()
+        .expect("token (denied at the router, not locally)");
     let mut forged = genuine.clone();
     forged.header.policy_version = 1_000_000_000;
     forged.policy.version = 1_000_000_000;
@@ -176,8 +226,10 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
                 .wait()
                 .expect("put (denied at the router, not locally)");
         }
-        // A monitor publishing trajectories: garbage the learner would count if it arrived.
+        // A monitor publishing trajectories, and actor 0 on actor 1's key: garbage the
+        // learner would count if it arrived.
         monitor.publish(9, b"not a chunk".to_vec());
+        rogue.publish(1, b"not a chunk either".to_vec());
         std::thread::sleep(Duration::from_millis(100));
     }
 
@@ -235,8 +287,13 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
     assert_eq!(
         drops(&after, "garbage"),
         0,
-        "a monitor's trajectory reached the learner: {:?}",
+        "a monitor's trajectory, or actor 0's on actor 1's key, reached the learner: {:?}",
         after.drops
+    );
+    assert!(
+        after.actors.iter().all(|a| a.actor != ActorId(7)),
+        "actor 0's certificate declared actor 7's liveliness token: {:?}",
+        after.actors
     );
     // The learner and the actor are still running (the forged Stop never arrived).
     assert!(p.child("learner").try_wait().expect("wait").is_none());

@@ -875,6 +875,10 @@ pub struct DistributedConfig {
     pub resend_after_s: f64,
     /// Interval of the stats messages of learner and actors (s).
     pub stats_every_s: f64,
+    /// Replies per second the learner's weights queryable gives at most (each copies the whole
+    /// policy), with a burst of twice that: actors and pilots query once when they join, a
+    /// flood of queries is left unanswered (issue 16).
+    pub weights_replies_per_s: f64,
 }
 
 impl Default for DistributedConfig {
@@ -893,6 +897,7 @@ impl Default for DistributedConfig {
             silent_after_s: 10.0,
             resend_after_s: 5.0,
             stats_every_s: 1.0,
+            weights_replies_per_s: 10.0,
         }
     }
 }
@@ -913,6 +918,9 @@ impl DistributedConfig {
         (self.max_message_mib * 1024.0 * 1024.0) as usize
     }
 }
+
+/// Largest configuration file read (bytes): a real one is a few KiB.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 
 impl Config {
     /// The configuration training rollouts step their environments with: the UAV's sphere
@@ -1015,13 +1023,28 @@ impl Config {
         Ok(config)
     }
 
-    /// Loads `path` (or the defaults when `None`), applies `--set a.b=v` overrides, validates.
+    /// Loads `path` (at most [`MAX_CONFIG_BYTES`]; the defaults when `None`), applies
+    /// `--set a.b=v` overrides, validates.
     pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config, ConfigError> {
         match path {
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                let read = |source| ConfigError::Read {
                     path: p.to_path_buf(),
                     source,
+                };
+                let len = std::fs::metadata(p).map_err(read)?.len();
+                if len > MAX_CONFIG_BYTES {
+                    return Err(ConfigError::Parse {
+                        path: p.display().to_string(),
+                        message: format!(
+                            "{len} bytes: a configuration file is at most {MAX_CONFIG_BYTES} bytes"
+                        ),
+                    });
+                }
+                let bytes = std::fs::read(p).map_err(read)?;
+                let text = String::from_utf8(bytes).map_err(|e| ConfigError::Parse {
+                    path: p.display().to_string(),
+                    message: format!("not UTF-8 at byte {}", e.utf8_error().valid_up_to()),
                 })?;
                 Self::from_toml_str(&text, &p.display().to_string(), sets)
             }
@@ -1426,6 +1449,146 @@ impl Config {
         positive("distributed.silent_after_s", d.silent_after_s)?;
         positive("distributed.resend_after_s", d.resend_after_s)?;
         positive("distributed.stats_every_s", d.stats_every_s)?;
+        self.validate_bounds()
+    }
+
+    /// Upper bounds on every value that sizes memory or time (issue 16): a value that passes
+    /// validation never panics a conversion (`Duration`, an allocation size) later. The bounds
+    /// are far above any sensible run; each error names the key and the bound.
+    fn validate_bounds(&self) -> Result<(), ConfigError> {
+        fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ConfigError> {
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(ConfigError::Invalid {
+                    key: key.to_string(),
+                    message: format!("must be in [{lo}, {hi}] {unit}, got {v}"),
+                })
+            }
+        }
+        fn at_most(key: &str, v: u64, hi: u64) -> Result<(), ConfigError> {
+            if v <= hi {
+                Ok(())
+            } else {
+                Err(ConfigError::Invalid {
+                    key: key.to_string(),
+                    message: format!("must be at most {hi}, got {v}"),
+                })
+            }
+        }
+        const DAY_S: f64 = 86_400.0;
+        let d = &self.distributed;
+        within(
+            "distributed.silent_after_s",
+            d.silent_after_s,
+            0.0,
+            DAY_S,
+            "s",
+        )?;
+        within(
+            "distributed.resend_after_s",
+            d.resend_after_s,
+            0.0,
+            DAY_S,
+            "s",
+        )?;
+        within(
+            "distributed.stats_every_s",
+            d.stats_every_s,
+            0.0,
+            3600.0,
+            "s",
+        )?;
+        within(
+            "distributed.weights_replies_per_s",
+            d.weights_replies_per_s,
+            0.01,
+            10_000.0,
+            "per s",
+        )?;
+        at_most("distributed.queue_chunks", d.queue_chunks as u64, 65_536)?;
+        at_most("distributed.max_policy_lag", d.max_policy_lag, 1_000)?;
+        at_most(
+            "distributed.chunk_steps",
+            (d.actor_envs * d.chunk_steps) as u64,
+            1 << 22,
+        )
+        .map_err(|_| ConfigError::Invalid {
+            key: "distributed.chunk_steps".into(),
+            message: format!(
+                "actor_envs × chunk_steps = {} samples per chunk, at most {}",
+                d.actor_envs * d.chunk_steps,
+                1 << 22
+            ),
+        })?;
+        let t = &self.train;
+        at_most("train.num_steps", t.num_steps as u64, 65_536)?;
+        if t.num_envs * t.num_steps > 1 << 22 {
+            return Err(ConfigError::Invalid {
+                key: "train.num_steps".into(),
+                message: format!(
+                    "num_envs × num_steps = {} samples per batch, at most {}",
+                    t.num_envs * t.num_steps,
+                    1 << 22
+                ),
+            });
+        }
+        at_most("train.pool_size", t.pool_size as u64, 1_000_000)?;
+        at_most("train.eval_pairs", t.eval_pairs as u64, 100_000)?;
+        at_most(
+            "train.total_timesteps",
+            t.total_timesteps,
+            1_000_000_000_000,
+        )?;
+        at_most(
+            "pairs.eval_per_bin",
+            self.pairs.eval_per_bin as u64,
+            100_000,
+        )?;
+        let pp = &self.ppo;
+        at_most("ppo.update_epochs", pp.update_epochs as u64, 1_000)?;
+        at_most("ppo.hidden", pp.hidden.len() as u64, 16).map_err(|_| ConfigError::Invalid {
+            key: "ppo.hidden".into(),
+            message: format!("at most 16 layers, got {}", pp.hidden.len()),
+        })?;
+        if let Some(&h) = pp.hidden.iter().find(|&&h| h > 4096) {
+            return Err(ConfigError::Invalid {
+                key: "ppo.hidden".into(),
+                message: format!("widths must be at most 4096, got {h}"),
+            });
+        }
+        let weights: usize = pp.hidden.windows(2).map(|w| w[0] * w[1]).sum();
+        if weights > 16 << 20 {
+            return Err(ConfigError::Invalid {
+                key: "ppo.hidden".into(),
+                message: format!(
+                    "{weights} hidden-to-hidden weights per network, at most {}",
+                    16 << 20
+                ),
+            });
+        }
+        let r = &self.radio;
+        // TR 38.901 §7.4 (the models TR 36.777 builds on) hold for 0.5–100 GHz.
+        within("radio.fc_ghz", r.fc_ghz, 0.5, 100.0, "GHz")?;
+        within("radio.tx_power_dbm", r.tx_power_dbm, -50.0, 80.0, "dBm")?;
+        // TS 36.331 ReportConfigEUTRA: timeToTrigger ≤ 5120 ms.
+        within(
+            "radio.a3.time_to_trigger_ms",
+            r.a3.time_to_trigger_ms,
+            0.0,
+            5120.0,
+            "ms",
+        )?;
+        let c = &self.cache;
+        within("cache.horizontal_m", c.horizontal_m, 0.5, 1_000.0, "m")?;
+        within("cache.vertical_m", c.vertical_m, 0.5, 1_000.0, "m")?;
+        within(
+            "env.time_limit_factor",
+            self.env.time_limit_factor,
+            0.0,
+            1_000.0,
+            "",
+        )?;
         Ok(())
     }
 }

@@ -357,3 +357,78 @@ fn regression_unknown_key_by_set_names_the_override() {
         "{e}"
     );
 }
+
+/// Issue 16: values that passed validation and then panicked or aborted later.
+#[test]
+fn regression_values_that_sized_memory_or_time_without_bound_are_refused() {
+    for (set, key) in [
+        (
+            "distributed.silent_after_s=1e300",
+            "distributed.silent_after_s",
+        ),
+        (
+            "distributed.resend_after_s=1e300",
+            "distributed.resend_after_s",
+        ),
+        ("train.pool_size=1000000000000", "train.pool_size"),
+        ("ppo.hidden=[65536, 65536]", "ppo.hidden"),
+        ("ppo.hidden=[4096, 4096, 4096, 4096, 4096]", "ppo.hidden"),
+        ("radio.fc_ghz=1e-300", "radio.fc_ghz"),
+        ("cache.horizontal_m=1e-300", "cache.horizontal_m"),
+        ("train.eval_pairs=100000000", "train.eval_pairs"),
+        (
+            "distributed.queue_chunks=100000000",
+            "distributed.queue_chunks",
+        ),
+    ] {
+        let e = Config::load(None, &[set.to_string()]).expect_err(set);
+        assert!(e.to_string().contains(key), "{set}: {e}");
+    }
+}
+
+#[test]
+fn a_config_file_over_the_size_limit_is_refused_unread() {
+    let dir = std::env::temp_dir().join(format!("dupac-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let p = dir.join("huge.toml");
+    let big = format!(
+        "# {}\n",
+        "x".repeat(dupac_common::config::MAX_CONFIG_BYTES as usize)
+    );
+    std::fs::write(&p, big).expect("write");
+    let e = Config::load(Some(&p), &[]).expect_err("too big");
+    assert!(
+        e.to_string().contains("huge.toml") && e.to_string().contains("at most"),
+        "{e}"
+    );
+    std::fs::write(&p, b"[train]\nseed = 1\n# \xff\n").expect("write");
+    let e = Config::load(Some(&p), &[]).expect_err("not utf-8");
+    assert!(e.to_string().contains("not UTF-8"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Any configuration that validates (hostile values on one or two keys) gives durations,
+    /// message limits and batch sizes that convert without a panic (issue 16).
+    #[test]
+    fn what_a_valid_configuration_sizes_never_panics(
+        picks in prop::collection::vec((any::<prop::sample::Index>(), prop::sample::select(HOSTILE)), 1..3),
+    ) {
+        let leaves = leaves();
+        let sets: Vec<String> = picks
+            .iter()
+            .map(|(i, v)| format!("{}={v}", leaves[i.index(leaves.len())].0))
+            .collect();
+        if let Ok(c) = Config::load(None, &sets) {
+            let d = &c.distributed;
+            for s in [d.silent_after_s, d.resend_after_s, d.stats_every_s] {
+                prop_assert!(std::time::Duration::try_from_secs_f64(s).is_ok(), "{sets:?}");
+            }
+            let run_max = dupac_common::msg::MsgLimits::run_max_bytes(&c, 404, 30);
+            prop_assert!(run_max > 0 && run_max <= d.max_message_bytes().max(4 << 20));
+            prop_assert!(c.train.num_envs.checked_mul(c.train.num_steps).is_some());
+        }
+    }
+}

@@ -30,7 +30,7 @@ proptest! {
     #[test]
     fn no_chunk_is_accepted_twice(events in prop::collection::vec(event(), 1..400)) {
         // 12 streams: 3 actor ids × 4 incarnations (≤ MAX_INCARNATIONS each).
-        assert!(4 <= MAX_INCARNATIONS);
+        const { assert!(4 <= MAX_INCARNATIONS) };
         let stream = |s: usize| (ActorId((s % 3) as u32), 1000 + (s / 3) as u64);
         let mut next_seq = [0u64; 12];
         let mut delivered: Vec<(ActorId, u64, u64)> = Vec::new();

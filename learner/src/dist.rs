@@ -47,6 +47,41 @@ pub enum NodeError {
     AnotherLearner { run: String, key: String },
 }
 
+/// A token bucket: `rate` tokens a second, at most `burst` saved.
+#[derive(Debug, Clone)]
+pub struct TokenBucket {
+    rate: f64,
+    burst: f64,
+    tokens: f64,
+    at: Option<Instant>,
+}
+
+impl TokenBucket {
+    pub fn new(rate: f64, burst: f64) -> TokenBucket {
+        TokenBucket {
+            rate,
+            burst: burst.max(1.0),
+            tokens: burst.max(1.0),
+            at: None,
+        }
+    }
+
+    /// Takes a token if there is one at `now`.
+    pub fn take(&mut self, now: Instant) -> bool {
+        if let Some(at) = self.at {
+            let dt = now.saturating_duration_since(at).as_secs_f64();
+            self.tokens = (self.tokens + dt * self.rate).min(self.burst);
+        }
+        self.at = Some(now);
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
 /// The liveliness key of a live learner of this run, if any: asked twice a second apart, so a
 /// learner that has just died (its token not yet withdrawn) does not block its successor.
 fn live_learner(session: &zenoh::Session, keys: &KeySpace) -> Result<Option<String>, NodeError> {
@@ -389,9 +424,15 @@ impl LearnerNode {
         let queryable = {
             let latest = latest_weights.clone();
             let key = keys.weights();
+            let rate = d.weights_replies_per_s;
+            let bucket = Mutex::new(TokenBucket::new(rate, 2.0 * rate));
             session
                 .declare_queryable(keys.weights())
                 .callback(move |query| {
+                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now())) {
+                        tracing::debug!("weights query left unanswered: over the reply rate");
+                        return;
+                    }
                     let bytes = latest.lock().ok().and_then(|w| w.clone());
                     if let Some(b) = bytes
                         && let Err(e) = query.reply(key.clone(), b).wait()
@@ -454,7 +495,9 @@ impl LearnerNode {
             keys,
             expect,
             max_policy_lag: d.max_policy_lag,
-            silent_after: Duration::from_secs_f64(d.silent_after_s),
+            // Validated to [0, 1 day]: the conversion cannot fail; a day if it did.
+            silent_after: Duration::try_from_secs_f64(d.silent_after_s)
+                .unwrap_or(Duration::from_secs(86_400)),
             stats_every_s: d.stats_every_s,
             inbox,
             actors,
@@ -788,4 +831,23 @@ pub fn new_incarnation() -> u64 {
         .map(|d| d.as_nanos() as u64)
         .unwrap_or(0);
     dupac_actor::rollout::stream_seed(t, u64::from(std::process::id()), unix_ms())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_token_bucket_allows_its_burst_then_its_rate() {
+        let t0 = Instant::now();
+        let mut b = TokenBucket::new(10.0, 20.0);
+        let burst = (0..100).filter(|_| b.take(t0)).count();
+        assert_eq!(burst, 20);
+        // One second later: 10 more.
+        let later = t0 + Duration::from_secs(1);
+        assert_eq!((0..100).filter(|_| b.take(later)).count(), 10);
+        // Idle for a minute: never more than the burst.
+        let much_later = later + Duration::from_secs(60);
+        assert_eq!((0..100).filter(|_| b.take(much_later)).count(), 20);
+    }
 }

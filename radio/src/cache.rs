@@ -49,6 +49,9 @@ impl RsrpSource for RadioWorld {
     }
 }
 
+/// Largest RSRP cache built (bytes): 16 GiB, 4 × Manhattan at 2 m.
+pub const MAX_CACHE_BYTES: usize = 16 << 30;
+
 /// Regular 3D grid of sample points (grid points, not cells: point `i` is at `x0_m + i·dx_m`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GridSpec {
@@ -68,7 +71,10 @@ impl GridSpec {
     /// Grid covering `area_m` and `[z_min_m, z_max_m]` at the configured steps (the last point is
     /// at or beyond the far edge).
     pub fn covering(area_m: [f64; 4], cfg: &CacheConfig) -> GridSpec {
-        let n = |span: f64, step: f64| (span / step - 1e-9).ceil().max(1.0) as usize + 1;
+        // `as` saturates: a degenerate step gives a huge count, refused by `check_size`.
+        let n = |span: f64, step: f64| {
+            ((span / step - 1e-9).ceil().max(1.0) as usize).saturating_add(1)
+        };
         GridSpec {
             x0_m: area_m[0],
             y0_m: area_m[1],
@@ -81,9 +87,16 @@ impl GridSpec {
         }
     }
 
-    /// Number of grid points.
+    /// Number of grid points (saturating).
     pub fn points(&self) -> usize {
-        self.nx * self.ny * self.nz
+        self.nx.saturating_mul(self.ny).saturating_mul(self.nz)
+    }
+
+    /// Bytes of a cache of this grid for `n_sites` sites (saturating).
+    pub fn bytes(&self, n_sites: usize) -> usize {
+        self.points()
+            .saturating_mul(n_sites)
+            .saturating_mul(size_of::<f32>())
     }
 
     /// Position of grid point `(ix, iy, iz)` (m).
@@ -220,6 +233,11 @@ impl RsrpCache {
             path: path.to_path_buf(),
             message,
         };
+        if path.is_dir() {
+            return Err(bad(
+                "is a directory; cache.path names the cache file (e.g. data/cache/rsrp.bin)".into(),
+            ));
+        }
         let file = match std::fs::File::open(path) {
             Ok(f) => f,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Opened::Missing),
@@ -279,6 +297,21 @@ impl RsrpCache {
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(RsrpCache, bool), RadioError> {
         let grid = GridSpec::covering(world.city.area_m, cfg);
+        let bytes = grid.bytes(world.sites.len());
+        if bytes > MAX_CACHE_BYTES {
+            return Err(RadioError::Cache {
+                path: cfg.path.clone(),
+                message: format!(
+                    "a {} × {} × {} grid for {} sites is {:.1} GiB, over the {} GiB limit: raise cache.horizontal_m or cache.vertical_m",
+                    grid.nx,
+                    grid.ny,
+                    grid.nz,
+                    world.sites.len(),
+                    bytes as f64 / (1u64 << 30) as f64,
+                    MAX_CACHE_BYTES >> 30
+                ),
+            });
+        }
         let expected = Self::expected_header(world, grid);
         match Self::open(&cfg.path, &expected)? {
             Opened::Valid(c) => return Ok((c, false)),

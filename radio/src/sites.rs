@@ -374,6 +374,11 @@ pub fn place_sites(
         .collect())
 }
 
+/// Farthest site accepted from the scenario centre (m): far beyond any city model.
+pub const MAX_SITE_RANGE_M: f64 = 100_000.0;
+/// Highest antenna accepted (m above the ground): above the tallest masts.
+pub const MAX_SITE_HEIGHT_M: f64 = 1_000.0;
+
 fn resolve_spec(
     spec: &SiteSpec,
     i: usize,
@@ -406,9 +411,19 @@ fn resolve_spec(
             );
         }
     };
+    if xy.iter().any(|v| v.abs() > MAX_SITE_RANGE_M) {
+        return Err(format!(
+            "position ({:.1}, {:.1}) m is more than {MAX_SITE_RANGE_M} m from the scenario centre",
+            xy[0], xy[1]
+        ));
+    }
     let (position_m, mount) = match finite("z_m", spec.z_m)? {
-        Some(z) if z > 0.0 => ([xy[0], xy[1], z], Mount::User),
-        Some(z) => return Err(format!("field `z_m` = {z} must be > 0 (antenna height, m)")),
+        Some(z) if z > 0.0 && z <= MAX_SITE_HEIGHT_M => ([xy[0], xy[1], z], Mount::User),
+        Some(z) => {
+            return Err(format!(
+                "field `z_m` = {z} must be in (0, {MAX_SITE_HEIGHT_M}] (antenna height, m)"
+            ));
+        }
         None => mount_site(city, xy, cfg),
     };
     let kind = spec
@@ -435,7 +450,12 @@ fn resolve_spec(
         kind,
         boresights_deg,
         electrical_tilt_deg,
-        tx_power_dbm: finite("tx_power_dbm", spec.tx_power_dbm)?.unwrap_or(radio.tx_power_dbm),
+        tx_power_dbm: match finite("tx_power_dbm", spec.tx_power_dbm)? {
+            Some(p) if !(-50.0..=80.0).contains(&p) => {
+                return Err(format!("field `tx_power_dbm` = {p} not in [-50, 80] dBm"));
+            }
+            p => p.unwrap_or(radio.tx_power_dbm),
+        },
         mount,
     })
 }

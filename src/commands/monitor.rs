@@ -130,7 +130,12 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
     if let Some(d) = args.duration_s {
         // Bounds connecting too.
         let s = stop.clone();
-        let d = Duration::from_secs_f64(d.max(0.0));
+        let d = Duration::try_from_secs_f64(d)
+            .ok()
+            .filter(|d| d.as_secs() <= 366 * 86_400)
+            .ok_or_else(|| {
+                anyhow::anyhow!("--duration-s {d}: must be a number of seconds in [0, one year]")
+            })?;
         std::thread::spawn(move || {
             std::thread::sleep(d);
             s.store(true, Ordering::Relaxed);

@@ -78,13 +78,48 @@ pub fn link_stream(
 ) -> Result<usize> {
     let mut city: Option<City> = None;
     let mut failed = 0usize;
-    for (i, line) in input.lines().enumerate() {
-        let lineno = i + 1;
-        let line = line.with_context(|| format!("reading stdin line {lineno}"))?;
+    let mut input = input;
+    let mut buf = Vec::new();
+    let mut lineno = 0usize;
+    loop {
+        lineno += 1;
+        buf.clear();
+        // At most MAX_LINE_BYTES + 1 bytes of a line are kept; the rest is skipped.
+        let n = std::io::Read::take(&mut input, MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .with_context(|| format!("reading stdin line {lineno}"))?;
+        if n == 0 {
+            break;
+        }
+        let bad_line = |err: &mut dyn Write, what: String| writeln!(err, "line {lineno}: {what}");
+        if buf.len() > MAX_LINE_BYTES && buf.last() != Some(&b'\n') {
+            // Skip to the end of the over-long line.
+            let mut rest = Vec::new();
+            loop {
+                rest.clear();
+                let k = std::io::Read::take(&mut input, 1 << 16)
+                    .read_until(b'\n', &mut rest)
+                    .with_context(|| format!("reading stdin line {lineno}"))?;
+                if k == 0 || rest.last() == Some(&b'\n') {
+                    break;
+                }
+            }
+            failed += 1;
+            bad_line(err, format!("longer than {MAX_LINE_BYTES} bytes"))?;
+            continue;
+        }
+        let line = match std::str::from_utf8(&buf) {
+            Ok(l) => l,
+            Err(e) => {
+                failed += 1;
+                bad_line(err, format!("not UTF-8 at byte {}", e.valid_up_to()))?;
+                continue;
+            }
+        };
         if line.trim().is_empty() {
             continue;
         }
-        match link_one(cfg, &line, &mut city) {
+        match link_one(cfg, line, &mut city) {
             Ok(json) => writeln!(out, "{json}")?,
             Err(e) => {
                 failed += 1;
@@ -95,27 +130,50 @@ pub fn link_stream(
     Ok(failed)
 }
 
+/// Longest input line of `dupac radio link` (bytes); a request is ≈ 200.
+const MAX_LINE_BYTES: usize = 64 * 1024;
+/// Farthest point from the scenario centre accepted (m): 100 km, far beyond any cell's reach.
+const MAX_RANGE_M: f64 = 100_000.0;
+/// Highest point accepted (m): 10 km, above any UAV airspace and any mast.
+const MAX_HEIGHT_M: f64 = 10_000.0;
+
+/// A position inside the physical range of the models: finite, within [`MAX_RANGE_M`]
+/// horizontally, on or above the ground and below [`MAX_HEIGHT_M`].
+fn check_position(name: &str, v: [f64; 3]) -> Result<(), String> {
+    if !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("field `{name}`: {v:?} is not finite"));
+    }
+    if v[0].abs() > MAX_RANGE_M || v[1].abs() > MAX_RANGE_M {
+        return Err(format!(
+            "field `{name}`: {v:?} is more than {MAX_RANGE_M} m from the scenario centre"
+        ));
+    }
+    if !(0.0..=MAX_HEIGHT_M).contains(&v[2]) {
+        return Err(format!(
+            "field `{name}`: height {} m is not in [0, {MAX_HEIGHT_M}] m (heights are above the ground)",
+            v[2]
+        ));
+    }
+    Ok(())
+}
+
 fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String, String> {
     let req: LinkRequest = serde_json::from_str(line).map_err(|e| e.to_string())?;
-    let finite3 = |name: &str, v: [f64; 3]| {
-        if v.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err(format!("field `{name}`: {v:?} is not finite"))
-        }
-    };
-    finite3("bs_xyz", req.bs_xyz)?;
-    finite3("uav_xyz", req.uav_xyz)?;
+    check_position("bs_xyz", req.bs_xyz)?;
+    check_position("uav_xyz", req.uav_xyz)?;
     let mut radio = cfg.radio.clone();
     if let Some(f) = req.fc_ghz {
-        if !(f.is_finite() && f > 0.0) {
-            return Err(format!("field `fc_ghz`: {f} must be > 0"));
+        // TR 38.901 §7.4, which TR 36.777's models build on: 0.5–100 GHz.
+        if !(f.is_finite() && (0.5..=100.0).contains(&f)) {
+            return Err(format!("field `fc_ghz`: {f} must be in [0.5, 100] GHz"));
         }
         radio.fc_ghz = f;
     }
     let tx_power_dbm = match req.tx_power_dbm {
-        Some(p) if !p.is_finite() => {
-            return Err(format!("field `tx_power_dbm`: {p} is not finite"));
+        Some(p) if !(p.is_finite() && (-50.0..=80.0).contains(&p)) => {
+            return Err(format!(
+                "field `tx_power_dbm`: {p} must be in [-50, 80] dBm"
+            ));
         }
         Some(p) => p,
         None => radio.tx_power_dbm,
