@@ -1579,8 +1579,77 @@ impl Config {
             5120.0,
             "ms",
         )?;
+        let sc = &self.scenario;
+        // Search grids of 5 m around each site: these radii size their work.
+        within(
+            "scenario.roof_search_m",
+            sc.roof_search_m,
+            0.0,
+            1_000.0,
+            "m",
+        )?;
+        within(
+            "scenario.macro_radius_m",
+            sc.macro_radius_m,
+            0.0,
+            2_000.0,
+            "m",
+        )?;
+        within(
+            "scenario.pole_height_m",
+            sc.pole_height_m,
+            0.0,
+            1_000.0,
+            "m",
+        )?;
+        within("scenario.roof_mast_m", sc.roof_mast_m, -100.0, 100.0, "m")?;
+        let pc = &sc.procedural;
+        within("scenario.procedural.size_m", pc.size_m, 0.0, 20_000.0, "m")?;
+        within(
+            "scenario.procedural.street_pitch_m",
+            pc.street_pitch_m,
+            5.0,
+            10_000.0,
+            "m",
+        )?;
+        within(
+            "scenario.procedural.avenue_spacing_m",
+            pc.avenue_spacing_m,
+            5.0,
+            10_000.0,
+            "m",
+        )?;
+        // The flight area: at most ≈ 50 km across (a city, not a country).
+        within(
+            "scenario.area.lon_max_deg",
+            sc.area.lon_max_deg - sc.area.lon_min_deg,
+            0.0,
+            0.5,
+            "degrees east of lon_min_deg",
+        )?;
+        within(
+            "scenario.area.lat_max_deg",
+            sc.area.lat_max_deg - sc.area.lat_min_deg,
+            0.0,
+            0.5,
+            "degrees north of lat_min_deg",
+        )?;
+        within("planner.voxel_m", self.planner.voxel_m, 0.5, 1_000.0, "m")?;
+        let e = &self.env;
+        within("env.z_max_m", e.z_max_m, 0.0, 10_000.0, "m")?;
+        within("env.speed_mps", e.speed_mps, 0.0, 1_000.0, "m/s")?;
+        within(
+            "env.observation.sensor_range_m",
+            e.observation.sensor_range_m,
+            0.0,
+            10_000.0,
+            "m",
+        )?;
+        at_most("env.action_repeat", u64::from(e.action_repeat), 1_000)?;
+        within("pairs.max_m", self.pairs.max_m, 0.0, 100_000.0, "m")?;
         let c = &self.cache;
         within("cache.horizontal_m", c.horizontal_m, 0.5, 1_000.0, "m")?;
+        within("cache.z_max_m", c.z_max_m, 0.0, 10_000.0, "m")?;
         within("cache.vertical_m", c.vertical_m, 0.5, 1_000.0, "m")?;
         within(
             "env.time_limit_factor",

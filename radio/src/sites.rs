@@ -411,11 +411,18 @@ fn resolve_spec(
             );
         }
     };
-    if xy.iter().any(|v| v.abs() > MAX_SITE_RANGE_M) {
-        return Err(format!(
-            "position ({:.1}, {:.1}) m is more than {MAX_SITE_RANGE_M} m from the scenario centre",
-            xy[0], xy[1]
-        ));
+    let by_lonlat = spec.x_m.is_none();
+    for (name, v) in [("x_m", xy[0]), ("y_m", xy[1])] {
+        let name = match (by_lonlat, name) {
+            (true, "x_m") => "lon_deg",
+            (true, _) => "lat_deg",
+            (false, n) => n,
+        };
+        if v.abs() > MAX_SITE_RANGE_M {
+            return Err(format!(
+                "field `{name}`: {v:e} m east/north, more than {MAX_SITE_RANGE_M} m from the scenario centre"
+            ));
+        }
     }
     let (position_m, mount) = match finite("z_m", spec.z_m)? {
         Some(z) if z > 0.0 && z <= MAX_SITE_HEIGHT_M => ([xy[0], xy[1], z], Mount::User),

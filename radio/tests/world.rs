@@ -265,6 +265,25 @@ fn sites_file_overrides_placement_and_bad_files_name_the_line() {
     assert_ne!(sites[1].mount, Mount::User, "no z_m: mounted by the rule");
     assert_eq!(sites[1].tx_power_dbm, 15.2);
 
+    // Out of physical range (issue 16): a position 1e308 m away, an antenna 5 km up, 200 dBm.
+    for (row, what) in [
+        ("a,1e308,20,30", "from the scenario centre"),
+        ("a,10,20,5000", "z_m"),
+        ("a,10,20,30,macro,0,6,200", "tx_power_dbm"),
+    ] {
+        std::fs::write(
+            &csv,
+            format!("name,x_m,y_m,z_m,kind,boresights_deg,tilt_deg,tx_power_dbm\n{row}\n")
+                .replace("a,1e308,20,30\n", "a,1e308,20,30,,,,\n")
+                .replace("a,10,20,5000\n", "a,10,20,5000,,,,\n"),
+        )
+        .expect("write");
+        let e = place_sites(&cfg.scenario, &cfg.radio, &city)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sites.csv") && e.contains(what), "{row}: {e}");
+    }
+
     // A missing position column: named, with the line.
     std::fs::write(&csv, "name,x_m,z_m\na,10,30\n").expect("write");
     let e = place_sites(&cfg.scenario, &cfg.radio, &city)
