@@ -274,3 +274,56 @@ pub fn write_sites_csv(world: &RadioWorld, w: &mut dyn Write) -> std::io::Result
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const GOOD: &str = r#"{"bs_xyz":[0,0,25],"uav_xyz":[100,0,50],"scenario":"uma","los":true}"#;
+
+    fn cfg() -> Config {
+        let mut c = Config::default();
+        c.scenario.city = dupac_common::config::CityKind::Procedural;
+        c.scenario.procedural.size_m = 300.0;
+        c
+    }
+
+    /// Runs `input` through the link calculator: (answers, error lines, failed count).
+    fn run(input: &[u8]) -> (usize, usize, usize) {
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let failed = link_stream(&cfg(), input, &mut out, &mut err).expect("stream");
+        let count = |b: &[u8]| b.iter().filter(|&&c| c == b'\n').count();
+        (count(&out), count(&err), failed)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Issue 16: any bytes, and a valid line with bytes flipped, never panic; every
+        /// non-blank line is answered or refused with one error line, and good lines around
+        /// it are still answered.
+        #[test]
+        fn any_line_is_answered_or_refused_never_a_panic(
+            garbage in prop::collection::vec(any::<u8>(), 0..300),
+            flips in prop::collection::vec((any::<usize>(), any::<u8>()), 0..6),
+        ) {
+            let mut line = GOOD.as_bytes().to_vec();
+            for (at, x) in flips {
+                let n = line.len();
+                line[at % n] ^= x;
+            }
+            for bad in [&garbage, &line] {
+                let bad: Vec<u8> = bad.iter().map(|&b| if b == b'\n' { b' ' } else { b }).collect();
+                let mut input = format!("{GOOD}\n").into_bytes();
+                input.extend_from_slice(&bad);
+                input.extend_from_slice(format!("\n{GOOD}\n").as_bytes());
+                let (answers, errors, failed) = run(&input);
+                prop_assert_eq!(errors, failed);
+                let blank = std::str::from_utf8(&bad).is_ok_and(|s| s.trim().is_empty());
+                prop_assert_eq!(answers + errors, if blank { 2 } else { 3 });
+                prop_assert!(answers >= 2);
+            }
+        }
+    }
+}
