@@ -423,10 +423,11 @@ fn an_atomic_write_syncs_the_file_then_renames_then_syncs_the_directory() {
     );
 }
 
-/// Issue 16: a configuration that validates builds its world (here: `dupac cache build`, the
-/// radio world and its RSRP cache) or stops with an error; never a panic, an abort or a hang.
-/// Every key of the configuration gets three hostile values (NaN, ±inf, huge, negative, zero, …,
-/// chosen round-robin) on top of the small test configuration. (It found the hang of
+/// Issue 16: a configuration that validates builds its world (`dupac cache build`: the radio
+/// world and its RSRP cache; then `dupac pairs`: the planner's voxel grid and the held-out
+/// pairs) or stops with an error; never a panic, an abort or a hang. Every key of the
+/// configuration gets three hostile values (NaN, ±inf, huge, negative, zero, …, chosen
+/// round-robin) on top of the small test configuration. (It found the hang of
 /// `scenario.macro_radius_m = 4294967296`, now bounded.)
 #[test]
 fn no_value_that_validation_accepts_panics_building_the_world() {
@@ -447,8 +448,10 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
         "[65536, 65536]",
         "\"\"",
     ];
+    const LIMIT: std::time::Duration = std::time::Duration::from_secs(30);
     let dir = tempfile::tempdir().expect("tmp");
     let config = write_config(dir.path(), "faults-hostile-config", 1000);
+    let pairs_out = dir.path().join("pairs.jsonl").display().to_string();
     let defaults: toml::Table =
         toml::from_str(&dupac_common::Config::default().to_toml_string()).expect("defaults");
     let mut keys = Vec::new();
@@ -467,7 +470,7 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
     }
     walk("", &defaults, &mut keys);
     assert!(keys.len() > 50, "{} keys", keys.len());
-    let (mut accepted, mut refused) = (0, 0);
+    let (mut ran, mut refused) = (0, 0);
     let mut failures = Vec::new();
     for (i, key) in keys.iter().enumerate() {
         // Paths would write outside the test's directory.
@@ -476,52 +479,60 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
         }
         for k in 0..3 {
             let set = format!("{key}={}", HOSTILE[(i + 5 * k) % HOSTILE.len()]);
-            let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
-                .arg("--config")
-                .arg(&config)
-                .args(["-q", "--set", &set, "cache", "build"])
-                .stdin(std::process::Stdio::null())
-                .stdout(std::process::Stdio::null())
-                .stderr(std::process::Stdio::piped())
-                .spawn()
-                .expect("spawn");
-            let t0 = std::time::Instant::now();
-            let status = loop {
-                if let Some(st) = child.try_wait().expect("wait") {
-                    break st;
-                }
-                if t0.elapsed() > std::time::Duration::from_secs(30) {
-                    let _ = child.kill();
-                    let _ = child.wait();
-                    failures.push(format!("--set {set}: still running after 30 s"));
-                    break child.wait().expect("reaped");
-                }
-                std::thread::sleep(std::time::Duration::from_millis(20));
-            };
-            let mut err = String::new();
-            let _ =
-                std::io::Read::read_to_string(&mut child.stderr.take().expect("stderr"), &mut err);
-            if t0.elapsed() > std::time::Duration::from_secs(30) {
-                continue;
-            }
-            if !(status.code() == Some(0) || status.code() == Some(1)) {
-                failures.push(format!(
-                    "--set {set}: {status} (a panic or a signal): {err}"
-                ));
-                continue;
-            }
-            if status.success() {
-                accepted += 1;
-            } else {
-                assert!(
-                    !err.trim().is_empty(),
-                    "--set {set}: failed without a message"
+            // The world and its cache; then, if validation accepted the value, the planner
+            // and the pairs.
+            for command in [&["cache", "build"][..], &["pairs", "--out", &pairs_out][..]] {
+                let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+                    .arg("--config")
+                    .arg(&config)
+                    .args(["-q", "--set", &set])
+                    .args(command)
+                    .stdin(std::process::Stdio::null())
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .expect("spawn");
+                let t0 = std::time::Instant::now();
+                let status = loop {
+                    if let Some(st) = child.try_wait().expect("wait") {
+                        break Some(st);
+                    }
+                    if t0.elapsed() > LIMIT {
+                        let _ = child.kill();
+                        let _ = child.wait();
+                        break None;
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                };
+                let mut err = String::new();
+                let _ = std::io::Read::read_to_string(
+                    &mut child.stderr.take().expect("stderr"),
+                    &mut err,
                 );
-                refused += 1;
+                let Some(status) = status else {
+                    failures.push(format!("--set {set} {command:?}: still running after 30 s"));
+                    break;
+                };
+                if !(status.code() == Some(0) || status.code() == Some(1)) {
+                    failures.push(format!(
+                        "--set {set} {command:?}: {status} (a panic or a signal): {err}"
+                    ));
+                    break;
+                }
+                if status.success() {
+                    ran += 1;
+                } else {
+                    assert!(
+                        !err.trim().is_empty(),
+                        "--set {set} {command:?}: failed without a message"
+                    );
+                    refused += 1;
+                    break;
+                }
             }
         }
     }
-    eprintln!("{accepted} hostile values accepted and built, {refused} refused with an error");
+    eprintln!("{ran} commands ran with a hostile value, {refused} refused it with an error");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-    assert!(accepted > 0 && refused > 0);
+    assert!(ran > 0 && refused > 0);
 }

@@ -1545,6 +1545,35 @@ impl Config {
             self.pairs.eval_per_bin as u64,
             100_000,
         )?;
+        at_most(
+            "pairs.eval_bins_m",
+            self.pairs.eval_bins_m.len() as u64,
+            1_000,
+        )?;
+        if self.pairs.eval_bins_m.len() * self.pairs.eval_per_bin > 100_000 {
+            return Err(ConfigError::Invalid {
+                key: "pairs.eval_per_bin".into(),
+                message: format!(
+                    "{} bins × {} pairs: at most 100000 held-out pairs",
+                    self.pairs.eval_bins_m.len(),
+                    self.pairs.eval_per_bin
+                ),
+            });
+        }
+        at_most("map.altitudes_m", self.map.altitudes_m.len() as u64, 64)?;
+        at_most(
+            "radio.antenna.boresights_deg",
+            self.radio.antenna.boresights_deg.len() as u64,
+            16,
+        )?;
+        at_most("ppo.site_hidden", self.ppo.site_hidden.len() as u64, 16)?;
+        // The observation holds 10 features per site; the paper has 30 sites.
+        at_most("scenario.n_sites", self.scenario.n_sites as u64, 1_024)?;
+        at_most(
+            "scenario.procedural.n_sites",
+            self.scenario.procedural.n_sites as u64,
+            1_024,
+        )?;
         let pp = &self.ppo;
         at_most("ppo.update_epochs", pp.update_epochs as u64, 1_000)?;
         at_most("ppo.hidden", pp.hidden.len() as u64, 16).map_err(|_| ConfigError::Invalid {
