@@ -57,59 +57,50 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), FsError> {
-    let dir = parent(path);
-    std::fs::create_dir_all(dir).map_err(at("creating directory", dir))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "file".into());
-    let mut tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}{TMP_MARK}"))
-        .tempfile_in(dir)
-        .map_err(at("creating a temporary file in", dir))?;
+    let mut tmp = temporary_beside(path, "")?;
     {
         let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
         fill(&mut w).map_err(at("writing", path))?;
         w.flush().map_err(at("writing", path))?;
     }
-    tmp.as_file().sync_all().map_err(at("syncing", path))?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(at("setting permissions of", path))?;
-    }
-    tmp.persist(path)
-        .map_err(|e| at("renaming into", path)(e.error))?;
-    sync_dir(dir).map_err(at("syncing directory", dir))
+    commit(tmp, path)
 }
 
 /// Writes `path` atomically through a tool that can only write to a path of its own (an image
-/// encoder): `draw` writes the temporary path it is given, then it is synced, given 0644 and
-/// renamed like [`write_atomic_with`]'s.
+/// encoder): `draw` writes the temporary path it is given, which is then committed like
+/// [`write_atomic_with`]'s.
 pub fn write_atomic_via_path(
     path: &Path,
     draw: impl FnOnce(&Path) -> std::io::Result<()>,
 ) -> Result<(), FsError> {
+    // Keep the extension last: encoders choose the format by it.
+    let ext = path
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    let tmp = temporary_beside(path, &ext)?;
+    draw(tmp.path()).map_err(at("writing", path))?;
+    commit(tmp, path)
+}
+
+/// A new temporary file in `path`'s directory (created), named `.<name>.dupac-tmp.<random><suffix>`.
+fn temporary_beside(path: &Path, suffix: &str) -> Result<tempfile::NamedTempFile, FsError> {
     let dir = parent(path);
     std::fs::create_dir_all(dir).map_err(at("creating directory", dir))?;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "file".into());
-    // Keep the extension last: encoders choose the format by it.
-    let ext = path
-        .extension()
-        .map(|e| format!(".{}", e.to_string_lossy()))
-        .unwrap_or_default();
-    let tmp = tempfile::Builder::new()
+    tempfile::Builder::new()
         .prefix(&format!(".{name}{TMP_MARK}"))
-        .suffix(&ext)
+        .suffix(suffix)
         .tempfile_in(dir)
-        .map_err(at("creating a temporary file in", dir))?;
-    draw(tmp.path()).map_err(at("writing", path))?;
-    // The encoder may have replaced the file: reopen it by path to sync it.
+        .map_err(at("creating a temporary file in", dir))
+}
+
+/// Syncs the written temporary file (reopened by path: a tool may have replaced it), gives it
+/// 0644 (tempfile creates 0600), renames it over `path` and syncs the directory.
+fn commit(tmp: tempfile::NamedTempFile, path: &Path) -> Result<(), FsError> {
     std::fs::File::open(tmp.path())
         .and_then(|f| f.sync_all())
         .map_err(at("syncing", path))?;
@@ -121,6 +112,7 @@ pub fn write_atomic_via_path(
     }
     tmp.persist(path)
         .map_err(|e| at("renaming into", path)(e.error))?;
+    let dir = parent(path);
     sync_dir(dir).map_err(at("syncing directory", dir))
 }
 
