@@ -4,6 +4,11 @@ use std::io::Write;
 use std::process::{Command, Output, Stdio};
 
 fn dupac(args: &[&str], stdin: Option<&str>) -> Output {
+    dupac_bytes(args, stdin.map(str::as_bytes))
+}
+
+/// [`dupac`] with any bytes on stdin (not UTF-8, say).
+fn dupac_bytes(args: &[&str], stdin: Option<&[u8]>) -> Output {
     let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -17,7 +22,7 @@ fn dupac(args: &[&str], stdin: Option<&str>) -> Output {
             .stdin
             .take()
             .expect("stdin")
-            .write_all(input.as_bytes())
+            .write_all(input)
             .expect("write stdin");
     } else {
         drop(child.stdin.take());
@@ -757,21 +762,7 @@ fn link_calculator_refuses_unphysical_and_undecodable_lines_one_by_one() {
     input.extend_from_slice(&vec![b' '; 100_000]);
     input.extend_from_slice(b"\n");
     input.extend_from_slice(good);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
-        .args(["radio", "link"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn dupac");
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(&input)
-        .expect("write stdin");
-    let out = child.wait_with_output().expect("wait dupac");
+    let out = dupac_bytes(&["radio", "link"], Some(&input));
     assert!(!out.status.success());
     assert_eq!(json_lines(&out).len(), 2, "the good lines are answered");
     let err = String::from_utf8_lossy(&out.stderr);
