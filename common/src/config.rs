@@ -457,14 +457,16 @@ pub struct RewardConfig {
     pub collision_reward: f64,
     /// Reward for leaving the flight area (terminated).
     pub out_of_bounds_reward: f64,
-    /// Reward added per handover (the paper has none: 0). A departure by default (−1): the learned
+    /// Reward added per handover (the paper has none: 0). A departure by default (−3): the learned
     /// association has no hysteresis or time-to-trigger as A3 does, and without a cost a policy
-    /// that is indifferent among sites switches freely (docs/env.md, issue 15).
+    /// that is indifferent among sites switches freely. With `site_regret_weight` = 1 a switch
+    /// pays within one decision (5 steps) when the new site is ≥ 0.6 dB stronger (docs/env.md,
+    /// docs/results.md "w_s and the handover cost", issue 15).
     pub handover_reward: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
     /// costs SINR against the stronger interferer; this term prefers the stronger site
-    /// (a departure, 0 in the paper; docs/env.md). Regret is capped at 60 dB.
+    /// (a departure, 0 in the paper; default 1 per dB; docs/env.md). Regret is capped at 60 dB.
     pub site_regret_weight: f64,
     /// κ_r, the route's connectivity weight: per metre flown, −μ1 · κ_r · penalty(class of the
     /// *best* site here), with the coverage-aware planner's penalties
@@ -484,8 +486,8 @@ impl Default for RewardConfig {
             goal_reward: 100.0,
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
-            handover_reward: -1.0,
-            site_regret_weight: 0.1,
+            handover_reward: -3.0,
+            site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
         }
     }
