@@ -431,6 +431,17 @@ pub enum SiteGradient {
     AllSites,
 }
 
+/// How far the all-sites site advantage looks (see [`PpoConfig::site_horizon`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SiteHorizon {
+    /// Each site's reward of this decision alone (handover cost included): myopic.
+    Decision,
+    /// Plus the discounted value of the best association over the rest of the recorded route
+    /// with that site serving (a dynamic programme with the handover cost; `learner/site_horizon.rs`).
+    Route,
+}
+
 /// Where the environment gets RSRP from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -740,6 +751,11 @@ pub struct PpoConfig {
     /// and clip with the move), `all_sites` = the exact expected gradient over every site's
     /// reward (the environment evaluates all of them), apart from the move's ratio and clip.
     pub site_gradient: SiteGradient,
+    /// The all-sites advantage's horizon: `decision` = each site's decision reward (myopic: the
+    /// cost of a switch is seen, not the cost of switching back), `route` = plus the best
+    /// association's value over the rest of the recorded route from that site (issue 15,
+    /// docs/training.md "Site learning"). Read only with `site_gradient = "all_sites"`.
+    pub site_horizon: SiteHorizon,
     /// Width of the state embedding the equivariant head appends to each site's features.
     pub site_embed: usize,
     /// Hidden widths of the equivariant head's per-site MLP.
@@ -782,6 +798,7 @@ impl Default for PpoConfig {
             hidden: vec![256, 256],
             site_head: SiteHead::Equivariant,
             site_gradient: SiteGradient::AllSites,
+            site_horizon: SiteHorizon::Decision,
             site_embed: 16,
             site_hidden: vec![32],
             site_coef: 1.0,

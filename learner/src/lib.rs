@@ -7,4 +7,5 @@ pub mod dist;
 pub mod gae;
 pub mod model;
 pub mod ppo;
+pub mod site_horizon;
 pub mod train;

@@ -17,13 +17,15 @@ use crate::checkpoint::{CheckpointError, CheckpointMeta, LoadedCheckpoint, save_
 use crate::gae::{Trajectory, gae};
 use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
+use crate::site_horizon::{route_site_rewards, serving_before};
 use dupac_actor::env::{Env, EnvError, Episode, Outcome};
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::{
     EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed,
 };
 use dupac_common::ActorId;
-use dupac_common::config::{Association, Config, SiteGradient, SiteHead};
+use dupac_common::config::{Association, Config, SiteGradient, SiteHead, SiteHorizon};
+use dupac_common::obs::ObsLayout;
 use dupac_common::policy::{
     MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead as PlainSiteHead,
 };
@@ -585,6 +587,13 @@ impl Learner {
             && segments
                 .iter()
                 .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites);
+        // The route horizon reads the serving site before each decision from the observation.
+        let serving_field = if all_sites && self.cfg.ppo.site_horizon == SiteHorizon::Route {
+            ObsLayout::new(&self.cfg.env.observation, self.n_sites)
+                .range(dupac_common::obs::field::SERVING_ONE_HOT)
+        } else {
+            None
+        };
         let mut batch = Batch {
             obs_dim: self.obs_dim,
             n_sites: if all_sites { self.n_sites } else { 0 },
@@ -671,11 +680,21 @@ impl Learner {
                 tr.logprobs.clone()
             };
             if all_sites {
-                batch.site_rewards.extend(
-                    tr.site_rewards
-                        .iter()
-                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
-                );
+                let raw: Vec<f64> = tr.site_rewards.iter().map(|&r| f64::from(r)).collect();
+                let rows = match &serving_field {
+                    Some(range) => {
+                        let prev = serving_before(&tr.obs, self.obs_dim, range.clone());
+                        let done: Vec<bool> = (0..n)
+                            .map(|t| tr.terminated[t] || tr.truncated[t])
+                            .collect();
+                        let h = self.cfg.env.reward.handover_reward;
+                        route_site_rewards(&raw, &prev, &done, self.n_sites, gamma, h)
+                    }
+                    None => raw,
+                };
+                batch
+                    .site_rewards
+                    .extend(rows.iter().map(|&r| self.reward_scaler.scale(r) as f32));
             }
             match &prox {
                 Some(prox) => {

@@ -335,6 +335,46 @@ fn all_sites_gradient_matches_the_hand_computed_expectation() {
     assert!(g[1] < 0.0 && g[0] > 0.0 && g[2] > 0.0);
 }
 
+#[test]
+fn route_horizon_charges_the_switch_back_that_the_decision_horizon_misses() {
+    use dupac_learner::site_horizon::{route_site_rewards, serving_before};
+    // M = 2 sites, 3 decisions, site 0 served throughout, handover h = −3, γ = 1. Site 1's link
+    // is 4 better at t = 1 and 10 worse at t = 2; site 0's is 0 everywhere.
+    let h = -3.0;
+    let prev = [0usize, 0, 0];
+    // The environment's rows: link + h for a switch away from site 0.
+    let rows = [0.0, -3.0, 0.0, 4.0 + h, 0.0, -10.0 + h];
+    let myopic = site_advantages(&rows.map(|r| r as f32), &[1], 2, false);
+    // The decision horizon prefers the switch at t = 1 (+1 over staying)…
+    assert_eq!(myopic, vec![-1.0, 0.0]);
+    let out = route_site_rewards(&rows, &prev, &[false; 3], 2, 1.0, h);
+    // …the route horizon sees the switch back at t = 2 and prefers staying. By hand: from t = 1
+    // with site 1 serving, the best continuation pays the handover back (−3) at t = 2; with
+    // site 0, nothing. Rows are shifted by a constant per row (the best continuation's value).
+    let adv = |t: usize| {
+        let r = &out[t * 2..t * 2 + 2];
+        let best = r[0].max(r[1]);
+        [r[0] - best, r[1] - best]
+    };
+    assert_eq!(adv(2), [0.0, -13.0]);
+    assert_eq!(adv(1), [0.0, -2.0]);
+    // t = 0: stay (0, then stay, stay: 0) vs switch (−3, then stay on 1: 4, then back: −3).
+    assert_eq!(adv(0), [0.0, -2.0]);
+    // An episode that ends at t = 1 has no continuation there: the decision horizon's row.
+    let ended = route_site_rewards(&rows, &prev, &[false, true, false], 2, 1.0, h);
+    assert_eq!(&ended[2..4], &rows[2..4]);
+    // Without a handover cost the route adds nothing that changes an advantage.
+    let free = [0.0, 0.0, 0.0, 4.0, 0.0, -10.0];
+    let out = route_site_rewards(&free, &prev, &[false; 3], 2, 0.9, 0.0);
+    for t in 0..3 {
+        let (a, b) = (out[t * 2] - free[t * 2], out[t * 2 + 1] - free[t * 2 + 1]);
+        assert!((a - b).abs() < 1e-12, "row {t}: {a} vs {b}");
+    }
+    // The serving site before each decision, read from the one-hot field.
+    let obs = [9.0f32, 0.0, 1.0, 9.0, 1.0, 0.0];
+    assert_eq!(serving_before(&obs, 3, 1..3), vec![1, 0]);
+}
+
 /// Squared L2 norm of every gradient, visited independently of the code under test.
 struct Collect<'a>(&'a GradientsParams, Vec<Vec<f32>>);
 impl ModuleVisitor for Collect<'_> {
