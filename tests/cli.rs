@@ -597,6 +597,10 @@ fn train_resume_and_fly_on_a_small_city() {
         policy,
         "--lambda".into(),
         "1".into(),
+        "--hindsight".into(),
+        "0".into(),
+        "--hindsight".into(),
+        "1000:mts".into(),
         "--out".into(),
         ev.display().to_string(),
     ];
@@ -617,6 +621,8 @@ fn train_resume_and_fly_on_a_small_city() {
         [
             "dupac",
             "dupac+a3",
+            "dupac+hindsight_0",
+            "dupac+hindsight_1000_mts",
             "dupac+oracle",
             "coverage_l1",
             "shortest_a3",
@@ -638,6 +644,22 @@ fn train_resume_and_fly_on_a_small_city() {
             .expect("number")
     };
     assert_eq!(col("dupac+oracle", "site_regret_db"), 0.0, "{summary}");
+    // The hindsight association: at no handover cost the best site every step (the oracle's
+    // regret, to the replay's f32 positions); with the minimum stay, no ping-pong and no more handovers than the oracle.
+    assert!(
+        col("dupac+hindsight_0", "site_regret_db") < 1e-3,
+        "{summary}"
+    );
+    assert_eq!(
+        col("dupac+hindsight_1000_mts", "ping_pongs_per_km"),
+        0.0,
+        "{summary}"
+    );
+    assert!(
+        col("dupac+hindsight_1000_mts", "handovers_per_km")
+            <= col("dupac+oracle", "handovers_per_km"),
+        "{summary}"
+    );
     assert_eq!(col("dupac+oracle", "pct_class_regret"), 0.0, "{summary}");
     assert_eq!(
         col("dupac+a3", "success"),

@@ -279,6 +279,41 @@ fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
 }
 
 #[test]
+fn the_minimum_time_of_stay_leaves_no_ping_pong() {
+    // A learned choice that alternates every step: with a minimum stay of 1 s (21 steps at
+    // 20.8 m/s) each handover comes ≥ 22 steps after the last, later choices are ignored
+    // meanwhile, and no handover is a ping-pong (window 1 s). Without it, every step hands over.
+    let run = |mts_s: f64| {
+        let mut cfg = Config::default();
+        cfg.env.association = Association::Learned;
+        cfg.env.min_time_of_stay_s = mts_s;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        e.reset(1, ep([0.0, -90.0, 50.0], [0.0, 100.0, 50.0]))
+            .expect("reset");
+        let mut handover_steps = Vec::new();
+        let mut ping_pongs = 0;
+        for t in 0..120u32 {
+            let st = e
+                .step(&mv(0.0, 1.0, 0.0, ((t + 1) % 2) as u16))
+                .expect("step");
+            if st.info.handover {
+                handover_steps.push(st.info.step);
+            }
+            ping_pongs += u32::from(st.info.ping_pong);
+        }
+        (handover_steps, ping_pongs)
+    };
+    let (free, free_pp) = run(0.0);
+    assert_eq!(free.len(), 120);
+    assert!(free_pp > 100);
+    let (held, held_pp) = run(1.0);
+    assert_eq!(held_pp, 0);
+    assert_eq!(held[0], 1, "the first choice is free");
+    assert!(held.windows(2).all(|w| w[1] - w[0] >= 22), "{held:?}");
+    assert!(held.len() >= 5, "{held:?}");
+}
+
+#[test]
 fn handovers_and_ping_pongs_are_counted() {
     let mut e = env_with(Association::Learned, EXCELLENT);
     e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
@@ -568,6 +603,58 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     assert_eq!(e.substeps().len(), 1, "36 = 7 × 5 + 1");
 }
 
+/// `env.observation.site_trend`: one more feature per site, its RSRP change since the previous
+/// observation / 10 dB (0 at the start of an episode), and the site features still last.
+#[test]
+fn site_trend_is_the_rsrp_change_over_one_decision() {
+    use dupac_common::obs::{site_feature, site_features_per_site};
+    // Site 0 falls 0.5 dB per metre north, site 1 rises 0.5 dB.
+    let field: fn(usize, [f64; 3]) -> f64 = |s, p| {
+        if s == 0 {
+            -70.0 - 0.5 * p[1]
+        } else {
+            -90.0 + 0.5 * p[1]
+        }
+    };
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    cfg.env.observation.site_trend = true;
+    let per_site = site_features_per_site(&cfg.env.observation);
+    assert_eq!(per_site, 11);
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(field, 2))).expect("env");
+    let trend = |e: &Env| {
+        let r = e
+            .layout()
+            .range(field::SITE_FEATURES)
+            .expect("site features");
+        assert_eq!(r.len(), 2 * per_site);
+        assert_eq!(r.end, e.observation().len(), "the site features stay last");
+        let o = &e.observation()[r];
+        [0, 1].map(|k| o[k * per_site + site_feature::RSRP_TREND])
+    };
+    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 150.0, 50.0]))
+        .expect("reset");
+    assert_eq!(trend(&e), [0.0, 0.0]);
+    // One decision: 5 steps of 1 m north, −2.5 and +2.5 dB.
+    e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
+    let t = trend(&e);
+    assert!(
+        (t[0] + 0.25).abs() < 1e-5 && (t[1] - 0.25).abs() < 1e-5,
+        "{t:?}"
+    );
+    // A decision that holds still: no change.
+    e.act(&mv(0.0, 0.0, 0.0, 0)).expect("act");
+    assert_eq!(trend(&e), [0.0, 0.0]);
+    // A new episode starts from 0 again.
+    e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
+    e.reset(2, ep([0.0, 0.0, 50.0], [0.0, 150.0, 50.0]))
+        .expect("reset");
+    assert_eq!(trend(&e), [0.0, 0.0]);
+    // Without the key the layout is today's: 10 features per site.
+    let plain = Env::new(&Config::default(), world(), Arc::new(Field(field, 2))).expect("env");
+    assert_eq!(plain.layout().len() + 2, e.layout().len());
+}
+
 #[test]
 fn geofence_makes_the_area_edge_a_sensed_wall() {
     use dupac_common::config::NearestObstacle;
@@ -626,9 +713,23 @@ const CROSSING: fn(usize, [f64; 3]) -> f64 = |s, p| {
 fn site_rewards_are_what_each_site_would_have_given() {
     let mut cfg = Config::default();
     cfg.env.association = Association::Learned;
+    site_rewards_match_their_counterfactuals(&cfg);
+}
+
+/// The same with a minimum time of stay of 0.3 s (7 steps): a decision's choice is deferred past
+/// its first step (or never applied) while the stay lasts, and every site's reward says so.
+#[test]
+fn site_rewards_follow_the_minimum_time_of_stay() {
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    cfg.env.min_time_of_stay_s = 0.3;
+    site_rewards_match_their_counterfactuals(&cfg);
+}
+
+fn site_rewards_match_their_counterfactuals(cfg: &Config) {
     assert!(cfg.env.reward.handover_reward < 0.0 && cfg.env.reward.site_regret_weight > 0.0);
     assert!(cfg.env.reward.route_connectivity_weight > 0.0);
-    let make = || Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+    let make = || Env::new(cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
     let episode = ep([0.0, 0.0, 50.0], [0.0, 120.0, 50.0]);
     // A scripted flight that switches sites now and then.
     let plan: Vec<Action> = (0..16)

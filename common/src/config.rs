@@ -547,6 +547,11 @@ pub struct ObservationConfig {
     /// at the end of the observation; the actor and critic MLPs do not read them. Written only
     /// under `env.association = "learned"` (zeros otherwise). A departure (issue 15).
     pub site_features: bool,
+    /// One more site feature (with `site_features`): each site's RSRP change since the previous
+    /// observation ([`crate::obs::site_feature::RSRP_TREND`]), a one-decision memory from which
+    /// the site head can tell a rising site from a passing peak (A3 has its time-to-trigger for
+    /// that). Off by default (issue 15; measured in docs/results.md "What any association can do").
+    pub site_trend: bool,
 }
 
 impl Default for ObservationConfig {
@@ -565,6 +570,7 @@ impl Default for ObservationConfig {
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
             site_features: true,
+            site_trend: false,
         }
     }
 }
@@ -608,6 +614,14 @@ pub struct EnvConfig {
     pub radio_mode: RadioMode,
     /// A return to the previous site within this time is a ping-pong (s).
     pub ping_pong_window_s: f64,
+    /// Minimum time of stay of the learned association (s): no handover within this time of the
+    /// previous one (the step of the handover + ceil(T / Δt) steps, inclusive); the site chosen
+    /// meanwhile is ignored and every site's reward is the serving one's, so the choice gets no
+    /// gradient. 3GPP TR 36.839 calls a handover back within the minimum time of stay (1 s) a
+    /// ping-pong; this makes the learned rule keep it, as A3's hysteresis and time-to-trigger
+    /// do heuristically. 0 = off (the paper: a free choice every decision). Learned association
+    /// only (issue 15; docs/env.md, docs/results.md "What any association can do").
+    pub min_time_of_stay_s: f64,
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
     /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
     pub site_regret_threshold_db: f64,
@@ -631,6 +645,7 @@ impl Default for EnvConfig {
             association: Association::Learned,
             radio_mode: RadioMode::Cache,
             ping_pong_window_s: 1.0,
+            min_time_of_stay_s: 0.0,
             site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
             observation: ObservationConfig::default(),
@@ -1280,6 +1295,9 @@ impl Config {
         positive("env.time_limit_factor", e.time_limit_factor)?;
         positive("env.ping_pong_window_s", e.ping_pong_window_s)?;
         positive("env.site_regret_threshold_db", e.site_regret_threshold_db)?;
+        if !(e.min_time_of_stay_s.is_finite() && (0.0..=60.0).contains(&e.min_time_of_stay_s)) {
+            return Err(bad("env.min_time_of_stay_s", "must be in [0, 60] s"));
+        }
         let rw = &e.reward;
         for (k, v) in [
             ("env.reward.mu1", rw.mu1),
@@ -1384,6 +1402,12 @@ impl Config {
             return Err(bad(
                 "ppo.site_head",
                 "\"equivariant\" scores sites from env.observation.site_features: set it to true, or use \"slots\"",
+            ));
+        }
+        if o.site_trend && !o.site_features {
+            return Err(bad(
+                "env.observation.site_trend",
+                "is a site feature: set env.observation.site_features to true too",
             ));
         }
         if !(1..=1024).contains(&pp.site_embed) {

@@ -32,10 +32,18 @@ pub mod site_feature {
     pub const SIN_BEARING_GOAL: usize = 8;
     /// 1 when the geometric line of sight to the site is clear.
     pub const LOS: usize = 9;
+    /// With `env.observation.site_trend` only: the site's RSRP now minus at the previous
+    /// observation (one decision ago; 0 at the start), / 10 dB, clipped to ±3.
+    pub const RSRP_TREND: usize = 10;
 }
 
-/// Number of features per site in the `site_features` field.
+/// Number of features per site in the `site_features` field without `site_trend`.
 pub const SITE_FEATURES: usize = 10;
+
+/// Features per site in the `site_features` field under `cfg`.
+pub fn site_features_per_site(cfg: &ObservationConfig) -> usize {
+    SITE_FEATURES + usize::from(cfg.site_trend)
+}
 
 /// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),
 /// in lexicographic order of (x, y, z).
@@ -160,8 +168,8 @@ impl ObsLayout {
         if cfg.site_features {
             push(
                 SITE_FEATURES,
-                n_sites * crate::obs::SITE_FEATURES,
-                "per site (site-major) the SITE_FEATURES values of obs::site_feature, fixed scales",
+                n_sites * site_features_per_site(cfg),
+                "per site (site-major) the site_features_per_site values of obs::site_feature, fixed scales",
             );
         }
         ObsLayout {

@@ -267,6 +267,8 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         ("train", "num_envs", "5000"),
         ("pairs", "bin_tolerance", "0.5"),
         ("distributed", "max_message_mib", "1e308"),
+        ("env", "min_time_of_stay_s", "-1.0"),
+        ("env", "min_time_of_stay_s", "1e9"),
     ];
     for (section, leaf, value) in cases {
         let key = format!("{section}.{leaf}");
@@ -282,6 +284,14 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         let e = Config::from_toml_str("", ORIGIN, &[format!("{key}={value}")]).unwrap_err();
         assert!(e.to_string().contains(&key), "{e}");
     }
+    // A site feature without the site features.
+    let e = Config::from_toml_str(
+        "[env.observation]\nsite_features = false\nsite_trend = true\n[ppo]\nsite_head = \"slots\"\n",
+        ORIGIN,
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("env.observation.site_trend"), "{e}");
     // Negative where an unsigned integer is expected: a type error at the line of the key.
     let msg = Config::from_toml_str("[ppo]\nnum_minibatches = -4\n", ORIGIN, &[])
         .unwrap_err()

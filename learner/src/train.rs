@@ -222,17 +222,18 @@ pub fn policy_shape(cfg: &Config, probe: &Env) -> (usize, usize) {
 /// The MLPs' input length and the equivariant head's features per site, for observations of
 /// `obs_dim` values and `n_sites` learned sites: the layout of `env.observation` of that length
 /// tells where the `site_features` tail starts (the MLPs read what comes before it). The head is
-/// built when `ppo.site_head = "equivariant"` and the tail holds `n_sites × SITE_FEATURES`
+/// built when `ppo.site_head = "equivariant"` and the tail holds `n_sites × site_features_per_site`
 /// values (configuration validation guarantees it in a run); otherwise slot logits.
 fn trunk_shape(cfg: &Config, obs_dim: usize, n_sites: usize) -> (usize, Option<usize>) {
-    use dupac_common::obs::{ObsLayout, SITE_FEATURES};
+    use dupac_common::obs::{ObsLayout, site_features_per_site};
+    let per_site = site_features_per_site(&cfg.env.observation);
     let trunk = (0..=obs_dim)
         .map(|m| ObsLayout::new(&cfg.env.observation, m))
         .find(|l| l.len() == obs_dim)
         .map(|l| l.trunk_len())
         .unwrap_or(obs_dim);
     let want = n_sites > 0 && cfg.ppo.site_head == SiteHead::Equivariant;
-    let fits = obs_dim - trunk == n_sites * SITE_FEATURES;
+    let fits = obs_dim - trunk == n_sites * per_site;
     if want && !fits {
         tracing::warn!(
             obs_dim,
@@ -240,7 +241,7 @@ fn trunk_shape(cfg: &Config, obs_dim: usize, n_sites: usize) -> (usize, Option<u
             "no site features in the observation: slot logits instead of the equivariant head"
         );
     }
-    (trunk, (want && fits).then_some(SITE_FEATURES))
+    (trunk, (want && fits).then_some(per_site))
 }
 
 impl Learner {

@@ -15,12 +15,13 @@ use clap::Args;
 use dupac_actor::env::{Env, Episode, Outcome};
 use dupac_actor::eval::{
     FlightMetrics, FlightRecord, MeanCi, NOISE_PER_RE_DBM, Rate, StepRecord, flight_metrics,
-    mean_ci95, sinr_db, wilson95,
+    hindsight_association, mean_ci95, sinr_db, wilson95,
 };
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
+use dupac_common::SiteId;
 use dupac_common::codec;
 use dupac_common::config::{Association, Config};
 use dupac_common::policy::PolicyWeights;
@@ -72,6 +73,41 @@ pub struct EvalArgs {
     /// `LABEL+oracle`, the report's "Route or association").
     #[arg(long)]
     pub no_replay: bool,
+    /// Also re-fly a learned-site policy's moves with the hindsight association
+    /// (`LABEL+hindsight_C`): the sites that minimise the site regret plus C dB·steps per
+    /// handover over the whole recorded route; `C:mts` also forbids a handover sooner than
+    /// `env.ping_pong_window_s` after the previous one (no ping-pongs). An evaluation reference
+    /// that knows the route in advance (repeatable; docs/results.md "What any association can do").
+    #[arg(long = "hindsight", value_name = "C[:mts]")]
+    pub hindsight: Vec<String>,
+}
+
+/// A `--hindsight` value: handover cost (dB·steps) and the minimum stay (steps).
+#[derive(Debug, Clone, Copy)]
+struct Hindsight {
+    cost_db: f64,
+    min_stay_steps: u32,
+}
+
+fn parse_hindsight(spec: &str, window_steps: u32) -> Result<(String, Hindsight)> {
+    let (c, mts) = match spec.split_once(':') {
+        Some((c, "mts")) => (c, true),
+        Some(_) => bail!("--hindsight {spec}: expected C or C:mts"),
+        None => (spec, false),
+    };
+    let cost_db: f64 = c
+        .parse()
+        .ok()
+        .filter(|x: &f64| x.is_finite() && (0.0..=1e6).contains(x))
+        .ok_or_else(|| anyhow!("--hindsight {spec}: C must be a number in [0, 1e6] (dB·steps)"))?;
+    let label = format!("hindsight_{c}{}", if mts { "_mts" } else { "" });
+    Ok((
+        label,
+        Hindsight {
+            cost_db,
+            min_stay_steps: if mts { window_steps + 1 } else { 0 },
+        },
+    ))
 }
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
@@ -96,6 +132,8 @@ enum Kind {
     Shortest(Association),
     /// A recorded flight's positions re-flown with this association (`replay_associations`).
     Replay(Association),
+    /// A recorded flight's positions re-flown with the hindsight association.
+    Hindsight(Hindsight),
     Coverage(f64),
 }
 
@@ -262,6 +300,7 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
             Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
             Kind::Policy(_) | Kind::Coverage(_) => Association::A3,
             Kind::Shortest(a) | Kind::Replay(a) => *a,
+            Kind::Hindsight(_) => Association::Learned,
         };
         if let Kind::Policy(p) = &method.kind {
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
@@ -310,7 +349,13 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
         // best-RSRP oracle choosing the site, so the report separates route from association.
         let replays = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
-                replay_associations(cfg, &world, &rsrp, &planner, method, &pairs, &flights)?
+                let hindsight = args
+                    .hindsight
+                    .iter()
+                    .map(|h| parse_hindsight(h, window))
+                    .collect::<Result<Vec<_>>>()?;
+                let ctx = (cfg, &world, &rsrp, &planner);
+                replay_associations(ctx, method, &pairs, &flights, &hindsight)?
             }
             _ => Vec::new(),
         };
@@ -343,25 +388,42 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
 /// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
 /// A replay takes one step to each recorded position in turn (`pilot::replay_positions`), so it
 /// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
+/// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
 fn replay_associations(
-    cfg: &Config,
-    world: &Arc<dupac_radio::world::RadioWorld>,
-    rsrp: &Arc<dyn RsrpSource + Send + Sync>,
-    planner: &Planner,
+    (cfg, world, rsrp, planner): (
+        &Config,
+        &Arc<dupac_radio::world::RadioWorld>,
+        &Arc<dyn RsrpSource + Send + Sync>,
+        &Planner,
+    ),
     method: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
+    hindsight: &[(String, Hindsight)],
 ) -> Result<Vec<(String, Vec<FlightRecord>)>> {
-    [(Association::A3, "a3"), (Association::BestRsrp, "oracle")]
+    let rules = [
+        (Kind::Replay(Association::A3), "a3".to_string()),
+        (Kind::Replay(Association::BestRsrp), "oracle".to_string()),
+    ];
+    let hindsight = hindsight
+        .iter()
+        .map(|(l, h)| (Kind::Hindsight(*h), l.clone()));
+    rules
         .into_iter()
-        .map(|(assoc, suffix)| {
+        .chain(hindsight)
+        .map(|(kind, suffix)| {
             let mut rcfg = cfg.clone();
-            rcfg.env.association = assoc;
+            rcfg.env.association = match kind {
+                Kind::Replay(a) => a,
+                _ => Association::Learned,
+            };
+            // The hindsight programme keeps its own minimum stay.
+            rcfg.env.min_time_of_stay_s = 0.0;
             let label = format!("{}+{suffix}", method.label);
             let replay = Method {
                 label: label.clone(),
                 seed: method.seed,
-                kind: Kind::Replay(assoc),
+                kind,
             };
             let v = pairs
                 .par_iter()
@@ -406,6 +468,23 @@ fn fly_one(
         Kind::Replay(_) => {
             let w = waypoints_m.ok_or_else(|| anyhow!("pair {}: no positions to replay", p.id))?;
             replay_positions(&mut env, p.id, episode, w, |e| e.serving())?.steps
+        }
+        Kind::Hindsight(h) => {
+            let w = waypoints_m.ok_or_else(|| anyhow!("pair {}: no positions to replay", p.id))?;
+            let m = world.num_sites();
+            let mut rows = vec![f64::NAN; w.len() * m];
+            for (row, pos) in rows.chunks_mut(m).zip(w) {
+                rsrp.rsrp_all_dbm(*pos, row);
+            }
+            let mut start = vec![f64::NAN; m];
+            rsrp.rsrp_all_dbm(p.source_m, &mut start);
+            let sites =
+                hindsight_association(&rows, m, argmax(&start), h.cost_db, h.min_stay_steps);
+            let mut next = sites.into_iter().map(SiteId);
+            replay_positions(&mut env, p.id, episode, w, |e| {
+                next.next().unwrap_or_else(|| e.serving())
+            })?
+            .steps
         }
         Kind::Coverage(l) => {
             let path = planner

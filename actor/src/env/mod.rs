@@ -18,7 +18,9 @@ pub use reward::{RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig, NearestObstacle};
-use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, SITE_FEATURES, field, site_feature};
+use dupac_common::obs::{
+    ObsLayout, SENSOR_DIRECTIONS, field, site_feature, site_features_per_site,
+};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
@@ -103,6 +105,11 @@ pub struct Env {
     slots: Slots,
     sensor_dirs: [[f64; 3]; 26],
     ping_pong_steps: u32,
+    /// `env.min_time_of_stay_s` in steps (0: off); learned association only.
+    min_stay_steps: u32,
+    /// A decision whose site choice has not yet been applied (the lock of the minimum time of
+    /// stay may defer it past the decision's first step).
+    choice_pending: bool,
     /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
     route_penalty: [f64; 2],
     // Episode state.
@@ -125,6 +132,8 @@ pub struct Env {
     substeps: Vec<StepInfo>,
     /// Every site's reward of the last `act` (learned association only; empty otherwise).
     site_rewards: Vec<f64>,
+    /// Every site's RSRP at the last observation written (dBm; `site_trend`).
+    rsrp_at_last_obs_dbm: Vec<f64>,
 }
 
 impl Env {
@@ -168,6 +177,11 @@ impl Env {
         let dt = env.dt_s();
         let a3 = A3Params::from_config(&cfg.radio.a3, dt);
         let ping_pong_steps = (env.ping_pong_window_s / dt).ceil().max(1.0) as u32;
+        let min_stay_steps = if env.association == Association::Learned {
+            (env.min_time_of_stay_s / dt).ceil() as u32
+        } else {
+            0
+        };
         let obs = vec![0.0; layout.len()];
         Ok(Env {
             thresholds: RsrpThresholds::from_config(&cfg.radio),
@@ -176,6 +190,8 @@ impl Env {
             slots,
             sensor_dirs,
             ping_pong_steps,
+            min_stay_steps,
+            choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
             position_m: [0.0; 3],
@@ -192,6 +208,7 @@ impl Env {
             seed: 0,
             obs,
             substeps: Vec::new(),
+            rsrp_at_last_obs_dbm: vec![f64::NAN; m],
             site_rewards: if env.association == Association::Learned {
                 vec![0.0; m]
             } else {
@@ -302,6 +319,8 @@ impl Env {
         self.distance_flown_m = 0.0;
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
         self.last_handover = None;
+        self.choice_pending = false;
+        self.rsrp_at_last_obs_dbm.fill(f64::NAN);
         self.substeps.clear();
         self.done = false;
         self.rsrp.rsrp_all_dbm(self.position_m, &mut self.rsrp_dbm);
@@ -418,7 +437,21 @@ impl Env {
         // Radio: every site's RSRP at the new position, then the association rule.
         self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);
         let before = self.serving;
-        self.serving = self.associator.next(action.site, &self.rsrp_dbm);
+        if first {
+            self.choice_pending = true;
+        }
+        // The minimum time of stay: no handover within `min_stay_steps` of the last one.
+        let locked = self.min_stay_steps > 0
+            && self
+                .last_handover
+                .is_some_and(|(_, at)| self.step - at <= self.min_stay_steps);
+        let chosen = if locked { before } else { action.site };
+        // The step at which this decision's choice takes effect (a handover only here).
+        let choice_step = self.choice_pending && !locked;
+        if choice_step {
+            self.choice_pending = false;
+        }
+        self.serving = self.associator.next(chosen, &self.rsrp_dbm);
         let handover = self.serving != before;
         let mut ping_pong = false;
         if handover {
@@ -469,11 +502,16 @@ impl Env {
         };
         let reward = common + term(serving_rsrp_dbm, handover);
         if !self.site_rewards.is_empty() {
-            // The counterfactual of site k serves k from this decision's first step on.
-            let before_decision = before;
+            // The counterfactual of site k serves k from the step at which this decision's
+            // choice takes effect (its first step, or the end of the minimum stay) on; before
+            // that every choice gives the serving site's reward.
+            let applied = !self.choice_pending;
             for (k, acc) in self.site_rewards.iter_mut().enumerate() {
-                let ho = first && k != before_decision.index();
-                *acc += common + term(self.rsrp_dbm[k], ho);
+                *acc += if applied {
+                    common + term(self.rsrp_dbm[k], choice_step && k != before.index())
+                } else {
+                    reward
+                };
             }
         }
         let terminated = outcome.is_some();
@@ -646,8 +684,9 @@ impl Env {
             .unwrap_or([1.0, 0.0]);
         let goal = goal.unwrap_or(heading);
         let serving = self.serving.index();
+        let per_site = site_features_per_site(o);
         for (k, site) in self.world.sites.iter().enumerate() {
-            let f = &mut self.obs[range.start + k * SITE_FEATURES..][..SITE_FEATURES];
+            let f = &mut self.obs[range.start + k * per_site..][..per_site];
             let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
             let q = site.position_m;
             let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
@@ -667,6 +706,19 @@ impl Env {
             f[COS_BEARING_GOAL] = cg as f32;
             f[SIN_BEARING_GOAL] = sg as f32;
             f[LOS] = f32::from(u8::from(self.world.los(SiteId(k as u16), p)));
+            if o.site_trend {
+                // NaN before the first observation of an episode: no change yet.
+                let before = self.rsrp_at_last_obs_dbm[k];
+                let d = if before.is_nan() {
+                    0.0
+                } else {
+                    w - before.max(RSRP_FLOOR_DBM)
+                };
+                f[RSRP_TREND] = (d / 10.0).clamp(-3.0, 3.0) as f32;
+            }
+        }
+        if o.site_trend {
+            self.rsrp_at_last_obs_dbm.copy_from_slice(&self.rsrp_dbm);
         }
     }
 }
