@@ -643,6 +643,28 @@ fn train_resume_and_fly_on_a_small_city() {
             .parse()
             .expect("number")
     };
+    // A bad --hindsight value is refused before anything is flown, naming it.
+    for (bad, says) in [
+        ("abc", "--hindsight abc"),
+        ("3:later", "--hindsight 3:later"),
+        ("-1", "--hindsight -1"),
+    ] {
+        let mut a: Vec<String> = vec![
+            "eval".into(),
+            "-q".into(),
+            "--policy".into(),
+            format!("dupac={}", out.join("policy.bin").display()),
+            format!("--hindsight={bad}"),
+            "--out".into(),
+            dir.path().join("eval_bad").display().to_string(),
+        ];
+        a.extend(common.iter().cloned());
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        let e = dupac(&refs, None);
+        let err = String::from_utf8_lossy(&e.stderr);
+        assert!(!e.status.success() && err.contains(says), "{err}");
+    }
+    assert!(!dir.path().join("eval_bad").join("records").exists());
     assert_eq!(col("dupac+oracle", "site_regret_db"), 0.0, "{summary}");
     // The hindsight association: at no handover cost the best site every step (the oracle's
     // regret, to the replay's f32 positions); with the minimum stay, no ping-pong and no more handovers than the oracle.

@@ -100,7 +100,7 @@ fn parse_hindsight(spec: &str, window_steps: u32) -> Result<(String, Hindsight)>
         .ok()
         .filter(|x: &f64| x.is_finite() && (0.0..=1e6).contains(x))
         .ok_or_else(|| anyhow!("--hindsight {spec}: C must be a number in [0, 1e6] (dB·steps)"))?;
-    let label = format!("hindsight_{c}{}", if mts { "_mts" } else { "" });
+    let label = format!("hindsight_{cost_db}{}", if mts { "_mts" } else { "" });
     Ok((
         label,
         Hindsight {
@@ -251,6 +251,17 @@ fn argmax(v: &[f64]) -> u16 {
 
 fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Result<()> {
     let methods = methods(args)?;
+    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
+        .ceil()
+        .max(1.0) as u32;
+    if args.no_replay && !args.hindsight.is_empty() {
+        bail!("--hindsight re-flies a policy's moves: it cannot go with --no-replay");
+    }
+    let hindsight = args
+        .hindsight
+        .iter()
+        .map(|h| parse_hindsight(h, window))
+        .collect::<Result<Vec<_>>>()?;
     let (world, rsrp) = world_and_cache(cfg, global.quiet)?;
     let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
     if methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_))) {
@@ -261,9 +272,6 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
     if pairs.is_empty() {
         bail!("{}: no pairs", file.display());
     }
-    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
-        .ceil()
-        .max(1.0) as u32;
     let m = world.num_sites();
     let start_serving: Vec<u16> = pairs
         .iter()
@@ -349,11 +357,6 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
         // best-RSRP oracle choosing the site, so the report separates route from association.
         let replays = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
-                let hindsight = args
-                    .hindsight
-                    .iter()
-                    .map(|h| parse_hindsight(h, window))
-                    .collect::<Result<Vec<_>>>()?;
                 let ctx = (cfg, &world, &rsrp, &planner);
                 replay_associations(ctx, method, &pairs, &flights, &hindsight)?
             }
