@@ -179,21 +179,21 @@ pub fn hindsight_association(
     v[idx(usize::from(start).min(m - 1), d)] = 0.0;
     let mut back = vec![0u32; t_len * ns]; // the previous state of each state, per step
     let mut nv = vec![f64::INFINITY; ns];
-    let cost = |row: &[f64], k: usize| {
+    // A site that cannot be measured costs the reward's largest regret.
+    let cost = |best: f64, r: f64| {
+        if r.is_finite() && best.is_finite() {
+            (best - r).max(0.0)
+        } else {
+            crate::env::MAX_REGRET_DB
+        }
+    };
+    for t in 0..t_len {
+        let row = &rsrp_dbm[t * m..(t + 1) * m];
         let best = row
             .iter()
             .copied()
             .filter(|x| x.is_finite())
             .fold(f64::NEG_INFINITY, f64::max);
-        let r = row[k];
-        if r.is_finite() && best.is_finite() {
-            (best - r).max(0.0)
-        } else {
-            60.0
-        }
-    };
-    for t in 0..t_len {
-        let row = &rsrp_dbm[t * m..(t + 1) * m];
         // The two cheapest states a handover may leave (e + 1 ≥ d), on different sites.
         let (mut b1, mut b2) = ((f64::INFINITY, usize::MAX), (f64::INFINITY, usize::MAX));
         for k in 0..m {
@@ -213,8 +213,8 @@ pub fn hindsight_association(
         }
         let bt = &mut back[t * ns..(t + 1) * ns];
         nv.fill(f64::INFINITY);
-        for j in 0..m {
-            let c = cost(row, j);
+        for (j, &r) in row.iter().enumerate() {
+            let c = cost(best, r);
             // Stay on j: e → min(e + 1, d).
             for e in 0..=d {
                 let s = idx(j, e);

@@ -14,7 +14,7 @@ mod reward;
 
 pub use association::{Associator, argmax};
 pub use info::{Outcome, StepInfo};
-pub use reward::{RSRP_FLOOR_DBM, site_term, step_reward};
+pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig, NearestObstacle};
