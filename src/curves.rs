@@ -1,8 +1,9 @@
 //! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
 //! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
-use crate::metrics_table::MetricsTable;
 use anyhow::{Context, Result};
+use dupac_run::metrics_table::MetricsTable;
+use dupac_run::run_dir::CurveRenderer;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -35,6 +36,11 @@ pub const PANELS: &[(&str, &str)] = &[
     ("losses/approx_kl", "approx KL"),
     ("charts/SPS", "timesteps (decisions) per second"),
 ];
+
+/// The run directory's curve renderer for runs titled `title`.
+pub fn renderer(title: String) -> CurveRenderer {
+    Box::new(move |rows, path| Ok(render_curves(rows, &title, path)?))
+}
 
 /// Draws the panels of [`PANELS`] that have data into `path` (atomically).
 pub fn render_curves(rows: &MetricsTable, title: &str, path: &Path) -> Result<()> {

@@ -3,7 +3,6 @@
 mod commands;
 mod curves;
 mod io;
-mod metrics_table;
 mod plan_plot;
 mod plot;
 

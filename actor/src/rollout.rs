@@ -2,94 +2,18 @@
 //! it with an exported policy ([`PolicyWeights`], no burn), recording what PPO needs. Workers
 //! are independent, so many run on worker threads; a worker's randomness comes only from its own
 //! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
-//!
-//! Also the per-episode summary that training metrics and evaluation are built from
-//! (spec/env.md "Metrics").
+//! Episode summaries come from [`crate::metrics::EpisodeAccumulator`].
 
 use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
+pub use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
 use dupac_common::SiteId;
 pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
-use dupac_radio::class::RsrpClass;
+pub use dupac_common::seed::stream_seed;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
-
-/// Accumulates [`StepInfo`] records into an [`EpisodeSummary`].
-#[derive(Debug, Clone, Default)]
-pub struct EpisodeAccumulator {
-    steps: u32,
-    rsrp_sum_dbm: f64,
-    class_counts: [u32; 3],
-    handovers: u32,
-    ping_pongs: u32,
-    distance_flown_m: f64,
-    remaining_m: f64,
-    episodic_return: f64,
-    regret_sum_db: f64,
-    regret_high: u32,
-    class_regret: u32,
-    /// `env.site_regret_threshold_db`.
-    regret_threshold_db: f64,
-}
-
-impl EpisodeAccumulator {
-    /// An empty accumulator with the metric thresholds of `env`.
-    pub fn new(env: &dupac_common::config::EnvConfig) -> EpisodeAccumulator {
-        EpisodeAccumulator {
-            regret_threshold_db: env.site_regret_threshold_db,
-            ..EpisodeAccumulator::default()
-        }
-    }
-
-    pub fn push(&mut self, info: &StepInfo) {
-        let regret_db = info.site_regret_db();
-        self.regret_sum_db += regret_db;
-        self.regret_high += u32::from(regret_db > self.regret_threshold_db);
-        self.class_regret += u32::from(info.class_regret());
-        self.steps += 1;
-        self.rsrp_sum_dbm += info.serving_rsrp_dbm;
-        let k = match info.class {
-            RsrpClass::Excellent => 0,
-            RsrpClass::Mediocre => 1,
-            RsrpClass::Poor => 2,
-        };
-        self.class_counts[k] += 1;
-        self.handovers += u32::from(info.handover);
-        self.ping_pongs += u32::from(info.ping_pong);
-        self.distance_flown_m = info.distance_flown_m;
-        self.remaining_m = info.distance_to_goal_m;
-        self.episodic_return += info.reward;
-    }
-
-    pub fn finish(&mut self, pair_id: u64, shortest_m: f64, outcome: Outcome) -> EpisodeSummary {
-        let n = f64::from(self.steps.max(1));
-        let s = EpisodeSummary {
-            pair_id,
-            outcome,
-            episodic_return: self.episodic_return,
-            length: self.steps,
-            distance_flown_m: self.distance_flown_m,
-            shortest_m,
-            remaining_m: self.remaining_m,
-            mean_rsrp_dbm: self.rsrp_sum_dbm / n,
-            frac_excellent: f64::from(self.class_counts[0]) / n,
-            frac_mediocre: f64::from(self.class_counts[1]) / n,
-            frac_poor: f64::from(self.class_counts[2]) / n,
-            handovers: self.handovers,
-            ping_pongs: self.ping_pongs,
-            mean_site_regret_db: self.regret_sum_db / n,
-            frac_site_regret_high: f64::from(self.regret_high) / n,
-            frac_class_regret: f64::from(self.class_regret) / n,
-        };
-        *self = EpisodeAccumulator {
-            regret_threshold_db: self.regret_threshold_db,
-            ..EpisodeAccumulator::default()
-        };
-        s
-    }
-}
 
 /// Errors of a worker.
 #[derive(Debug, thiserror::Error)]
@@ -115,16 +39,6 @@ pub struct Worker {
     acc: EpisodeAccumulator,
     pair_id: u64,
     shortest_m: f64,
-}
-
-/// Seed of stream `index` in round `round` of run `seed` (SplitMix64 of the three).
-pub fn stream_seed(seed: u64, index: u64, round: u64) -> u64 {
-    let mut z = seed
-        ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ round.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 impl Worker {

@@ -14,9 +14,9 @@ pub mod fsio;
 pub mod ids;
 pub mod keys;
 pub mod msg;
-pub mod net;
 pub mod obs;
 pub mod policy;
+pub mod seed;
 
 pub use config::{Config, ConfigError};
 pub use ids::{ActorId, SiteId};

@@ -1,11 +1,14 @@
-//! The DUPAC learner (issue 4): the actor-critic in burn, GAE, the PPO update, normalisers,
-//! checkpoints and the synchronous training loop. The update does not care where trajectories
-//! came from; the distributed learner (issue 5) wraps the same update.
+//! The DUPAC learner: the actor-critic on burn, GAE, the PPO update, checkpoints and policy
+//! files, and [`Learner`], the update fed by a [`TrajectorySource`]. It depends on the contract
+//! (`dupac-common`) and burn only: no environment, no radio, no network.
 
 pub mod checkpoint;
-pub mod dist;
 pub mod gae;
+pub mod learner;
 pub mod model;
 pub mod ppo;
 pub mod site_horizon;
-pub mod train;
+pub mod source;
+
+pub use learner::{IterationReport, Learner, MetricsRow, Segment, Timings, TrainError};
+pub use source::{Collected, Progress, SourceError, Sourced, TrajectorySource};

@@ -554,7 +554,7 @@ fn real_weights_fit_the_limits_derived_from_the_configuration() {
         cfg.ppo.hidden = hidden;
         let n_sites = 30;
         let obs_dim = ObsLayout::new(&cfg.env.observation, n_sites).len();
-        let learner = dupac_learner::train::Learner::new(cfg.clone(), obs_dim, n_sites, &device);
+        let learner = dupac_learner::Learner::new(cfg.clone(), obs_dim, n_sites, &device);
         let msg = WeightsMsg {
             header: Header::new("r", 1, dupac_common::ActorId::LEARNER, 2),
             policy: learner.policy(),

@@ -2,14 +2,14 @@
 //! newest weights and publishes trajectory chunks to the learner.
 
 use super::net::{ConnectArgs, stop_flag};
-use super::train::{make_pool, world_and_cache};
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use dupac_actor::dist::{ActorOptions, run_actor};
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::planner::Planner;
 use dupac_common::ActorId;
+use dupac_dist::actor::{ActorOptions, run_actor};
+use dupac_run::scenario::{make_pool, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -32,14 +32,14 @@ pub struct ActorArgs {
     pub pool: Option<PathBuf>,
     /// `learned` (DUPAC) or `a3` (base method); must match the learner's.
     #[arg(long, value_enum)]
-    pub association: Option<super::train::AssociationArg>,
+    pub association: Option<super::run_args::AssociationArg>,
     #[command(flatten)]
     pub net: ConnectArgs,
 }
 
 pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
-    let cfg = super::train::resolve_config(global, args.association, None)?;
+    let cfg = super::run_args::resolve_config(global, args.association, None)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
@@ -60,7 +60,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     // Stopped before it could join (Ctrl-C or the orchestrator's SIGTERM at the end of a run):
     // leave cleanly, with the summary line of an actor that sent nothing.
     let probe = dupac_actor::env::Env::new(&cfg, world.clone(), rsrp.clone())?;
-    let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
+    let (obs_dim, n_sites) = probe.policy_shape();
     drop(probe);
     let joined = args.net.open_retrying(
         &stop,

@@ -7,7 +7,6 @@
 //! recomputes the report from the saved step records without flying.
 
 use crate::GlobalArgs;
-use crate::commands::train::world_and_cache;
 use crate::io::{write_atomic, write_atomic_with};
 use crate::plan_plot::{FlightTrace, render_plan_png};
 use anyhow::{Context, Result, anyhow, bail};
@@ -28,6 +27,7 @@ use dupac_common::policy::PolicyWeights;
 use dupac_learner::checkpoint::load_policy;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpThresholds;
+use dupac_run::scenario::world_and_cache;
 use plotters::prelude::*;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -267,7 +267,7 @@ fn fly_all(global: &GlobalArgs, cfg: &Config, args: &EvalArgs, dir: &Path) -> Re
     if methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_))) {
         planner.with_coverage(rsrp.as_ref(), RsrpThresholds::from_config(&cfg.radio));
     }
-    let (file, pairs) = super::train::read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
+    let (file, pairs) = dupac_run::scenario::read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         bail!("{}: no pairs", file.display());

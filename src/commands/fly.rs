@@ -4,12 +4,10 @@
 
 use crate::GlobalArgs;
 use crate::commands::plan::{env_rsrp_at, trace_of, write_steps_csv};
-use crate::commands::train::world_and_cache;
 use crate::io::write_atomic;
 use crate::plan_plot::render_plan_png;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::dist::Follower;
 use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
@@ -17,8 +15,10 @@ use dupac_actor::rollout::{EpisodeAccumulator, EpisodeSummary, fly_policy};
 use dupac_common::SiteId;
 use dupac_common::config::Association;
 use dupac_common::policy::Scratch;
+use dupac_dist::actor::Follower;
 use dupac_learner::checkpoint::load_policy;
 use dupac_radio::class::RsrpThresholds;
+use dupac_run::scenario::world_and_cache;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,7 +35,7 @@ pub struct FlyArgs {
     pub follow: bool,
     /// With `--follow`: `learned` (DUPAC) or `a3` (base method), as the learner trains.
     #[arg(long, value_enum, requires = "follow")]
-    pub association: Option<super::train::AssociationArg>,
+    pub association: Option<super::run_args::AssociationArg>,
     /// With `--follow`: wall-clock pause after each decision (ms), to watch versions change.
     #[arg(long, default_value_t = 0, requires = "follow")]
     pub step_ms: u64,
@@ -53,7 +53,7 @@ pub struct FlyArgs {
 }
 
 pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
-    let mut cfg = super::train::resolve_config(global, args.association, None)?;
+    let mut cfg = super::run_args::resolve_config(global, args.association, None)?;
     let mut follower = None;
     let mut built = None;
     let policy = match &args.policy {
@@ -62,7 +62,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
             let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
             built = Some((world.clone(), rsrp.clone()));
             let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
-            let (obs_dim, n_sites) = dupac_learner::train::policy_shape(&cfg, &probe);
+            let (obs_dim, n_sites) = probe.policy_shape();
             let stop = super::net::stop_flag()?;
             let session = args.net.open_retrying(
                 &stop,
@@ -105,7 +105,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         None => world_and_cache(&cfg, global.quiet)?,
     };
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    let (file, pairs) = super::train::read_eval_pairs(&cfg, args.pairs.as_ref(), &planner)?;
+    let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planner)?;
     let p = pairs.get(args.pair).ok_or_else(|| {
         anyhow!(
             "{}: --pair {} but the file has {} pairs",

@@ -12,21 +12,8 @@ pub mod orchestrate;
 pub mod pairs;
 pub mod plan;
 pub mod radio;
+pub mod run_args;
 pub mod train;
+pub mod training;
 
-use indicatif::{ProgressBar, ProgressStyle};
-
-/// A progress bar on stderr (hidden with `--quiet` or when stderr is not a terminal).
-pub fn progress_bar(len: u64, what: &str, quiet: bool) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(len);
-    let style = ProgressStyle::with_template(
-        "{msg:>24} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})",
-    )
-    .unwrap_or_else(|_| ProgressStyle::default_bar());
-    pb.set_style(style);
-    pb.set_message(what.to_string());
-    pb
-}
+pub use dupac_run::progress::progress_bar;

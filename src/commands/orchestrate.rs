@@ -6,10 +6,8 @@
 //! and reaps the children.
 
 use super::net::{ConnectArgs, ModeArg, stop_flag};
-use super::train::{
-    DeviceArg, TrainArgs, checkpoint_to_resume, held_out_pairs, make_pool, resolve_config,
-    world_and_cache,
-};
+use super::run_args::{DeviceArg, device, resolve_config};
+use super::train::TrainArgs;
 use crate::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
@@ -17,6 +15,8 @@ use dupac_actor::pairs::write_pairs_jsonl;
 use dupac_actor::planner::Planner;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{StatsMsg, decode_msg};
+use dupac_run::run_dir::checkpoint_to_resume;
+use dupac_run::scenario::{held_out_pairs, make_pool, world_and_cache};
 use std::path::Path;
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::sync::atomic::Ordering;
@@ -53,7 +53,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let cfg = resolve_config(global, run.association, run.out.as_ref())?;
     // Fail early, before the children do.
     let _ = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
-    super::train::device(run.device)?;
+    device(run.device)?;
     let out = cfg.train.out_dir.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let config_path = out.join("config.toml");

@@ -230,6 +230,18 @@ impl Env {
         self.world.num_sites()
     }
 
+    /// The policy's shape for this environment: observation length and site logits (M with
+    /// `env.association = "learned"`, 0 otherwise: the site is not the policy's to choose).
+    pub fn policy_shape(&self) -> (usize, usize) {
+        let n_sites = match self.cfg.association {
+            dupac_common::config::Association::Learned => self.num_sites(),
+            dupac_common::config::Association::A3 | dupac_common::config::Association::BestRsrp => {
+                0
+            }
+        };
+        (self.layout.len(), n_sites)
+    }
+
     /// The current observation.
     pub fn observation(&self) -> &[f32] {
         &self.obs

@@ -48,7 +48,7 @@ pub struct ConnectOpts {
     pub no_multicast_scouting: bool,
     /// zenoh's receive limit (`transport/link/rx/max_message_size`, bytes): a larger message is
     /// dropped by zenoh while it is reassembled, before it reaches DUPAC. Set from the run's
-    /// configuration ([`crate::msg::MsgLimits::run_max_bytes`]); `None` keeps the file's or
+    /// configuration ([`dupac_common::msg::MsgLimits::run_max_bytes`]); `None` keeps the file's or
     /// zenoh's default (1 GiB).
     pub rx_max_message_bytes: Option<usize>,
 }

@@ -9,9 +9,9 @@
 //! waits while no learner is alive, and follows a restarted learner (a new incarnation's
 //! weights replace the old ones even with a lower version).
 
-use crate::env::{Env, EnvError};
-use crate::pairs::Pair;
-use crate::rollout::{EnvTrajectory, RolloutError, Worker, stream_seed};
+use dupac_actor::env::{Env, EnvError};
+use dupac_actor::pairs::Pair;
+use dupac_actor::rollout::{EnvTrajectory, RolloutError, Worker, stream_seed};
 use dupac_common::ActorId;
 use dupac_common::config::Config;
 use dupac_common::keys::{KeySpace, Role};
@@ -298,11 +298,8 @@ pub fn run_actor(
 ) -> Result<ActorReport, ActorError> {
     let d = &cfg.distributed;
     let probe = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let n_sites = match cfg.env.association {
-        dupac_common::config::Association::Learned => probe.num_sites(),
-        _ => 0,
-    };
-    let limit = MsgLimits::weights(cfg, probe.layout().len(), n_sites);
+    let (obs_dim, n_sites) = probe.policy_shape();
+    let limit = MsgLimits::weights(cfg, obs_dim, n_sites);
     let expect = ChunkExpect {
         run_id: d.run.clone(),
         incarnation: 0,

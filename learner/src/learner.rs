@@ -1,52 +1,42 @@
-//! The synchronous training loop (issue 4): vectorised environments stepped on worker threads
-//! with the exported policy, reward scaling and GAE, the PPO update, observation statistics,
-//! metrics, evaluation and checkpoints.
+//! The learner (issue 4): PPO with its normalisers and counters, fed with trajectories from
+//! anywhere. [`Learner`] does reward scaling, GAE, the decoupled-PPO correction for older data,
+//! the update, the normalisers, counters, the update's metrics and checkpoints; it never sees an
+//! environment. [`Learner::iterate`] takes one batch from a
+//! [`TrajectorySource`](crate::source::TrajectorySource) (local rollout workers, or chunks over
+//! Zenoh) and updates on it; the run layer (`dupac-run`) owns the loop that decides when to
+//! evaluate, log and checkpoint.
 //!
-//! [`Learner`] is the part that does not care where trajectories come from: reward scaling, GAE,
-//! the decoupled-PPO correction for older data, the update, the normalisers, counters, metrics
-//! and checkpoints. [`Trainer`] adds environments stepped on worker threads (one process);
-//! `crate::dist` feeds the same [`Learner`] with chunks received over Zenoh (issue 5).
-//!
-//! Determinism: the network init, every worker's RNG and the minibatch shuffles derive from
-//! `train.seed` and the update index, so one seed reproduces a run bit for bit in one process
-//! whatever the thread count; `--resume` continues the same streams from the saved update (the
-//! environments restart their episodes, so a resumed run is not bit-identical to an
-//! uninterrupted one).
+//! Determinism: the network init and the minibatch shuffles derive from `train.seed` and the
+//! update index ([`stream_seed`]), so with a deterministic source one seed reproduces a run bit
+//! for bit whatever the thread count.
 
 use crate::checkpoint::{CheckpointError, CheckpointMeta, LoadedCheckpoint, save_checkpoint};
 use crate::gae::{Trajectory, gae};
 use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
 use crate::site_horizon::{route_site_rewards, serving_before};
-use dupac_actor::env::{Env, EnvError, Episode, Outcome};
-use dupac_actor::pairs::Pair;
-use dupac_actor::rollout::{
-    EnvTrajectory, EpisodeSummary, RolloutError, Worker, fly_policy, stream_seed,
-};
+use crate::source::{Progress, SourceError, TrajectorySource};
 use dupac_common::ActorId;
-use dupac_common::config::{Association, Config, SiteGradient, SiteHead, SiteHorizon};
+use dupac_common::config::{Config, SiteGradient, SiteHead, SiteHorizon};
+use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::obs::ObsLayout;
 use dupac_common::policy::{
     MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead as PlainSiteHead,
 };
-use dupac_radio::cache::RsrpSource;
-use dupac_radio::world::RadioWorld;
+use dupac_common::seed::stream_seed;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::Serialize;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::Instant;
 
-/// Errors of the training loop.
+/// Errors of the learner.
 #[derive(Debug, thiserror::Error)]
 pub enum TrainError {
+    /// The trajectory source failed (an environment, a rollout, the network).
     #[error(transparent)]
-    Env(#[from] EnvError),
-    #[error(transparent)]
-    Rollout(#[from] RolloutError),
+    Source(SourceError),
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
     #[error("{0}")]
@@ -63,107 +53,17 @@ pub enum TrainError {
     },
 }
 
-/// Domain metrics over a set of episodes (spec/env.md "Metrics").
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct DomainStats {
-    pub episodes: usize,
-    pub success_rate: f64,
-    pub collision_rate: f64,
-    pub out_of_bounds_rate: f64,
-    pub timeout_rate: f64,
-    pub episodic_return: f64,
-    pub episodic_length: f64,
-    /// Mean serving RSRP over all steps (dBm).
-    pub mean_rsrp_dbm: f64,
-    /// Percent of flight time per class, over all steps.
-    pub pct_excellent: f64,
-    pub pct_mediocre: f64,
-    pub pct_poor: f64,
-    /// Handovers per km flown.
-    pub handovers_per_km: f64,
-    /// Mean distance overhead over the shortest path of the successful episodes (fraction).
-    pub distance_overhead: f64,
-    /// Mean site regret over all steps: best − serving RSRP (dB, issue 15).
-    pub site_regret_db: f64,
-    /// Percent of steps with site regret over `env.site_regret_threshold_db`.
-    pub pct_site_regret_high: f64,
-    /// Percent of steps with class regret (best site excellent, serving one not).
-    pub pct_class_regret: f64,
-}
-
-/// Aggregates episode summaries (step-weighted for RSRP and classes).
-pub fn domain_stats(eps: &[EpisodeSummary]) -> DomainStats {
-    let n = eps.len();
-    if n == 0 {
-        return DomainStats::default();
-    }
-    let nf = n as f64;
-    let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f64 / nf;
-    let steps: f64 = eps
-        .iter()
-        .map(|e| f64::from(e.length))
-        .sum::<f64>()
-        .max(1.0);
-    let w = |f: &dyn Fn(&EpisodeSummary) -> f64| {
-        eps.iter().map(|e| f(e) * f64::from(e.length)).sum::<f64>() / steps
-    };
-    let km: f64 = eps.iter().map(|e| e.distance_flown_m).sum::<f64>() / 1000.0;
-    let ho: f64 = eps.iter().map(|e| f64::from(e.handovers)).sum();
-    let ok: Vec<&EpisodeSummary> = eps.iter().filter(|e| e.outcome == Outcome::Goal).collect();
-    DomainStats {
-        episodes: n,
-        success_rate: rate(Outcome::Goal),
-        collision_rate: rate(Outcome::Collision),
-        out_of_bounds_rate: rate(Outcome::OutOfBounds),
-        timeout_rate: rate(Outcome::TimeLimit),
-        episodic_return: eps.iter().map(|e| e.episodic_return).sum::<f64>() / nf,
-        episodic_length: eps.iter().map(|e| f64::from(e.length)).sum::<f64>() / nf,
-        mean_rsrp_dbm: w(&|e| e.mean_rsrp_dbm),
-        pct_excellent: 100.0 * w(&|e| e.frac_excellent),
-        pct_mediocre: 100.0 * w(&|e| e.frac_mediocre),
-        pct_poor: 100.0 * w(&|e| e.frac_poor),
-        handovers_per_km: if km > 0.0 { ho / km } else { 0.0 },
-        distance_overhead: if ok.is_empty() {
-            f64::NAN
-        } else {
-            ok.iter().map(|e| e.overhead()).sum::<f64>() / ok.len() as f64
-        },
-        site_regret_db: w(&|e| e.mean_site_regret_db),
-        pct_site_regret_high: 100.0 * w(&|e| e.frac_site_regret_high),
-        pct_class_regret: 100.0 * w(&|e| e.frac_class_regret),
-    }
-}
-
-/// Flies `pairs` with the deterministic policy in parallel (one environment per task).
-pub fn evaluate(
-    cfg: &Config,
-    world: &Arc<RadioWorld>,
-    rsrp: &Arc<dyn RsrpSource + Send + Sync>,
-    policy: &PolicyWeights,
-    pairs: &[Pair],
-) -> Result<Vec<EpisodeSummary>, TrainError> {
-    pairs
-        .par_iter()
-        .map(|p| {
-            let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-            let ep = Episode {
-                source_m: p.source_m,
-                destination_m: p.destination_m,
-                shortest_m: p.shortest_m,
-            };
-            Ok(fly_policy(&mut env, policy, p.id, ep, p.id)?.0)
-        })
-        .collect()
-}
-
 /// One row of metrics: CleanRL's names plus the domain ones.
 pub type MetricsRow = BTreeMap<String, f64>;
 
-/// What one call of [`Trainer::iteration`] did.
+/// What one update did: its statistics, its metrics row and the episodes that ended in its
+/// batch (for the run layer's rolling episode metrics).
 #[derive(Debug)]
 pub struct IterationReport {
     pub stats: UpdateStats,
     pub row: MetricsRow,
+    /// Episodes that ended in the batch (none when the update was skipped for non-finite input).
+    pub episodes: Vec<EpisodeSummary>,
 }
 
 /// One environment's trajectory handed to [`Learner::learn`], with where it came from.
@@ -199,24 +99,11 @@ pub struct Learner {
     pub global_step: u64,
     pub episodes: u64,
     pub train_seconds: f64,
-    recent: VecDeque<EpisodeSummary>,
     /// Samples trained with the decoupled correction (acted with an older version) so far.
     pub off_policy_samples: u64,
     /// Updates skipped for numerical faults, in all and in a row.
     pub skipped_updates: u64,
     bad_streak: u32,
-}
-
-/// Episodes kept for the rolling training metrics.
-const RECENT_EPISODES: usize = 100;
-
-/// Observation length and site logits of the policy for `cfg`.
-pub fn policy_shape(cfg: &Config, probe: &Env) -> (usize, usize) {
-    let n_sites = match cfg.env.association {
-        Association::Learned => probe.num_sites(),
-        Association::A3 | Association::BestRsrp => 0,
-    };
-    (probe.layout().len(), n_sites)
 }
 
 /// The MLPs' input length and the equivariant head's features per site, for observations of
@@ -291,7 +178,6 @@ impl Learner {
             global_step: 0,
             episodes: 0,
             train_seconds: 0.0,
-            recent: VecDeque::new(),
             off_policy_samples: 0,
             skipped_updates: 0,
             bad_streak: 0,
@@ -391,6 +277,54 @@ impl Learner {
         }
     }
 
+    /// Where the run stands (what a source reports to its peers).
+    pub fn progress(&self) -> Progress {
+        Progress {
+            update: self.update,
+            num_updates: self.num_updates(),
+            global_step: self.global_step,
+        }
+    }
+
+    /// One iteration: a batch from `source` for the current policy, the PPO update on it, the
+    /// new weights handed back to the source. `None` when the source is stopping (no update).
+    /// The row gets the source's metrics and `time/ppo_s` (the update with its batch assembly).
+    pub fn iterate(
+        &mut self,
+        source: &mut dyn TrajectorySource,
+    ) -> Result<Option<IterationReport>, TrainError> {
+        let t0 = Instant::now();
+        let policy = self.policy();
+        let Some(batch) = source
+            .collect(&policy, self.batch_size(), &self.progress())
+            .map_err(TrainError::Source)?
+        else {
+            return Ok(None);
+        };
+        let collect_s = batch
+            .collect_s
+            .unwrap_or_else(|| t0.elapsed().as_secs_f64());
+        let segments: Vec<Segment<'_>> = batch
+            .trajectories
+            .iter()
+            .map(|s| Segment {
+                actor: s.actor,
+                behaviour_version: s.behaviour_version,
+                traj: &s.traj,
+            })
+            .collect();
+        let t_ppo = Instant::now();
+        let mut report = self.learn(&policy, &segments, Timings { collect_s })?;
+        report
+            .row
+            .insert("time/ppo_s".into(), t_ppo.elapsed().as_secs_f64());
+        report.row.extend(batch.metrics);
+        source
+            .publish(&self.policy(), &mut report.row)
+            .map_err(TrainError::Source)?;
+        Ok(Some(report))
+    }
+
     /// One PPO update on `segments`; `policy` is [`Learner::policy`] (the current version,
     /// the proximal policy of the decoupled correction).
     pub fn learn(
@@ -417,6 +351,7 @@ impl Learner {
         } else {
             self.cfg.ppo.learning_rate
         };
+        let bad_input_skipped = bad_input.is_some();
         let (stats, update_s, skipped) = match bad_input {
             Some(why) => (UpdateStats::skipped(lr), 0.0, Some(why)),
             None => self.update_on(policy, segments, lr),
@@ -473,11 +408,6 @@ impl Learner {
             f64::from(u8::from(skipped.is_some())),
         );
         put("numerics/skipped_updates", self.skipped_updates as f64);
-        let recent: Vec<EpisodeSummary> = self.recent.iter().cloned().collect();
-        let d = domain_stats(&recent);
-        put("charts/episodic_return", d.episodic_return);
-        put("charts/episodic_length", d.episodic_length);
-        put_domain(&mut row, "domain", &d);
         let max = self.cfg.ppo.max_bad_updates;
         if let Some(last) = skipped
             && max > 0
@@ -490,7 +420,19 @@ impl Learner {
                 version: self.update,
             });
         }
-        Ok(IterationReport { stats, row })
+        let episodes = if bad_input_skipped {
+            Vec::new()
+        } else {
+            segments
+                .iter()
+                .flat_map(|s| s.traj.episodes.iter().cloned())
+                .collect()
+        };
+        Ok(IterationReport {
+            stats,
+            row,
+            episodes,
+        })
     }
 
     /// The update proper on finite data: returns its statistics, its duration and, when the
@@ -510,15 +452,10 @@ impl Learner {
             self.return_acc.clone(),
         );
         let batch = self.assemble(policy, segments);
-        for seg in segments {
-            for e in &seg.traj.episodes {
-                self.recent.push_back(e.clone());
-                if self.recent.len() > RECENT_EPISODES {
-                    self.recent.pop_front();
-                }
-                self.episodes += 1;
-            }
-        }
+        self.episodes += segments
+            .iter()
+            .map(|s| s.traj.episodes.len() as u64)
+            .sum::<u64>();
         // The next policy's observation statistics include this batch.
         if self.obs_norm.enabled {
             for seg in segments {
@@ -753,138 +690,6 @@ impl Learner {
     pub fn model(&self) -> &ActorCritic {
         &self.ppo.model
     }
-}
-
-/// The learner with its environments, in one process.
-pub struct Trainer {
-    pub learner: Learner,
-    world: Arc<RadioWorld>,
-    rsrp: Arc<dyn RsrpSource + Send + Sync>,
-    workers: Vec<Worker>,
-}
-
-impl std::ops::Deref for Trainer {
-    type Target = Learner;
-    fn deref(&self) -> &Learner {
-        &self.learner
-    }
-}
-
-impl Trainer {
-    /// A fresh run: networks initialised from `train.seed`, one worker per `train.num_envs`
-    /// drawing from `pool`.
-    pub fn new(
-        cfg: Config,
-        world: Arc<RadioWorld>,
-        rsrp: Arc<dyn RsrpSource + Send + Sync>,
-        pool: Arc<Vec<Pair>>,
-        device: &burn::tensor::Device,
-    ) -> Result<Trainer, TrainError> {
-        let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
-        let (obs_dim, n_sites) = policy_shape(&cfg, &probe);
-        let workers = make_workers(&cfg, &world, &rsrp, &pool)?;
-        Ok(Trainer {
-            learner: Learner::new(cfg, obs_dim, n_sites, device),
-            world,
-            rsrp,
-            workers,
-        })
-    }
-
-    /// Continues a run from a checkpoint (its counters, normalisers, model and Adam state);
-    /// `cfg` may raise `train.total_timesteps`.
-    pub fn resume(
-        cfg: Config,
-        world: Arc<RadioWorld>,
-        rsrp: Arc<dyn RsrpSource + Send + Sync>,
-        pool: Arc<Vec<Pair>>,
-        device: &burn::tensor::Device,
-        ck: &LoadedCheckpoint,
-    ) -> Result<Trainer, TrainError> {
-        let mut t = Trainer::new(cfg, world, rsrp, pool, device)?;
-        t.learner.restore(device, ck)?;
-        Ok(t)
-    }
-
-    /// One rollout of every worker and one PPO update.
-    pub fn iteration(&mut self) -> Result<IterationReport, TrainError> {
-        let t0 = Instant::now();
-        let policy = self.learner.policy();
-        let (seed, update) = (self.learner.cfg.train.seed, self.learner.update);
-        let steps = self.learner.cfg.train.num_steps;
-        for (k, w) in self.workers.iter_mut().enumerate() {
-            w.reseed(stream_seed(seed, k as u64, update));
-        }
-        let trajs: Vec<EnvTrajectory> = self
-            .workers
-            .par_iter_mut()
-            .map(|w| w.collect(&policy, steps))
-            .collect::<Result<_, _>>()?;
-        let collect_s = t0.elapsed().as_secs_f64();
-        let segments: Vec<Segment<'_>> = trajs
-            .iter()
-            .map(|traj| Segment {
-                actor: ActorId(0),
-                behaviour_version: policy.version,
-                traj,
-            })
-            .collect();
-        self.learner
-            .learn(&policy, &segments, Timings { collect_s })
-    }
-
-    /// Flies `pairs` with the current deterministic policy.
-    pub fn evaluate(&self, pairs: &[Pair]) -> Result<Vec<EpisodeSummary>, TrainError> {
-        evaluate(
-            &self.learner.cfg,
-            &self.world,
-            &self.rsrp,
-            &self.learner.policy(),
-            pairs,
-        )
-    }
-}
-
-/// Adds the domain statistics under `prefix/…`.
-pub fn put_domain(row: &mut MetricsRow, prefix: &str, d: &DomainStats) {
-    let mut put = |k: &str, v: f64| {
-        row.insert(format!("{prefix}/{k}"), v);
-    };
-    put("episodes", d.episodes as f64);
-    put("success_rate", d.success_rate);
-    put("collision_rate", d.collision_rate);
-    put("out_of_bounds_rate", d.out_of_bounds_rate);
-    put("timeout_rate", d.timeout_rate);
-    put("mean_rsrp_dbm", d.mean_rsrp_dbm);
-    put("pct_excellent", d.pct_excellent);
-    put("pct_mediocre", d.pct_mediocre);
-    put("pct_poor", d.pct_poor);
-    put("handovers_per_km", d.handovers_per_km);
-    put("distance_overhead", d.distance_overhead);
-    put("site_regret_db", d.site_regret_db);
-    put("pct_site_regret_high", d.pct_site_regret_high);
-    put("pct_class_regret", d.pct_class_regret);
-}
-
-fn make_workers(
-    cfg: &Config,
-    world: &Arc<RadioWorld>,
-    rsrp: &Arc<dyn RsrpSource + Send + Sync>,
-    pool: &Arc<Vec<Pair>>,
-) -> Result<Vec<Worker>, TrainError> {
-    // Training rollouts: the sphere grown by env.training_margin_m.
-    let train_cfg = cfg.training();
-    (0..cfg.train.num_envs)
-        .map(|k| {
-            let env = Env::new(&train_cfg, world.clone(), rsrp.clone())?;
-            Ok(Worker::new(
-                k as u32,
-                env,
-                pool.clone(),
-                stream_seed(cfg.train.seed, k as u64, u64::MAX),
-            )?)
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -830,7 +830,7 @@ pub fn new_incarnation() -> u64 {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos() as u64)
         .unwrap_or(0);
-    dupac_actor::rollout::stream_seed(t, u64::from(std::process::id()), unix_ms())
+    dupac_common::seed::stream_seed(t, u64::from(std::process::id()), unix_ms())
 }
 
 #[cfg(test)]

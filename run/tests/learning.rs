@@ -3,14 +3,17 @@
 //! often than a uniformly random policy and than itself at initialisation.
 
 use dupac_actor::env::{Action, Env, Episode, Outcome};
+use dupac_actor::metrics::domain_stats;
 use dupac_actor::pairs::{Pair, eval_pairs, training_pool};
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, CityKind, Config, RadioMode};
-use dupac_learner::train::{Trainer, domain_stats};
+use dupac_learner::Learner;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
+use dupac_run::evaluate::evaluate;
+use dupac_run::local::LocalWorkers;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
@@ -99,22 +102,18 @@ fn learns(association: Association) {
     );
 
     let random = random_policy_success(&cfg, &world, &rsrp, &held_out);
-    let device = burn::tensor::Device::flex();
-    let mut trainer = Trainer::new(
-        cfg.clone(),
-        world.clone(),
-        rsrp.clone(),
-        Arc::new(pool),
-        &device,
-    )
-    .expect("trainer");
-    let init_stats = domain_stats(&trainer.evaluate(&held_out).expect("eval"));
+    let (mut trainer, mut workers) = trainer(&cfg, &world, &rsrp, pool);
+    let fly = |l: &Learner| evaluate(&cfg, &world, &rsrp, &l.policy(), &held_out).expect("eval");
+    let init_stats = domain_stats(&fly(&trainer));
     let init = init_stats.success_rate;
     while !trainer.done() {
-        let r = trainer.iteration().expect("iteration");
+        let r = trainer
+            .iterate(&mut workers)
+            .expect("iteration")
+            .expect("a batch");
         assert_eq!(r.stats.skipped_nonfinite, 0);
     }
-    let trained = domain_stats(&trainer.evaluate(&held_out).expect("eval"));
+    let trained = domain_stats(&fly(&trainer));
     eprintln!(
         "success: random {random:.2}, init {init:.2}, trained {:.2} (collisions {:.2}) after {} steps",
         trained.success_rate, trained.collision_rate, trainer.global_step
@@ -167,6 +166,21 @@ fn learns(association: Association) {
     }
 }
 
+/// The learner and the local workers of a one-process run (what `dupac train
+/// --single-process` builds).
+fn trainer(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &Arc<dyn RsrpSource + Send + Sync>,
+    pool: Vec<Pair>,
+) -> (Learner, LocalWorkers) {
+    let workers = LocalWorkers::new(cfg, world, rsrp, &Arc::new(pool)).expect("workers");
+    let probe = Env::new(cfg, world.clone(), rsrp.clone()).expect("env");
+    let (obs_dim, n_sites) = probe.policy_shape();
+    let learner = Learner::new(cfg.clone(), obs_dim, n_sites, &burn::tensor::Device::flex());
+    (learner, workers)
+}
+
 #[test]
 fn ppo_learns_to_reach_the_goal_on_a_small_procedural_city() {
     learns(Association::Learned);
@@ -187,17 +201,13 @@ fn same_seed_same_run_different_seed_different_run() {
         let rsrp: Arc<dyn RsrpSource + Send + Sync> = world.clone();
         let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
         let pool = training_pool(&planner, &cfg.pairs, &cfg.env, 50, 1, &|_| {});
-        let mut t = Trainer::new(
-            cfg,
-            world.clone(),
-            rsrp,
-            Arc::new(pool),
-            &burn::tensor::Device::flex(),
-        )
-        .expect("trainer");
+        let (mut t, mut workers) = trainer(&cfg, &world, &rsrp, pool);
         let mut returns = Vec::new();
         while !t.done() {
-            let r = t.iteration().expect("iteration");
+            let r = t
+                .iterate(&mut workers)
+                .expect("iteration")
+                .expect("a batch");
             returns.push(
                 r.row
                     .get("losses/value_loss")

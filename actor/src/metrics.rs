@@ -1,0 +1,179 @@
+//! Episode metrics (spec/env.md "Metrics"), one place for training and evaluation's
+//! summaries: [`EpisodeAccumulator`] folds an episode's [`StepInfo`] records into an
+//! [`EpisodeSummary`] (what rollouts report and the learner's rolling metrics read);
+//! [`DomainStats`] aggregates a set of summaries (rates per episode, link measures weighted by
+//! steps); [`put_domain`] writes them as metrics under one prefix (`domain/…` for training
+//! episodes, `eval/…` for the held-out evaluation).
+
+use crate::env::{Outcome, StepInfo};
+pub use dupac_common::msg::EpisodeSummary;
+use dupac_radio::class::RsrpClass;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Accumulates [`StepInfo`] records into an [`EpisodeSummary`].
+#[derive(Debug, Clone, Default)]
+pub struct EpisodeAccumulator {
+    steps: u32,
+    rsrp_sum_dbm: f64,
+    class_counts: [u32; 3],
+    handovers: u32,
+    ping_pongs: u32,
+    distance_flown_m: f64,
+    remaining_m: f64,
+    episodic_return: f64,
+    regret_sum_db: f64,
+    regret_high: u32,
+    class_regret: u32,
+    /// `env.site_regret_threshold_db`.
+    regret_threshold_db: f64,
+}
+
+impl EpisodeAccumulator {
+    /// An empty accumulator with the metric thresholds of `env`.
+    pub fn new(env: &dupac_common::config::EnvConfig) -> EpisodeAccumulator {
+        EpisodeAccumulator {
+            regret_threshold_db: env.site_regret_threshold_db,
+            ..EpisodeAccumulator::default()
+        }
+    }
+
+    pub fn push(&mut self, info: &StepInfo) {
+        let regret_db = info.site_regret_db();
+        self.regret_sum_db += regret_db;
+        self.regret_high += u32::from(regret_db > self.regret_threshold_db);
+        self.class_regret += u32::from(info.class_regret());
+        self.steps += 1;
+        self.rsrp_sum_dbm += info.serving_rsrp_dbm;
+        let k = match info.class {
+            RsrpClass::Excellent => 0,
+            RsrpClass::Mediocre => 1,
+            RsrpClass::Poor => 2,
+        };
+        self.class_counts[k] += 1;
+        self.handovers += u32::from(info.handover);
+        self.ping_pongs += u32::from(info.ping_pong);
+        self.distance_flown_m = info.distance_flown_m;
+        self.remaining_m = info.distance_to_goal_m;
+        self.episodic_return += info.reward;
+    }
+
+    pub fn finish(&mut self, pair_id: u64, shortest_m: f64, outcome: Outcome) -> EpisodeSummary {
+        let n = f64::from(self.steps.max(1));
+        let s = EpisodeSummary {
+            pair_id,
+            outcome,
+            episodic_return: self.episodic_return,
+            length: self.steps,
+            distance_flown_m: self.distance_flown_m,
+            shortest_m,
+            remaining_m: self.remaining_m,
+            mean_rsrp_dbm: self.rsrp_sum_dbm / n,
+            frac_excellent: f64::from(self.class_counts[0]) / n,
+            frac_mediocre: f64::from(self.class_counts[1]) / n,
+            frac_poor: f64::from(self.class_counts[2]) / n,
+            handovers: self.handovers,
+            ping_pongs: self.ping_pongs,
+            mean_site_regret_db: self.regret_sum_db / n,
+            frac_site_regret_high: f64::from(self.regret_high) / n,
+            frac_class_regret: f64::from(self.class_regret) / n,
+        };
+        *self = EpisodeAccumulator {
+            regret_threshold_db: self.regret_threshold_db,
+            ..EpisodeAccumulator::default()
+        };
+        s
+    }
+}
+
+/// Domain metrics over a set of episodes (spec/env.md "Metrics").
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct DomainStats {
+    pub episodes: usize,
+    pub success_rate: f64,
+    pub collision_rate: f64,
+    pub out_of_bounds_rate: f64,
+    pub timeout_rate: f64,
+    pub episodic_return: f64,
+    pub episodic_length: f64,
+    /// Mean serving RSRP over all steps (dBm).
+    pub mean_rsrp_dbm: f64,
+    /// Percent of flight time per class, over all steps.
+    pub pct_excellent: f64,
+    pub pct_mediocre: f64,
+    pub pct_poor: f64,
+    /// Handovers per km flown.
+    pub handovers_per_km: f64,
+    /// Mean distance overhead over the shortest path of the successful episodes (fraction).
+    pub distance_overhead: f64,
+    /// Mean site regret over all steps: best − serving RSRP (dB, issue 15).
+    pub site_regret_db: f64,
+    /// Percent of steps with site regret over `env.site_regret_threshold_db`.
+    pub pct_site_regret_high: f64,
+    /// Percent of steps with class regret (best site excellent, serving one not).
+    pub pct_class_regret: f64,
+}
+
+/// Aggregates episode summaries (step-weighted for RSRP and classes).
+pub fn domain_stats(eps: &[EpisodeSummary]) -> DomainStats {
+    let n = eps.len();
+    if n == 0 {
+        return DomainStats::default();
+    }
+    let nf = n as f64;
+    let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f64 / nf;
+    let steps: f64 = eps
+        .iter()
+        .map(|e| f64::from(e.length))
+        .sum::<f64>()
+        .max(1.0);
+    let w = |f: &dyn Fn(&EpisodeSummary) -> f64| {
+        eps.iter().map(|e| f(e) * f64::from(e.length)).sum::<f64>() / steps
+    };
+    let km: f64 = eps.iter().map(|e| e.distance_flown_m).sum::<f64>() / 1000.0;
+    let ho: f64 = eps.iter().map(|e| f64::from(e.handovers)).sum();
+    let ok: Vec<&EpisodeSummary> = eps.iter().filter(|e| e.outcome == Outcome::Goal).collect();
+    DomainStats {
+        episodes: n,
+        success_rate: rate(Outcome::Goal),
+        collision_rate: rate(Outcome::Collision),
+        out_of_bounds_rate: rate(Outcome::OutOfBounds),
+        timeout_rate: rate(Outcome::TimeLimit),
+        episodic_return: eps.iter().map(|e| e.episodic_return).sum::<f64>() / nf,
+        episodic_length: eps.iter().map(|e| f64::from(e.length)).sum::<f64>() / nf,
+        mean_rsrp_dbm: w(&|e| e.mean_rsrp_dbm),
+        pct_excellent: 100.0 * w(&|e| e.frac_excellent),
+        pct_mediocre: 100.0 * w(&|e| e.frac_mediocre),
+        pct_poor: 100.0 * w(&|e| e.frac_poor),
+        handovers_per_km: if km > 0.0 { ho / km } else { 0.0 },
+        distance_overhead: if ok.is_empty() {
+            f64::NAN
+        } else {
+            ok.iter().map(|e| e.overhead()).sum::<f64>() / ok.len() as f64
+        },
+        site_regret_db: w(&|e| e.mean_site_regret_db),
+        pct_site_regret_high: 100.0 * w(&|e| e.frac_site_regret_high),
+        pct_class_regret: 100.0 * w(&|e| e.frac_class_regret),
+    }
+}
+
+/// Adds the domain statistics under `prefix/…`.
+pub fn put_domain(row: &mut BTreeMap<String, f64>, prefix: &str, d: &DomainStats) {
+    let mut put = |k: &str, v: f64| {
+        row.insert(format!("{prefix}/{k}"), v);
+    };
+    put("episodes", d.episodes as f64);
+    put("success_rate", d.success_rate);
+    put("collision_rate", d.collision_rate);
+    put("out_of_bounds_rate", d.out_of_bounds_rate);
+    put("timeout_rate", d.timeout_rate);
+    put("mean_rsrp_dbm", d.mean_rsrp_dbm);
+    put("pct_excellent", d.pct_excellent);
+    put("pct_mediocre", d.pct_mediocre);
+    put("pct_poor", d.pct_poor);
+    put("handovers_per_km", d.handovers_per_km);
+    put("distance_overhead", d.distance_overhead);
+    put("site_regret_db", d.site_regret_db);
+    put("pct_site_regret_high", d.pct_site_regret_high);
+    put("pct_class_regret", d.pct_class_regret);
+}

@@ -1,0 +1,12 @@
+//! DUPAC over Zenoh (issue 5): the only crate that names zenoh.
+//!
+//! - [`net`]: the connection options every process takes (zenoh's examples' shared arguments).
+//! - [`actor`]: an actor process's node: environments stepped with the newest weights,
+//!   trajectory chunks published, a live-weights [`actor::Follower`] for `dupac fly --follow`.
+//! - [`learner`]: the learner's node: chunks received, validated and batched, weights and
+//!   statistics published; a [`dupac_learner::source::TrajectorySource`] for the one training loop.
+
+pub mod actor;
+pub mod learner;
+pub mod net;
+pub mod source;

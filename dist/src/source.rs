@@ -1,0 +1,127 @@
+//! The learner's trajectory source over Zenoh: [`ZenohSource`] wraps a [`LearnerNode`] as a
+//! [`TrajectorySource`], so `dupac learner` runs the same training loop as `dupac train
+//! --single-process`. A batch is the queued chunks of at least a batch's samples; after each
+//! update the new weights are broadcast; statistics go out every `distributed.stats_every_s`
+//! (also while waiting for data) and with the last update; a completed run tells actors to stop.
+
+use crate::learner::{LearnerNode, NodeError};
+use dupac_common::msg::DropReason;
+use dupac_common::policy::PolicyWeights;
+use dupac_learner::source::{Collected, Progress, SourceError, Sourced, TrajectorySource};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// A [`LearnerNode`] as the learner's trajectory source.
+pub struct ZenohSource {
+    node: Option<LearnerNode>,
+    stop: Arc<AtomicBool>,
+    stats_every_s: f64,
+    /// The last update's row: what statistics published while waiting carry.
+    last_row: BTreeMap<String, f64>,
+}
+
+impl ZenohSource {
+    /// `stop` (Ctrl-C) ends a wait for data with no batch.
+    pub fn new(node: LearnerNode, stop: Arc<AtomicBool>, stats_every_s: f64) -> ZenohSource {
+        ZenohSource {
+            node: Some(node),
+            stop,
+            stats_every_s,
+            last_row: BTreeMap::new(),
+        }
+    }
+
+    fn node(&mut self) -> Result<&mut LearnerNode, SourceError> {
+        self.node
+            .as_mut()
+            .ok_or_else(|| "the learner node is closed".into())
+    }
+}
+
+impl TrajectorySource for ZenohSource {
+    fn collect(
+        &mut self,
+        policy: &PolicyWeights,
+        samples: usize,
+        progress: &Progress,
+    ) -> Result<Option<Collected>, SourceError> {
+        let stop = self.stop.clone();
+        let last_row = &self.last_row;
+        let node = self.node.as_mut().ok_or("the learner node is closed")?;
+        let p = *progress;
+        let batch = node.next_batch(policy.version, samples, &stop, &mut |node| {
+            let _ = node.publish_stats(p.update, p.num_updates, p.global_step, last_row, false);
+        });
+        let Some(batch) = batch else { return Ok(None) };
+        let mut metrics = BTreeMap::new();
+        metrics.insert("time/wait_s".into(), batch.wait_s);
+        metrics.insert("dist/chunks".into(), batch.chunks.len() as f64);
+        let trajectories = batch
+            .chunks
+            .into_iter()
+            .flat_map(|c| {
+                let (actor, version) = (c.header.actor, c.header.policy_version);
+                c.trajectories.into_iter().map(move |traj| Sourced {
+                    actor,
+                    behaviour_version: version,
+                    traj,
+                })
+            })
+            .collect();
+        Ok(Some(Collected {
+            trajectories,
+            collect_s: Some(batch.wait_s),
+            metrics,
+        }))
+    }
+
+    fn publish(
+        &mut self,
+        policy: &PolicyWeights,
+        row: &mut BTreeMap<String, f64>,
+    ) -> Result<(), SourceError> {
+        let node = self.node()?;
+        let t = Instant::now();
+        node.publish_weights(policy)?;
+        row.insert("time/publish_s".into(), t.elapsed().as_secs_f64());
+        row.insert("dist/alive_actors".into(), node.alive_actors() as f64);
+        let drops = node.drops();
+        for r in DropReason::ALL {
+            row.insert(
+                format!("dist/dropped_{}", r.as_str()),
+                drops.get(r.as_str()).copied().unwrap_or(0) as f64,
+            );
+        }
+        Ok(())
+    }
+
+    fn report(
+        &mut self,
+        row: &BTreeMap<String, f64>,
+        p: &Progress,
+        last: bool,
+    ) -> Result<(), SourceError> {
+        let every = self.stats_every_s;
+        let node = self.node()?;
+        if node.since_stats_s() >= every || last {
+            node.publish_stats(p.update, p.num_updates, p.global_step, row, last)?;
+        }
+        self.last_row = row.clone();
+        Ok(())
+    }
+
+    fn finish(&mut self, p: &Progress, completed: bool) -> Result<(), SourceError> {
+        let Some(node) = self.node.take() else {
+            return Ok(());
+        };
+        let sent = if completed {
+            node.send_stop(p.update)
+        } else {
+            Ok(())
+        };
+        node.close();
+        sent.map_err(|e: NodeError| e.into())
+    }
+}

@@ -1,0 +1,36 @@
+//! The held-out evaluation during training: `pairs` flown with the deterministic policy, one
+//! environment per task (spec/env.md "Metrics").
+
+use crate::error::RunError;
+use crate::scenario::SharedRsrp;
+use dupac_actor::env::{Env, Episode};
+use dupac_actor::metrics::EpisodeSummary;
+use dupac_actor::pairs::Pair;
+use dupac_actor::rollout::fly_policy;
+use dupac_common::Config;
+use dupac_common::policy::PolicyWeights;
+use dupac_radio::world::RadioWorld;
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// Flies `pairs` with the deterministic `policy` in parallel.
+pub fn evaluate(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    policy: &PolicyWeights,
+    pairs: &[Pair],
+) -> Result<Vec<EpisodeSummary>, RunError> {
+    pairs
+        .par_iter()
+        .map(|p| {
+            let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
+            let ep = Episode {
+                source_m: p.source_m,
+                destination_m: p.destination_m,
+                shortest_m: p.shortest_m,
+            };
+            Ok(fly_policy(&mut env, policy, p.id, ep, p.id)?.0)
+        })
+        .collect()
+}

@@ -1,0 +1,16 @@
+//! The run layer of DUPAC: what the commands share, above the simulation (`dupac-actor`), the
+//! learner and the network. Scenario setup ([`scenario`]: world, RSRP cache, pairs), the run
+//! directory and its metrics ([`run_dir`], [`metrics_table`]), local rollout workers as a
+//! trajectory source ([`local`]), the held-out evaluation ([`evaluate`]) and the one training
+//! loop ([`train_loop`]) that `dupac train --single-process` and `dupac learner` both run.
+
+pub mod error;
+pub mod evaluate;
+pub mod local;
+pub mod metrics_table;
+pub mod progress;
+pub mod run_dir;
+pub mod scenario;
+pub mod train_loop;
+
+pub use error::{Context, RunError};

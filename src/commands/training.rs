@@ -1,0 +1,125 @@
+//! What `dupac train --single-process` and `dupac learner` share around the one training loop
+//! (`dupac_run::train_loop`): the configuration, the world, the held-out set, the learner
+//! (fresh or resumed) and the locked run directory; then the loop with a progress bar and the
+//! closing lines. They differ only in their trajectory source.
+
+use super::run_args::{RunArgs, device, progress_message, resolve_config};
+use crate::GlobalArgs;
+use anyhow::Result;
+use dupac_actor::env::Env;
+use dupac_actor::pairs::Pair;
+use dupac_actor::planner::Planner;
+use dupac_common::Config;
+use dupac_learner::{Learner, TrajectorySource};
+use dupac_radio::world::RadioWorld;
+use dupac_run::evaluate::evaluate;
+use dupac_run::progress::progress_bar;
+use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};
+use dupac_run::scenario::{SharedRsrp, held_out_pairs, make_pool, spread, world_and_cache};
+use dupac_run::train_loop::{self, Finish, method_name, summary_line};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+/// A training run ready to start.
+pub struct Training {
+    pub cfg: Config,
+    pub world: Arc<RadioWorld>,
+    pub rsrp: SharedRsrp,
+    /// The training pool (`train.pool_size` pairs), when asked for (local workers draw from it).
+    pub pool: Option<Arc<Vec<Pair>>>,
+    pub learner: Learner,
+    pub out: RunOutput,
+    pub method: &'static str,
+    eval_set: Vec<Pair>,
+}
+
+impl Training {
+    /// Resolves the configuration, builds the world, reads (or makes) the held-out pairs,
+    /// draws the training pool when `with_pool`, creates or resumes the learner and locks the
+    /// run directory; `how` ends the curves' title.
+    pub fn prepare(
+        global: &GlobalArgs,
+        run: &RunArgs,
+        how: &str,
+        with_pool: bool,
+    ) -> Result<Training> {
+        let cfg = resolve_config(global, run.association, run.out.as_ref())?;
+        let checkpoint = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
+        let device = device(run.device)?;
+        let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+        let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
+        let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+        let eval_set = spread(
+            &held_out_pairs(&cfg, &planner, global.quiet)?,
+            cfg.train.eval_pairs,
+        );
+        let pool = match with_pool {
+            true => Some(Arc::new(make_pool(&cfg, &planner, global.quiet)?)),
+            false => None,
+        };
+        drop(planner);
+        let mut learner = Learner::new(cfg.clone(), obs_dim, n_sites, &device);
+        if let Some(ck) = &checkpoint {
+            learner.restore(&device, ck)?;
+            eprintln!(
+                "resuming at update {} ({} timesteps)",
+                ck.meta.update, ck.meta.global_step
+            );
+        }
+        let method = method_name(&cfg);
+        let title = format!(
+            "{method}, seed {}: {}{how}",
+            cfg.train.seed, world.city.name
+        );
+        let out = RunOutput::open(&cfg, learner.update, crate::curves::renderer(title))?;
+        Ok(Training {
+            cfg,
+            world,
+            rsrp,
+            pool,
+            learner,
+            out,
+            method,
+            eval_set,
+        })
+    }
+
+    /// The training loop on `source` until done or stopped, with a progress bar; prints the
+    /// summary (or where the checkpoint is) like every training command.
+    pub fn run(
+        mut self,
+        global: &GlobalArgs,
+        source: &mut dyn TrajectorySource,
+        stop: &AtomicBool,
+    ) -> Result<ExitCode> {
+        let learner = &mut self.learner;
+        let total = learner.num_updates() * learner.batch_size() as u64;
+        let pb = progress_bar(total, "timesteps", global.quiet);
+        pb.set_position(learner.global_step);
+        let (cfg, world, rsrp, eval_set) = (&self.cfg, &self.world, &self.rsrp, &self.eval_set);
+        let eval = |p: &_| evaluate(cfg, world, rsrp, p, eval_set);
+        let finish = train_loop::train(
+            learner,
+            source,
+            &mut self.out,
+            &eval,
+            stop,
+            &mut |l, row| {
+                pb.set_position(l.global_step);
+                pb.set_message(progress_message(row));
+            },
+        )?;
+        pb.finish_and_clear();
+        match finish {
+            Finish::Interrupted => eprintln!(
+                "interrupted at update {}: checkpoint written to {}; continue with --resume",
+                learner.update,
+                self.out.ck_path.display()
+            ),
+            Finish::Completed => println!("{}", summary_line(learner, &self.out.last())),
+        }
+        eprintln!("wrote {}", self.out.out.display());
+        Ok(ExitCode::SUCCESS)
+    }
+}
