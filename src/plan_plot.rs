@@ -8,12 +8,12 @@
 //! throughout: the outline of its path on the map and its line in both profiles.
 
 use crate::plot::{
-    FONT, RSRP_EXCELLENT_DBM, RSRP_POOR_DBM, clip_ring, draw_halo_text, draw_site_marker,
-    ensure_font, fmt_num, pe,
+    FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, ensure_font, fmt_num, pe,
 };
 use anyhow::{Context, Result, bail};
 use dupac_radio::city::Building;
 use dupac_radio::class::RsrpClass;
+use dupac_radio::class::RsrpThresholds;
 use dupac_radio::sites::{Site, SiteKind};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -221,6 +221,7 @@ pub fn render_plan_png(
     sites: &[Site],
     area_m: [f64; 4],
     traces: &[FlightTrace],
+    thresholds: &RsrpThresholds,
     title: &str,
     path: &Path,
 ) -> Result<()> {
@@ -228,7 +229,7 @@ pub fn render_plan_png(
     ensure_font()?;
 
     crate::plot::write_png_atomic(path, |tmp| {
-        draw(buildings, sites, area_m, traces, title, tmp)
+        draw(buildings, sites, area_m, traces, thresholds, title, tmp)
     })
     .with_context(|| format!("cannot write path plot {}", path.display()))
 }
@@ -240,6 +241,7 @@ fn draw(
     sites: &[Site],
     area_m: [f64; 4],
     traces: &[FlightTrace],
+    thresholds: &RsrpThresholds,
     title: &str,
     file: &Path,
 ) -> Result<()> {
@@ -265,8 +267,10 @@ fn draw(
     root.draw_text(title, &title_style, (WIDTH as i32 / 2, TITLE_H / 2 + 2))
         .map_err(pe)?;
 
-    draw_top_view(&root, buildings, sites, area_m, traces, &derived)?;
-    draw_profiles(&root, traces, &derived)?;
+    draw_top_view(
+        &root, buildings, sites, area_m, traces, &derived, thresholds,
+    )?;
+    draw_profiles(&root, traces, &derived, thresholds)?;
     root.present().map_err(pe)?;
     Ok(())
 }
@@ -624,20 +628,14 @@ fn draw_top_view(
     area_m: [f64; 4],
     traces: &[FlightTrace],
     derived: &[Derived],
+    thresholds: &RsrpThresholds,
 ) -> Result<()> {
     // Legend content first: its height decides the map's.
-    let mut items: Vec<Option<(Icon, String)>> = vec![
-        Some((
-            Icon::Class(RsrpClass::Excellent),
-            format!("excellent (≥ {} dBm)", fmt_num(RSRP_EXCELLENT_DBM)),
-        )),
-        Some((Icon::Class(RsrpClass::Mediocre), "mediocre".into())),
-        Some((
-            Icon::Class(RsrpClass::Poor),
-            format!("poor (< {} dBm)", fmt_num(RSRP_POOR_DBM)),
-        )),
-        None,
-    ];
+    let mut items: Vec<Option<(Icon, String)>> = class_bands(thresholds, f64::NAN, f64::NAN)
+        .into_iter()
+        .map(|(class, _, _, label)| Some((Icon::Class(class), label)))
+        .collect();
+    items.push(None);
     let legend_w = LEFT_W - 2 * MARGIN - 20;
     let legend_style = (FONT, LEGEND_PX).into_text_style(root);
     for (i, (t, d)) in traces.iter().zip(derived).enumerate() {
@@ -937,7 +935,12 @@ fn with_headroom(lo: f64, hi: f64, frac: f64) -> f64 {
     hi + (hi - lo) * frac / (1.0 - frac)
 }
 
-fn draw_profiles(root: &Area, traces: &[FlightTrace], derived: &[Derived]) -> Result<()> {
+fn draw_profiles(
+    root: &Area,
+    traces: &[FlightTrace],
+    derived: &[Derived],
+    thresholds: &RsrpThresholds,
+) -> Result<()> {
     let right = root.clone().shrink(
         (LEFT_W, TITLE_H),
         (WIDTH as i32 - LEFT_W, HEIGHT as i32 - TITLE_H),
@@ -992,12 +995,8 @@ fn draw_profiles(root: &Area, traces: &[FlightTrace], derived: &[Derived]) -> Re
     let r_bot = (r_lo - 3.0).min(-130.0);
     let r_top = with_headroom(r_bot, (r_hi + 3.0).max(-50.0), legend_frac);
     let mut chart = profile_chart(&bottom, "Serving RSRP", d_max, r_bot..r_top)?;
-    let bands = [
-        (RsrpClass::Excellent, RSRP_EXCELLENT_DBM, r_top),
-        (RsrpClass::Mediocre, RSRP_POOR_DBM, RSRP_EXCELLENT_DBM),
-        (RsrpClass::Poor, r_bot, RSRP_POOR_DBM),
-    ];
-    for (class, lo, hi) in bands {
+    let bands = class_bands(thresholds, r_bot, r_top);
+    for (class, lo, hi, _) in bands.iter().cloned() {
         chart
             .draw_series(std::iter::once(Rectangle::new(
                 [(0.0, lo), (d_max, hi)],
@@ -1006,7 +1005,7 @@ fn draw_profiles(root: &Area, traces: &[FlightTrace], derived: &[Derived]) -> Re
             .map_err(pe)?;
     }
     mesh(&mut chart, "serving RSRP (dBm)")?;
-    for b in [RSRP_EXCELLENT_DBM, RSRP_POOR_DBM] {
+    for b in [thresholds.excellent_dbm, thresholds.poor_dbm] {
         chart
             .draw_series(DashedLineSeries::new(
                 vec![(0.0, b), (d_max, b)],
@@ -1026,7 +1025,7 @@ fn draw_profiles(root: &Area, traces: &[FlightTrace], derived: &[Derived]) -> Re
         .into_font()
         .color(&BLACK)
         .pos(Pos::new(HPos::Left, VPos::Center));
-    for (class, lo, hi) in bands {
+    for (class, lo, hi, _) in bands {
         let (x, y) = plot.map_coordinate(&(d_max, 0.5 * (lo + hi)));
         let x = x + 10;
         root.draw(&Rectangle::new(
@@ -1141,13 +1140,7 @@ mod tests {
     }
 
     fn class_of(rsrp: f64) -> RsrpClass {
-        if rsrp >= RSRP_EXCELLENT_DBM {
-            RsrpClass::Excellent
-        } else if rsrp >= RSRP_POOR_DBM {
-            RsrpClass::Mediocre
-        } else {
-            RsrpClass::Poor
-        }
+        RsrpThresholds::default().classify(rsrp)
     }
 
     /// A trace through `waypoints` (x, y, z), sampled every ~5 m, with a synthetic RSRP field.
@@ -1263,8 +1256,16 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("sub").join("plan.png");
         let (buildings, sites, area, traces) = scene();
-        render_plan_png(&buildings, &sites, area, &traces, "synthetic plan", &path)
-            .expect("render");
+        render_plan_png(
+            &buildings,
+            &sites,
+            area,
+            &traces,
+            &RsrpThresholds::default(),
+            "synthetic plan",
+            &path,
+        )
+        .expect("render");
         let bytes = std::fs::read(&path).expect("png exists");
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
         assert!(bytes.len() > 20_000, "{} bytes", bytes.len());
@@ -1276,14 +1277,70 @@ mod tests {
         assert_eq!(left.len(), 1, "{left:?}");
     }
 
+    /// Issue 17: the class bands and legends come from the configuration. With
+    /// `radio.rsrp_excellent_dbm` and `radio.rsrp_poor_dbm` changed, the bands and legend
+    /// labels every figure draws move with them, and the rendered plan differs from the one with
+    /// the paper's thresholds (a renderer that kept −80/−100 would draw the same image).
+    #[test]
+    fn class_bands_and_legend_follow_the_configured_thresholds() {
+        let radio = dupac_common::config::RadioConfig {
+            rsrp_excellent_dbm: -72.0,
+            rsrp_poor_dbm: -95.0,
+            ..Default::default()
+        };
+        let t = RsrpThresholds::from_config(&radio);
+        let bands = class_bands(&t, -130.0, -50.0);
+        let edges: Vec<(RsrpClass, f64, f64)> = bands.iter().map(|b| (b.0, b.1, b.2)).collect();
+        assert_eq!(
+            edges,
+            vec![
+                (RsrpClass::Excellent, -72.0, -50.0),
+                (RsrpClass::Mediocre, -95.0, -72.0),
+                (RsrpClass::Poor, -130.0, -95.0),
+            ]
+        );
+        assert_eq!(bands[0].3, format!("excellent (≥ {} dBm)", fmt_num(-72.0)));
+        assert_eq!(bands[2].3, format!("poor (< {} dBm)", fmt_num(-95.0)));
+        let default_labels: Vec<String> = class_bands(&RsrpThresholds::default(), -130.0, -50.0)
+            .into_iter()
+            .map(|b| b.3)
+            .collect();
+        assert_eq!(
+            default_labels[0],
+            format!("excellent (≥ {} dBm)", fmt_num(-80.0))
+        );
+
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (buildings, sites, area, traces) = scene();
+        let draw = |th: &RsrpThresholds, name: &str| {
+            let p = dir.path().join(name);
+            render_plan_png(&buildings, &sites, area, &traces, th, "thresholds", &p)
+                .expect("render");
+            std::fs::read(&p).expect("png")
+        };
+        assert_ne!(
+            draw(&RsrpThresholds::default(), "paper.png"),
+            draw(&t, "configured.png"),
+            "the figure must change with the configured thresholds"
+        );
+    }
+
     #[test]
     fn rejects_bad_traces_naming_path_and_label() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("bad.png");
         let (buildings, sites, area, mut traces) = scene();
         traces[1].serving_rsrp_dbm.pop();
-        let err = render_plan_png(&buildings, &sites, area, &traces, "t", &path)
-            .expect_err("length mismatch");
+        let err = render_plan_png(
+            &buildings,
+            &sites,
+            area,
+            &traces,
+            &RsrpThresholds::default(),
+            "t",
+            &path,
+        )
+        .expect_err("length mismatch");
         let msg = format!("{err:#}");
         assert!(
             msg.contains("bad.png") && msg.contains("coverage-aware λ=1 (A3)"),
@@ -1295,7 +1352,16 @@ mod tests {
         traces[0].points_m[3][2] = f64::NAN;
         let msg = format!(
             "{:#}",
-            render_plan_png(&buildings, &sites, area, &traces, "t", &path).expect_err("NaN")
+            render_plan_png(
+                &buildings,
+                &sites,
+                area,
+                &traces,
+                &RsrpThresholds::default(),
+                "t",
+                &path
+            )
+            .expect_err("NaN")
         );
         assert!(msg.contains("shortest (A3)"), "{msg}");
 
@@ -1305,8 +1371,30 @@ mod tests {
             t.serving_rsrp_dbm.truncate(1);
             t.class.truncate(1);
         });
-        assert!(render_plan_png(&buildings, &sites, area, &traces, "t", &path).is_err());
-        assert!(render_plan_png(&buildings, &sites, area, &[], "t", &path).is_err());
+        assert!(
+            render_plan_png(
+                &buildings,
+                &sites,
+                area,
+                &traces,
+                &RsrpThresholds::default(),
+                "t",
+                &path
+            )
+            .is_err()
+        );
+        assert!(
+            render_plan_png(
+                &buildings,
+                &sites,
+                area,
+                &[],
+                &RsrpThresholds::default(),
+                "t",
+                &path
+            )
+            .is_err()
+        );
         assert!(!path.exists());
     }
 
@@ -1381,6 +1469,7 @@ mod tests {
             &sites,
             area,
             &traces,
+            &RsrpThresholds::default(),
             "Planned paths, synthetic scene, A3 handover",
             Path::new(&out),
         )

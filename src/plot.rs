@@ -7,6 +7,7 @@
 
 use anyhow::{Context, Result, anyhow, bail};
 use dupac_radio::city::Building;
+use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::coverage::CoverageSlice;
 use dupac_radio::sites::{Site, SiteKind};
 use plotters::coord::Shift;
@@ -20,10 +21,36 @@ use std::sync::OnceLock;
 pub const RSRP_SCALE_MIN_DBM: f64 = -130.0;
 /// Upper end of the colour scale (dBm); stronger values are drawn in its colour.
 pub const RSRP_SCALE_MAX_DBM: f64 = -50.0;
-/// Class boundaries marked on the colour bar (dBm): excellent ≥ −80, poor < −100
-/// (spec/radio.md §3).
-pub const RSRP_EXCELLENT_DBM: f64 = -80.0;
-pub const RSRP_POOR_DBM: f64 = -100.0;
+/// The RSRP classes as every figure draws them (spec/radio.md §3), from the configured
+/// thresholds (`radio.rsrp_excellent_dbm`, `radio.rsrp_poor_dbm`), never from literals: each
+/// class with the band it covers between `lo_dbm` and `hi_dbm` (the plot's range) and its
+/// legend label.
+pub fn class_bands(
+    t: &RsrpThresholds,
+    lo_dbm: f64,
+    hi_dbm: f64,
+) -> [(RsrpClass, f64, f64, String); 3] {
+    [
+        (
+            RsrpClass::Excellent,
+            t.excellent_dbm,
+            hi_dbm,
+            format!("excellent (≥ {} dBm)", fmt_num(t.excellent_dbm)),
+        ),
+        (
+            RsrpClass::Mediocre,
+            t.poor_dbm,
+            t.excellent_dbm,
+            "mediocre".to_string(),
+        ),
+        (
+            RsrpClass::Poor,
+            lo_dbm,
+            t.poor_dbm,
+            format!("poor (< {} dBm)", fmt_num(t.poor_dbm)),
+        ),
+    ]
+}
 
 /// Image width and largest height (px); the height shrinks for areas wider than tall.
 const WIDTH: u32 = 1400;
@@ -180,6 +207,7 @@ pub fn render_coverage_png(
     buildings: &[Building],
     sites: &[Site],
     area_m: [f64; 4],
+    thresholds: &RsrpThresholds,
     title: &str,
     path: &Path,
 ) -> Result<()> {
@@ -203,7 +231,7 @@ pub fn render_coverage_png(
     ensure_font()?;
 
     write_png_atomic(path, |tmp| {
-        draw(slice, buildings, sites, area_m, title, tmp)
+        draw(slice, buildings, sites, area_m, thresholds, title, tmp)
     })
     .with_context(|| format!("cannot write coverage map {}", path.display()))
 }
@@ -232,6 +260,7 @@ fn draw(
     buildings: &[Building],
     sites: &[Site],
     area_m: [f64; 4],
+    thresholds: &RsrpThresholds,
     title: &str,
     file: &Path,
 ) -> Result<()> {
@@ -399,7 +428,7 @@ fn draw(
         .draw()
         .map_err(pe)?;
 
-    draw_side(&side, slice.altitude_m, MARGIN, ph as i32)?;
+    draw_side(&side, slice.altitude_m, thresholds, MARGIN, ph as i32)?;
 
     root.present().map_err(pe)?;
     Ok(())
@@ -478,6 +507,7 @@ pub(crate) fn draw_halo_text(
 fn draw_side(
     side: &DrawingArea<BitMapBackend, Shift>,
     altitude_m: f64,
+    thresholds: &RsrpThresholds,
     top: i32,
     plot_h: i32,
 ) -> Result<()> {
@@ -522,7 +552,7 @@ fn draw_side(
     }
 
     // Class boundaries: a bold line across the bar and the class names to its left.
-    for b in [RSRP_EXCELLENT_DBM, RSRP_POOR_DBM] {
+    for b in [thresholds.excellent_dbm, thresholds.poor_dbm] {
         let y = y_of(b);
         side.draw(&Rectangle::new(
             [(bar_x0 - 8, y - 1), (bar_x0 + bar_w + 1, y + 2)],
@@ -544,14 +574,9 @@ fn draw_side(
         .into_font()
         .color(&BLACK)
         .pos(Pos::new(HPos::Right, VPos::Center));
-    let classes = [
-        ("excellent", RSRP_EXCELLENT_DBM, RSRP_SCALE_MAX_DBM),
-        ("mediocre", RSRP_POOR_DBM, RSRP_EXCELLENT_DBM),
-        ("poor", RSRP_SCALE_MIN_DBM, RSRP_POOR_DBM),
-    ];
-    for (name, lo, hi) in classes {
+    for (class, lo, hi, _) in class_bands(thresholds, RSRP_SCALE_MIN_DBM, RSRP_SCALE_MAX_DBM) {
         let y = (y_of(lo) + y_of(hi)) / 2;
-        side.draw_text(name, &class_font, (bar_x0 - 12, y))
+        side.draw_text(class.name(), &class_font, (bar_x0 - 12, y))
             .map_err(pe)?;
     }
 
@@ -699,8 +724,16 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("sub").join("map_60m.png");
         let (slice, buildings, sites, area) = synthetic(80, 5.0);
-        render_coverage_png(&slice, &buildings, &sites, area, "synthetic, 60 m", &path)
-            .expect("render");
+        render_coverage_png(
+            &slice,
+            &buildings,
+            &sites,
+            area,
+            &RsrpThresholds::default(),
+            "synthetic, 60 m",
+            &path,
+        )
+        .expect("render");
         let bytes = std::fs::read(&path).expect("png exists");
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
         assert!(bytes.len() > 10_000, "{} bytes", bytes.len());
@@ -718,8 +751,16 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("bad.png");
         let (slice, buildings, sites, _) = synthetic(10, 5.0);
-        let err = render_coverage_png(&slice, &buildings, &sites, [0.0, 0.0, 0.0, 1.0], "t", &path)
-            .expect_err("empty area");
+        let err = render_coverage_png(
+            &slice,
+            &buildings,
+            &sites,
+            [0.0, 0.0, 0.0, 1.0],
+            &RsrpThresholds::default(),
+            "t",
+            &path,
+        )
+        .expect_err("empty area");
         assert!(format!("{err:#}").contains("bad.png"));
         assert!(!path.exists());
     }
@@ -738,6 +779,7 @@ mod tests {
             &buildings,
             &sites,
             area,
+            &RsrpThresholds::default(),
             "Best-server RSRP, synthetic, 60 m",
             Path::new(&out),
         )

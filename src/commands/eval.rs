@@ -155,7 +155,12 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     }
     write_report(&args.out, &files, &args.dupac_label, &args.base_label)?;
     let world = dupac_radio::world::RadioWorld::build(&cfg).context("building the radio world")?;
-    draw_examples(&args.out, &world, &files)?;
+    draw_examples(
+        &args.out,
+        &world,
+        &files,
+        &RsrpThresholds::from_config(&cfg.radio),
+    )?;
     if args.maps {
         super::map::run(
             global,
@@ -1301,6 +1306,7 @@ fn draw_examples(
     out: &Path,
     world: &dupac_radio::world::RadioWorld,
     files: &[RecordsFile],
+    thresholds: &RsrpThresholds,
 ) -> Result<()> {
     // Seed 0 of every method; of the coverage-aware sweep only λ = 1 (readability).
     let seed0: Vec<&RecordsFile> = files
@@ -1364,6 +1370,7 @@ fn draw_examples(
             &world.sites,
             world.city.area_m,
             &traces,
+            thresholds,
             &title,
             &out.join(format!("example_pair{}.png", pair.pair_id)),
         )?;

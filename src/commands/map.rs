@@ -89,6 +89,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
             &world.city.buildings,
             &world.sites,
             world.city.area_m,
+            &dupac_radio::class::RsrpThresholds::from_config(&cfg.radio),
             &title,
             &out.join(format!("{stem}.png")),
         )?;

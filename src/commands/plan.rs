@@ -188,6 +188,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         &world.sites,
         world.city.area_m,
         &traces,
+        &dupac_radio::class::RsrpThresholds::from_config(&cfg.radio),
         &title,
         &args.out.join("plan.png"),
     )?;
