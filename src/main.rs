@@ -1,9 +1,7 @@
 //! `dupac`, the one command: a thin layer of argument parsing over the DUPAC libraries.
 
 mod commands;
-mod curves;
 mod io;
-mod plan_plot;
 mod plot;
 
 use anyhow::Result;

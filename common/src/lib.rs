@@ -14,9 +14,11 @@ pub mod fsio;
 pub mod ids;
 pub mod keys;
 pub mod msg;
+pub mod normalize;
 pub mod obs;
 pub mod policy;
 pub mod seed;
+pub mod validate;
 
 pub use config::{Config, ConfigError};
 pub use ids::{ActorId, SiteId};

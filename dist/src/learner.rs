@@ -16,19 +16,19 @@
 //!   liveliness subscriber tracks actors (joined, left, silent).
 //! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`.
 
+use crate::inbox::{Inbox, InboxBudget, decode_loop};
 use dupac_common::ActorId;
 use dupac_common::config::Config;
-use dupac_common::dedup::{MAX_TRACKED_SENDERS, SeqTracker, Verdict};
+use dupac_common::dedup::MAX_TRACKED_SENDERS;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
     ActorRow, ActorState, ChunkExpect, Command, ControlMsg, DropReason, Header, LearnerStats,
-    MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms,
-    validate_chunk,
+    MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
@@ -111,190 +111,6 @@ fn live_learner(session: &zenoh::Session, keys: &KeySpace) -> Result<Option<Stri
 
 fn z(e: impl std::fmt::Display) -> NodeError {
     NodeError::Zenoh(e.to_string())
-}
-
-/// A chunk that passed validation, waiting for the PPO loop.
-#[derive(Debug)]
-pub struct Received {
-    pub chunk: TrajectoryChunk,
-    pub at: Instant,
-    /// The sender (from the key) and the bytes charged to it until the chunk is taken.
-    sender: ActorId,
-    charge: usize,
-}
-
-/// A message as received, not yet decoded.
-struct Raw {
-    key: String,
-    sender: ActorId,
-    payload: zenoh::bytes::ZBytes,
-    charge: usize,
-}
-
-/// Byte budgets of the inbox (issue 16): what one sender, and all together, may hold queued
-/// (received and not yet decoded, or decoded and not yet trained), counted in message bytes.
-#[derive(Debug, Clone, Copy)]
-pub struct InboxBudget {
-    /// Largest message accepted (the chunk limit).
-    pub message_bytes: usize,
-    /// One sender (an actor id, from the key): a learner batch plus one chunk: an actor never
-    /// usefully has more than its share of a batch in flight.
-    pub per_sender_bytes: usize,
-    /// Everyone: two batches plus two chunks.
-    pub total_bytes: usize,
-    /// Decoded chunks held at most (`distributed.queue_chunks`).
-    pub max_chunks: usize,
-}
-
-impl InboxBudget {
-    /// The budget of a learner with `limits` for chunks and batches of `batch_samples` samples,
-    /// chunks being at most `chunk_samples` samples.
-    pub fn new(
-        limits: MsgLimits,
-        batch_samples: usize,
-        chunk_samples: usize,
-        max_chunks: usize,
-    ) -> InboxBudget {
-        let per_sample = limits.bytes.div_ceil(chunk_samples.max(1));
-        let batch_bytes = batch_samples.saturating_mul(per_sample);
-        InboxBudget {
-            message_bytes: limits.bytes,
-            per_sender_bytes: batch_bytes.saturating_add(limits.bytes),
-            total_bytes: batch_bytes.saturating_add(limits.bytes).saturating_mul(2),
-            max_chunks,
-        }
-    }
-}
-
-/// The queues between zenoh's receive callback, the decode thread and the PPO loop, with the
-/// bytes each sender holds in them.
-#[derive(Default)]
-struct Queues {
-    raw: VecDeque<Raw>,
-    decoded: VecDeque<Received>,
-    held: BTreeMap<ActorId, usize>,
-    total: usize,
-}
-
-impl Queues {
-    fn release(&mut self, sender: ActorId, charge: usize) {
-        self.total = self.total.saturating_sub(charge);
-        if let Some(h) = self.held.get_mut(&sender) {
-            *h = h.saturating_sub(charge);
-            if *h == 0 {
-                self.held.remove(&sender);
-            }
-        }
-    }
-
-    /// Drops `sender`'s oldest queued message (undecoded first). False when it holds none.
-    fn evict_oldest_of(&mut self, sender: ActorId) -> bool {
-        if let Some(i) = self.raw.iter().position(|r| r.sender == sender)
-            && let Some(r) = self.raw.remove(i)
-        {
-            self.release(r.sender, r.charge);
-            return true;
-        }
-        if let Some(i) = self.decoded.iter().position(|r| r.sender == sender)
-            && let Some(r) = self.decoded.remove(i)
-        {
-            self.release(r.sender, r.charge);
-            return true;
-        }
-        false
-    }
-
-    /// Makes room for `charge` more bytes of `sender`: its own oldest messages go first when it
-    /// is over its share, then the oldest of whoever holds the most when all are over the
-    /// total. Returns the messages dropped.
-    fn make_room(&mut self, sender: ActorId, charge: usize, b: &InboxBudget) -> u64 {
-        let mut dropped = 0;
-        while self.held.get(&sender).copied().unwrap_or(0) + charge > b.per_sender_bytes
-            && self.evict_oldest_of(sender)
-        {
-            dropped += 1;
-        }
-        while self.total + charge > b.total_bytes {
-            let Some((&biggest, _)) = self.held.iter().max_by_key(|(_, h)| **h) else {
-                break;
-            };
-            if !self.evict_oldest_of(biggest) {
-                break;
-            }
-            dropped += 1;
-        }
-        dropped
-    }
-}
-
-/// What the receive callback, the decode thread and the PPO loop share.
-struct Inbox {
-    queues: Mutex<Queues>,
-    /// A decoded chunk is ready (PPO loop) / a raw message arrived (decode thread).
-    ready: Condvar,
-    arrived: Condvar,
-    drops: Mutex<BTreeMap<DropReason, u64>>,
-    budget: InboxBudget,
-}
-
-impl Inbox {
-    fn new(budget: InboxBudget) -> Inbox {
-        Inbox {
-            queues: Mutex::default(),
-            ready: Condvar::new(),
-            arrived: Condvar::new(),
-            drops: Mutex::default(),
-            budget,
-        }
-    }
-
-    fn drop_n(&self, reason: DropReason, n: u64) {
-        if n > 0
-            && let Ok(mut d) = self.drops.lock()
-        {
-            *d.entry(reason).or_insert(0) += n;
-        }
-    }
-
-    fn drop_one(&self, reason: DropReason) {
-        self.drop_n(reason, 1);
-    }
-
-    /// zenoh's receive callback: size and key checks, then the byte budgets; never blocks on
-    /// the decoder (a blocked `Block` sender would lose its transport).
-    fn admit(&self, keys: &KeySpace, sample: &zenoh::sample::Sample) {
-        let key = sample.key_expr().as_str();
-        let len = sample.payload().len();
-        let Some(sender) = keys.actor_of_traj(key) else {
-            self.drop_one(DropReason::Garbage);
-            return;
-        };
-        if len > self.budget.message_bytes {
-            self.drop_one(DropReason::TooLarge);
-            tracing::warn!(
-                key,
-                len,
-                limit = self.budget.message_bytes,
-                "oversized message dropped unread"
-            );
-            return;
-        }
-        let Ok(mut q) = self.queues.lock() else {
-            return;
-        };
-        let evicted = q.make_room(sender, len, &self.budget);
-        q.raw.push_back(Raw {
-            key: key.to_string(),
-            sender,
-            payload: sample.payload().clone(),
-            charge: len,
-        });
-        *q.held.entry(sender).or_insert(0) += len;
-        q.total += len;
-        drop(q);
-        self.drop_n(DropReason::Overflow, evicted);
-        self.arrived.notify_one();
-    }
 }
 
 /// The learner's view of one actor.
@@ -738,89 +554,6 @@ impl LearnerNode {
         if let Some(h) = self.receiver.take() {
             let _ = h.join();
         }
-    }
-}
-
-/// The decode thread: queued bytes → decode within the budget → validate → at-most-once →
-/// decoded queue. The message keeps its charge against its sender until the PPO loop takes it.
-fn decode_loop(inbox: &Inbox, closing: &AtomicBool, expect: &ChunkExpect, limits: MsgLimits) {
-    let mut seqs = SeqTracker::new();
-    while !closing.load(Ordering::Relaxed) {
-        let raw = {
-            let Ok(mut q) = inbox.queues.lock() else {
-                break;
-            };
-            if q.raw.is_empty() {
-                q = match inbox.arrived.wait_timeout(q, Duration::from_millis(200)) {
-                    Ok((q, _)) => q,
-                    Err(_) => break,
-                };
-            }
-            q.raw.pop_front()
-        };
-        let Some(raw) = raw else { continue };
-        let refuse = |reason: DropReason| {
-            inbox.drop_one(reason);
-            if let Ok(mut q) = inbox.queues.lock() {
-                q.release(raw.sender, raw.charge);
-            }
-        };
-        let chunk: TrajectoryChunk = match decode_msg(&raw.payload.to_bytes(), limits, &raw.key) {
-            Ok(c) => c,
-            Err(e) => {
-                refuse(DropReason::of_codec(&e));
-                tracing::warn!("{e}");
-                continue;
-            }
-        };
-        if chunk.header.actor != raw.sender {
-            refuse(DropReason::Garbage);
-            tracing::warn!(key = raw.key, actor = %chunk.header.actor, "chunk published on another actor's key");
-            continue;
-        }
-        if let Err(r) = validate_chunk(&chunk, expect) {
-            refuse(r.reason);
-            tracing::warn!(key = raw.key, "chunk rejected: {r}");
-            continue;
-        }
-        let h = &chunk.header;
-        match seqs.accept(h.actor, h.sender_incarnation, h.seq) {
-            Verdict::Accept => {}
-            Verdict::Replay { high_water } => {
-                refuse(DropReason::Replay);
-                tracing::warn!(
-                    key = raw.key,
-                    seq = h.seq,
-                    high_water,
-                    "chunk already received: dropped (replay)"
-                );
-                continue;
-            }
-            Verdict::TooManySenders => {
-                refuse(DropReason::Overflow);
-                tracing::warn!(key = raw.key, "too many actor ids: chunk dropped");
-                continue;
-            }
-        }
-        let Ok(mut q) = inbox.queues.lock() else {
-            break;
-        };
-        q.decoded.push_back(Received {
-            chunk,
-            at: Instant::now(),
-            sender: raw.sender,
-            charge: raw.charge,
-        });
-        let mut evicted = 0;
-        while q.decoded.len() > inbox.budget.max_chunks {
-            if let Some(old) = q.decoded.pop_front() {
-                q.release(old.sender, old.charge);
-                evicted += 1;
-            }
-        }
-        drop(q);
-        inbox.drop_n(DropReason::Overflow, evicted);
-        inbox.ready.notify_one();
     }
 }
 

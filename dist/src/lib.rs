@@ -7,6 +7,8 @@
 //!   statistics published; a [`dupac_learner::source::TrajectorySource`] for the one training loop.
 
 pub mod actor;
+pub mod follow;
+pub mod inbox;
 pub mod learner;
 pub mod net;
 pub mod source;

@@ -16,6 +16,7 @@ pub mod coverage;
 pub mod error;
 pub mod geo;
 pub mod link;
+pub mod link_calc;
 pub mod pathloss;
 pub mod sites;
 pub mod world;

@@ -34,6 +34,10 @@ pub enum RunError {
     Rollout(#[from] dupac_actor::rollout::RolloutError),
     #[error(transparent)]
     Fs(#[from] dupac_common::fsio::FsError),
+    #[error(transparent)]
+    Codec(#[from] dupac_common::codec::CodecError),
+    #[error(transparent)]
+    Plan(#[from] dupac_actor::planner::PlanError),
 }
 
 /// Adds what was being done to an error (anyhow's `with_context` for this library).

@@ -5,9 +5,12 @@
 //! loop ([`train_loop`]) that `dupac train --single-process` and `dupac learner` both run.
 
 pub mod error;
+pub mod eval;
 pub mod evaluate;
+pub mod flights;
 pub mod local;
 pub mod metrics_table;
+pub mod monitor;
 pub mod progress;
 pub mod run_dir;
 pub mod scenario;

@@ -3,21 +3,20 @@
 //! with A3.
 
 use crate::GlobalArgs;
-use crate::commands::plan::{env_rsrp_at, trace_of, write_steps_csv};
 use crate::io::write_atomic;
-use crate::plan_plot::render_plan_png;
+use crate::plot::plan::render_plan_png;
+use crate::plot::plan::trace_of;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
-use dupac_actor::pilot::fly_waypoints;
+use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
 use dupac_actor::planner::Planner;
-use dupac_actor::rollout::{EpisodeAccumulator, EpisodeSummary, fly_policy};
-use dupac_common::SiteId;
+use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
-use dupac_common::policy::Scratch;
 use dupac_dist::actor::Follower;
+use dupac_dist::follow::fly_following;
 use dupac_learner::checkpoint::load_policy;
 use dupac_radio::class::RsrpThresholds;
+use dupac_run::flights::{env_rsrp_at, episodes_md, shortest_with_a3, write_steps_csv};
 use dupac_run::scenario::world_and_cache;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -138,16 +137,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
 
     // The shortest flyable path flown with A3, for comparison.
-    let mut a3_cfg = cfg.clone();
-    a3_cfg.env.association = Association::A3;
-    let mut a3_env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
-    let shortest = planner.shortest(p.source_m, p.destination_m)?;
-    let base = fly_waypoints(&mut a3_env, p.id, episode, &shortest.waypoints_m, |e| {
-        e.serving()
-    })?;
-    let mut acc = EpisodeAccumulator::new(&a3_cfg.env);
-    base.steps.iter().for_each(|s| acc.push(s));
-    let base_summary = acc.finish(p.id, p.shortest_m, base.outcome);
+    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planner, p)?;
 
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
     let r0 = env_rsrp_at(rsrp.as_ref(), &world, p.source_m);
@@ -185,28 +175,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     }
     write_atomic(&args.out.join("versions.csv"), vcsv.as_bytes())?;
     let distinct: std::collections::BTreeSet<u64> = versions.iter().copied().collect();
-    let mut md = String::new();
-    let _ = writeln!(md, "{title}\n");
-    let _ = writeln!(
-        md,
-        "| flight | outcome | flown (m) | overhead (%) | mean RSRP (dBm) | excellent (%) | mediocre (%) | poor (%) | handovers | return |"
+    let mut md = episodes_md(
+        &title,
+        &[(method, &summary), ("shortest path (A3)", &base_summary)],
     );
-    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for (label, s) in [(method, &summary), ("shortest path (A3)", &base_summary)] {
-        let _ = writeln!(
-            md,
-            "| {label} | {:?} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} |",
-            s.outcome,
-            s.distance_flown_m,
-            100.0 * s.overhead(),
-            s.mean_rsrp_dbm,
-            100.0 * s.frac_excellent,
-            100.0 * s.frac_mediocre,
-            100.0 * s.frac_poor,
-            s.handovers,
-            s.episodic_return
-        );
-    }
     if follower.is_some() {
         let _ = writeln!(
             md,
@@ -223,49 +195,4 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     print!("{md}");
     eprintln!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)
-}
-
-/// Flies one episode deterministically with live weights: before every step the newest
-/// version (if any arrived) replaces the one in use. Returns the version used at each step.
-fn fly_following(
-    env: &mut Env,
-    mut policy: dupac_common::policy::PolicyWeights,
-    follower: &mut Follower,
-    pair_id: u64,
-    episode: Episode,
-    step_ms: u64,
-) -> Result<(EpisodeSummary, Vec<StepInfo>, Vec<u64>)> {
-    let mut scratch = Scratch::default();
-    let mut obs = env.reset(pair_id, episode)?.to_vec();
-    let mut acc = EpisodeAccumulator::new(env.config());
-    let (mut steps, mut versions) = (Vec::new(), Vec::new());
-    loop {
-        if let Some(p) = follower.newer()? {
-            eprintln!("step {}: swapped to version {}", steps.len() + 1, p.version);
-            policy = p;
-        }
-        let a = policy.act_deterministic(&obs, &mut scratch);
-        let step = env.act(&Action {
-            move_: a.move_raw.map(f64::from),
-            site: SiteId(a.site as u16),
-        })?;
-        for info in env.substeps() {
-            acc.push(info);
-            steps.push(*info);
-            versions.push(policy.version);
-        }
-        if step.terminated || step.truncated {
-            let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
-            return Ok((
-                acc.finish(pair_id, episode.shortest_m, outcome),
-                steps,
-                versions,
-            ));
-        }
-        obs.clear();
-        obs.extend_from_slice(env.observation());
-        if step_ms > 0 {
-            std::thread::sleep(Duration::from_millis(step_ms));
-        }
-    }
 }

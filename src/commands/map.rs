@@ -54,7 +54,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
     write_atomic_with(&out.join("sites.csv"), |w| {
-        super::radio::write_sites_csv(&world, w)
+        dupac_radio::link_calc::write_sites_csv(&world, w)
     })?;
 
     let mut summaries: Vec<SliceSummary> = Vec::new();

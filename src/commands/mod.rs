@@ -2,6 +2,7 @@
 
 pub mod actor;
 pub mod cache;
+pub mod children;
 pub mod eval;
 pub mod fly;
 pub mod learner;

@@ -5,6 +5,7 @@
 //! progress bar from the learner's stats, forwards Ctrl-C (the learner writes its checkpoint)
 //! and reaps the children.
 
+use super::children::{child, free_port, reap, signal};
 use super::net::{ConnectArgs, ModeArg, stop_flag};
 use super::run_args::{DeviceArg, device, resolve_config};
 use super::train::TrainArgs;
@@ -17,35 +18,10 @@ use dupac_common::keys::KeySpace;
 use dupac_common::msg::{StatsMsg, decode_msg};
 use dupac_run::run_dir::checkpoint_to_resume;
 use dupac_run::scenario::{held_out_pairs, make_pool, world_and_cache};
-use std::path::Path;
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use zenoh::Wait;
-
-/// A free TCP port on the loopback interface.
-fn free_port() -> Result<u16> {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").context("finding a free loopback port")?;
-    Ok(l.local_addr()?.port())
-}
-
-fn signal(child: &Child, sig: i32) {
-    // SAFETY: kill(2) with a pid we spawned and still own (not yet reaped).
-    unsafe {
-        libc::kill(child.id() as i32, sig);
-    }
-}
-
-/// Common arguments of every child: the resolved configuration file, quiet, verbosity.
-fn child(exe: &Path, config: &Path, verbose: u8) -> Command {
-    let mut c = Command::new(exe);
-    c.arg("--config").arg(config).arg("--quiet");
-    for _ in 0..verbose {
-        c.arg("-v");
-    }
-    c.stdin(Stdio::null());
-    c
-}
 
 pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
@@ -195,27 +171,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     if let Some(s) = session {
         let _ = s.close().wait();
     }
-    // Actors leave on the learner's Stop; give them a moment, then reap.
-    let deadline = Instant::now() + Duration::from_secs(5);
-    for a in &mut actors {
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = a.try_wait() {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        if let Ok(None) = a.try_wait() {
-            // An actor that missed the Stop (still starting, or joining as the run ended):
-            // SIGTERM lets it finish its chunk and print its summary; SIGKILL after 10 s.
-            signal(a, libc::SIGTERM);
-            let grace = Instant::now() + Duration::from_secs(10);
-            while Instant::now() < grace && matches!(a.try_wait(), Ok(None)) {
-                std::thread::sleep(Duration::from_millis(50));
-            }
-            let _ = a.kill();
-        }
-        let _ = a.wait();
-    }
+    reap(&mut actors);
     if !status.success() {
         bail!("the learner exited with {status}");
     }

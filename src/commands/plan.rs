@@ -2,19 +2,19 @@
 //! scripted pilot through the environment with A3 association; table, PNG and CSVs.
 
 use crate::GlobalArgs;
-use crate::io::{write_atomic, write_atomic_with};
-use crate::plan_plot::{FlightTrace, render_plan_png};
+use crate::io::write_atomic;
+use crate::plot::plan::{render_plan_png, trace_of};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
+use dupac_actor::env::{Env, Episode};
 use dupac_actor::pairs::read_pairs_jsonl;
-use dupac_actor::pilot::{Flight, fly_waypoints};
+use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
 use dupac_radio::cache::{RsrpCache, RsrpSource};
-use dupac_radio::class::{RsrpClass, RsrpThresholds};
+use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
-use std::fmt::Write as _;
+use dupac_run::flights::{dist, env_rsrp_at, slug, summarise, summary_md, write_steps_csv};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -55,45 +55,6 @@ fn parse_xyz(s: &str, what: &str) -> Result<[f64; 3]> {
     match v.as_slice() {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
         _ => bail!("--{what} {s:?}: expected three finite numbers X,Y,Z"),
-    }
-}
-
-/// Statistics of one flight (shared with evaluation later).
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct FlightSummary {
-    pub label: String,
-    pub planned_m: f64,
-    pub flown_m: f64,
-    pub overhead_pct: f64,
-    pub mean_rsrp_dbm: f64,
-    pub excellent_pct: f64,
-    pub mediocre_pct: f64,
-    pub poor_pct: f64,
-    pub handovers: usize,
-    pub outcome: Outcome,
-    pub steps: usize,
-    pub episodic_return: f64,
-}
-
-fn summarise(label: &str, planned_m: f64, shortest_m: f64, f: &Flight) -> FlightSummary {
-    let n = f.steps.len().max(1) as f64;
-    let remaining = f.steps.last().map(|s| s.distance_to_goal_m).unwrap_or(0.0);
-    let count = |c: RsrpClass| f.steps.iter().filter(|s| s.class == c).count() as f64;
-    FlightSummary {
-        label: label.to_string(),
-        planned_m,
-        flown_m: f.distance_m(),
-        // Flown distance plus what is left to the destination (the episode ends within
-        // `env.goal_radius_m`), against the shortest flyable path.
-        overhead_pct: 100.0 * ((f.distance_m() + remaining) / shortest_m - 1.0),
-        mean_rsrp_dbm: f.steps.iter().map(|s| s.serving_rsrp_dbm).sum::<f64>() / n,
-        excellent_pct: 100.0 * count(RsrpClass::Excellent) / n,
-        mediocre_pct: 100.0 * count(RsrpClass::Mediocre) / n,
-        poor_pct: 100.0 * count(RsrpClass::Poor) / n,
-        handovers: f.steps.iter().filter(|s| s.handover).count(),
-        outcome: f.outcome,
-        steps: f.steps.len(),
-        episodic_return: f.episodic_return,
     }
 }
 
@@ -192,126 +153,9 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         &title,
         &args.out.join("plan.png"),
     )?;
-    let mut md = String::new();
-    let _ = writeln!(md, "{title}\n");
-    let _ = writeln!(
-        md,
-        "| path | planned (m) | flown (m) | overhead vs shortest (%) ¹ | mean RSRP (dBm) | excellent (%) | mediocre (%) | poor (%) | handovers | outcome | return |"
-    );
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|");
-    for r in &rows {
-        let _ = writeln!(
-            md,
-            "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:?} | {:.1} |",
-            r.label,
-            r.planned_m,
-            r.flown_m,
-            r.overhead_pct,
-            r.mean_rsrp_dbm,
-            r.excellent_pct,
-            r.mediocre_pct,
-            r.poor_pct,
-            r.handovers,
-            r.outcome,
-            r.episodic_return
-        );
-    }
-    let _ = writeln!(
-        md,
-        "\n¹ (flown + distance left to the destination when the episode ends) / shortest − 1; \
-         every path is flown by the scripted pilot through the environment with A3 association."
-    );
+    let md = summary_md(&title, &rows);
     write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");
     eprintln!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)
-}
-
-pub fn env_rsrp_at(rsrp: &dyn RsrpSource, world: &RadioWorld, p: [f64; 3]) -> f64 {
-    let mut all = vec![0.0; world.num_sites()];
-    rsrp.rsrp_all_dbm(p, &mut all);
-    all.iter().copied().fold(f64::NEG_INFINITY, f64::max)
-}
-
-fn slug(s: &str) -> String {
-    s.replace('λ', "lambda")
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
-/// Writes one row per step record (the columns evaluation re-plots from), atomically.
-pub fn write_steps_csv(path: &std::path::Path, steps: &[StepInfo]) -> Result<()> {
-    write_atomic_with(path, |w| {
-        let mut c = csv::Writer::from_writer(w);
-        c.write_record([
-            "step",
-            "x_m",
-            "y_m",
-            "z_m",
-            "serving",
-            "serving_rsrp_dbm",
-            "best_site",
-            "best_rsrp_dbm",
-            "class",
-            "los",
-            "handover",
-            "ping_pong",
-            "distance_flown_m",
-            "reward",
-        ])?;
-        for s in steps {
-            c.write_record([
-                s.step.to_string(),
-                format!("{:.3}", s.position_m[0]),
-                format!("{:.3}", s.position_m[1]),
-                format!("{:.3}", s.position_m[2]),
-                s.serving.0.to_string(),
-                format!("{:.3}", s.serving_rsrp_dbm),
-                s.best_site.0.to_string(),
-                format!("{:.3}", s.best_rsrp_dbm),
-                s.class.name().to_string(),
-                u8::from(s.los).to_string(),
-                u8::from(s.handover).to_string(),
-                u8::from(s.ping_pong).to_string(),
-                format!("{:.3}", s.distance_flown_m),
-                format!("{:.5}", s.reward),
-            ])?;
-        }
-        c.flush()
-    })
-}
-
-/// A plotted trace: the source (with the best RSRP there) followed by every step's position,
-/// serving RSRP and class.
-pub fn trace_of(
-    label: String,
-    source_m: [f64; 3],
-    source_rsrp_dbm: f64,
-    thresholds: RsrpThresholds,
-    steps: &[StepInfo],
-) -> FlightTrace {
-    let mut t = FlightTrace {
-        label,
-        points_m: vec![source_m],
-        serving_rsrp_dbm: vec![source_rsrp_dbm],
-        class: vec![thresholds.classify(source_rsrp_dbm)],
-        reached: true,
-    };
-    for s in steps {
-        t.points_m.push(s.position_m);
-        t.serving_rsrp_dbm.push(s.serving_rsrp_dbm);
-        t.class.push(s.class);
-    }
-    t
 }

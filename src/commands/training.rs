@@ -72,7 +72,7 @@ impl Training {
             "{method}, seed {}: {}{how}",
             cfg.train.seed, world.city.name
         );
-        let out = RunOutput::open(&cfg, learner.update, crate::curves::renderer(title))?;
+        let out = RunOutput::open(&cfg, learner.update, crate::plot::curves::renderer(title))?;
         Ok(Training {
             cfg,
             world,

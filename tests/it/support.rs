@@ -1,7 +1,6 @@
-//! Helpers of the end-to-end tests of real `dupac` processes over Zenoh (tests/distributed.rs,
-//! tests/security.rs, tests/faults.rs): a small procedural run config, child processes killed
-//! when a test ends, and the test's own Zenoh client (stats watcher and rogue publisher).
-#![allow(dead_code)]
+//! Helpers of the end-to-end tests: the one command builder ([`dupac_cmd`], as ripgrep's
+//! `TestCommand`), a small procedural run config, child processes killed when a test ends, and
+//! the test's own Zenoh client (stats watcher and rogue publisher).
 
 use dupac_common::ActorId;
 use dupac_common::keys::KeySpace;
@@ -12,6 +11,14 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
+
+/// The one command builder of the end-to-end tests: the `dupac` binary under test, run from the
+/// repository root (where `data/` and `docs/` are).
+pub fn dupac_cmd() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dupac"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
 
 /// Whether a test's prerequisite (root, namespaces, openssl, strace) is met. When it is not:
 /// with `CI` set the test fails, naming it (CI must run every test); elsewhere it prints a
@@ -100,7 +107,7 @@ impl Procs {
     pub fn new(dir: &Path, run: &str, total: u64) -> Procs {
         let config = write_config(dir, run, total);
         // The RSRP cache once, before any process would build it.
-        let st = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        let st = dupac_cmd()
             .args([
                 "--config",
                 config.to_str().expect("utf8"),
@@ -128,7 +135,7 @@ impl Procs {
         let log = |ext: &str| {
             std::fs::File::create(self.dir.join(format!("{name}.{ext}"))).expect("log file")
         };
-        let child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+        let child = dupac_cmd()
             .arg("--config")
             .arg(&self.config)
             .arg("-q")

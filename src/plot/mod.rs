@@ -5,6 +5,10 @@
 //! comparable; the RSRP class boundaries −80 and −100 dBm (spec/radio.md §3, the defaults of
 //! `radio.rsrp_excellent_dbm` / `radio.rsrp_poor_dbm`) are marked on the colour bar.
 
+pub mod curves;
+pub mod eval;
+pub mod plan;
+
 use anyhow::{Context, Result, anyhow, bail};
 use dupac_radio::city::Building;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
@@ -127,7 +131,7 @@ pub(crate) fn ensure_font() -> Result<()> {
         plotters::style::register_font(
             FONT,
             FontStyle::Normal,
-            include_bytes!("../assets/DejaVuSans.ttf"),
+            include_bytes!("../../assets/DejaVuSans.ttf"),
         )
         .is_ok()
     });

@@ -4,8 +4,7 @@
 //! certificates, and the test's own Zenoh sessions playing a monitor, a rogue actor and a
 //! process without a certificate.
 
-mod support;
-
+use crate::support::*;
 use dupac_common::ActorId;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{
@@ -14,7 +13,6 @@ use dupac_common::msg::{
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use support::*;
 use zenoh::Wait;
 
 /// A role's client config as written by make-certs.sh, pointed at `endpoint`.

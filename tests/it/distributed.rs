@@ -3,13 +3,11 @@
 //! learner's stats and to play a rogue publisher. Each test uses its own run name and port, so
 //! they run in parallel.
 
-mod support;
-
+use crate::support::*;
 use dupac_common::ActorId;
 use dupac_common::msg::{ActorState, LearnerStats, encode_msg};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use support::*;
 
 /// A learner and two actors train; actors swap to new weights as they come (hot-swap); an
 /// actor killed with SIGKILL is seen leaving through liveliness and training goes on with the
@@ -459,7 +457,7 @@ fn dupac_train_runs_learner_and_actors_to_the_end() {
     let dir = tempfile::tempdir().expect("tmp");
     let config = write_config(dir.path(), "e2e-c", 256 * 12);
     let out = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+    let o = dupac_cmd()
         .arg("--config")
         .arg(&config)
         .args(["-q", "train", "--actors", "2", "--out"])
@@ -555,7 +553,7 @@ fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
     let dir = tempfile::tempdir().expect("tmp");
     let config = write_config(dir.path(), "e2e-e", 256 * 100_000);
     let out = dir.path().join("run");
-    let mut train = Command::new(env!("CARGO_BIN_EXE_dupac"))
+    let mut train = dupac_cmd()
         .arg("--config")
         .arg(&config)
         .args(["-q", "train", "--actors", "2", "--out"])
@@ -610,7 +608,7 @@ fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
     );
     // `--resume` continues the curve to a budget 3 updates past the checkpoint.
     let target = ck.meta.update + 3;
-    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+    let o = dupac_cmd()
         .arg("--config")
         .arg(&config)
         .args(["-q", "train", "--actors", "1", "--resume", "--out"])

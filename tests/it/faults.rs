@@ -2,13 +2,11 @@
 //! killed and restarted again and again, a router restart, a learner that dies inside a
 //! checkpoint write, and a disk that fills up under a run.
 
-mod support;
-
+use crate::support::*;
 use dupac_common::ActorId;
 use dupac_common::msg::ActorState;
 use std::path::Path;
 use std::process::Command;
-use support::*;
 
 fn alive_with_chunks(s: &dupac_common::msg::LearnerStats, id: u32, chunks: u64) -> bool {
     s.actors
@@ -260,7 +258,7 @@ cp -a "$SMALL/." "$SAVED/""#;
     leftover_temporaries_are_absent(&saved);
 
     // On a disk with room, --resume continues from that checkpoint.
-    let o = Command::new(env!("CARGO_BIN_EXE_dupac"))
+    let o = dupac_cmd()
         .arg("--config")
         .arg(&p.config)
         .args(["-q", "train", "--single-process", "--resume", "--out"])
@@ -482,7 +480,7 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
             // The world and its cache; then, if validation accepted the value, the planner
             // and the pairs.
             for command in [&["cache", "build"][..], &["pairs", "--out", &pairs_out][..]] {
-                let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+                let mut child = dupac_cmd()
                     .arg("--config")
                     .arg(&config)
                     .args(["-q", "--set", &set])

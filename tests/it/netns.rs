@@ -3,8 +3,6 @@
 //! TCP. Needs root and iproute2's `ip`; without them the script exits 77 and this test fails
 //! when `CI` is set, and prints a visible `SKIPPED` with the script's reason elsewhere.
 
-mod support;
-
 use std::io::Read;
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -49,7 +47,7 @@ fn run_script(envs: &[(&str, &str)]) {
     {
         Ok(c) => c,
         Err(e) => {
-            support::prerequisite(&format!("bash to run {}: {e}", script.display()), false);
+            crate::support::prerequisite(&format!("bash to run {}: {e}", script.display()), false);
             return;
         }
     };
@@ -79,7 +77,7 @@ fn run_script(envs: &[(&str, &str)]) {
         .expect("read the script's output");
 
     if status.code() == Some(SKIPPED) {
-        support::prerequisite(
+        crate::support::prerequisite(
             &format!("what deploy/netns/run.sh needs (it exited 77):\n{output}"),
             false,
         );

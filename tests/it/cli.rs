@@ -1,7 +1,8 @@
 //! End-to-end tests of the `dupac` binary: real processes, the real Midtown data, real files.
 
+use crate::support::dupac_cmd;
 use std::io::Write;
-use std::process::{Command, Output, Stdio};
+use std::process::{Output, Stdio};
 
 fn dupac(args: &[&str], stdin: Option<&str>) -> Output {
     dupac_bytes(args, stdin.map(str::as_bytes))
@@ -9,9 +10,8 @@ fn dupac(args: &[&str], stdin: Option<&str>) -> Output {
 
 /// [`dupac`] with any bytes on stdin (not UTF-8, say).
 fn dupac_bytes(args: &[&str], stdin: Option<&[u8]>) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dupac"))
+    let mut child = dupac_cmd()
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

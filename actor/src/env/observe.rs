@@ -1,0 +1,216 @@
+//! The observation (spec/env.md "Observation", docs/env.md): the sensor fan with the nearest
+//! surface (the area edge sensed as a wall), the goal direction, the radio block and the
+//! per-site features the equivariant site head reads, written once per decision.
+
+use super::{Env, RSRP_FLOOR_DBM, argmax};
+use dupac_common::SiteId;
+use dupac_common::config::NearestObstacle;
+use dupac_common::obs::{site_feature, site_features_per_site};
+use std::ops::Range;
+
+impl Env {
+    /// Nearest obstacle along the sensor fan: writes normalised distances into `fan` and returns
+    /// (c_t normalised, index of the nearest ray or `None`).
+    pub(super) fn sense(&self, fan: &mut [f32; 26]) -> (f32, Option<usize>) {
+        let range = self.cfg.observation.sensor_range_m;
+        let scale = self.cfg.observation.sensor_scale;
+        let fence = self.cfg.observation.geofence;
+        let mut best = (1.0f32, None);
+        for (i, d) in self.sensor_dirs.iter().enumerate() {
+            let mut hit = self
+                .world
+                .city
+                .mesh
+                .ray_distance_m(self.position_m, *d, range);
+            if fence {
+                let edge = area_exit_m(self.world.city.area_m, self.position_m, *d);
+                if edge <= range && hit.is_none_or(|t| edge < t) {
+                    hit = Some(edge);
+                }
+            }
+            let v = match hit {
+                Some(t) => scale.scale(t, range) as f32,
+                None => 1.0,
+            };
+            fan[i] = v;
+            if v < best.0 {
+                best = (v, Some(i));
+            }
+        }
+        best
+    }
+
+    pub(super) fn write_observation(&mut self) {
+        let s = self.slots.clone();
+        let o = &self.cfg.observation;
+        let a = self.world.city.area_m;
+        let (cx, cy) = (0.5 * (a[0] + a[2]), 0.5 * (a[1] + a[3]));
+        let (hx, hy) = (0.5 * (a[2] - a[0]), 0.5 * (a[3] - a[1]));
+        let zc = 0.5 * (self.cfg.z_min_m + self.cfg.z_max_m);
+        let hz = 0.5 * (self.cfg.z_max_m - self.cfg.z_min_m);
+        let p = self.position_m;
+        let pos = [(p[0] - cx) / hx, (p[1] - cy) / hy, (p[2] - zc) / hz];
+        let mut fan = [1.0f32; 26];
+        let (mut c_t, nearest) = self.sense(&mut fan);
+        let mut dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
+        if o.nearest_obstacle == NearestObstacle::Exact {
+            let range = o.sensor_range_m;
+            let mut nearest = self.world.city.mesh.nearest_surface_m(p, range);
+            if o.geofence {
+                let (d, u) = nearest_edge_m(a, p);
+                if d <= range && nearest.is_none_or(|(t, _)| d < t) {
+                    nearest = Some((d, u));
+                }
+            }
+            (c_t, dir) = match nearest {
+                Some((d, u)) => (o.sensor_scale.scale(d, range) as f32, u),
+                None => (1.0, [0.0; 3]),
+            };
+        }
+        let rsrp_norm = |v: f64| {
+            let x = (v - o.rsrp_centre_dbm) / o.rsrp_scale_db;
+            // −∞ (a site that cannot be measured) and extreme nulls are clipped.
+            x.clamp(-10.0, 10.0) as f32
+        };
+        let obs = &mut self.obs;
+        for (k, v) in pos.iter().enumerate() {
+            obs[s.position.start + k] = *v as f32;
+        }
+        for k in 0..3 {
+            obs[s.velocity.start + k] = self.velocity_m[k] as f32;
+        }
+        if let (Some(gv), Some(gd), Some(ep)) = (&s.goal_vector, &s.goal_distance, &self.episode) {
+            for k in 0..3 {
+                obs[gv.start + k] = ((ep.destination_m[k] - p[k]) / o.goal_scale_m) as f32;
+            }
+            obs[gd.start] = (self.distance_to_goal_m / o.goal_scale_m) as f32;
+            if let Some(u) = &s.goal_direction {
+                let d = self.distance_to_goal_m;
+                for k in 0..3 {
+                    let v = if d > 1e-9 {
+                        (ep.destination_m[k] - p[k]) / d
+                    } else {
+                        0.0
+                    };
+                    obs[u.start + k] = v as f32;
+                }
+            }
+        }
+        obs[s.obstacle_distance.start] = c_t;
+        for k in 0..3 {
+            obs[s.obstacle_direction.start + k] = dir[k] as f32;
+        }
+        if let Some(f) = &s.sensor_fan {
+            obs[f.clone()].copy_from_slice(&fan);
+        }
+        obs[s.serving_one_hot.clone()].fill(0.0);
+        obs[s.serving_one_hot.start + self.serving.index()] = 1.0;
+        if let Some(r) = &s.rsrp_all {
+            for (i, v) in self.rsrp_dbm.iter().enumerate() {
+                obs[r.start + i] = rsrp_norm(*v);
+            }
+        }
+        if let Some(r) = &s.rsrp_serving {
+            obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
+        }
+        if let Some(r) = &s.site_features {
+            let out = &mut self.obs[r.clone()];
+            if self.site_rewards.is_empty() {
+                // Not a learned association: nothing reads them.
+                out.fill(0.0);
+            } else {
+                self.write_site_features(r.clone());
+            }
+        }
+    }
+
+    /// The `site_features` field (obs::site_feature): each site's own features on fixed
+    /// physical scales, for the equivariant site head.
+    pub(super) fn write_site_features(&mut self, range: Range<usize>) {
+        let o = &self.cfg.observation;
+        let p = self.position_m;
+        let best = self.rsrp_dbm[argmax(&self.rsrp_dbm).index()].max(RSRP_FLOOR_DBM);
+        let unit2 = |x: f64, y: f64| {
+            let n = x.hypot(y);
+            (n > 1e-9).then(|| [x / n, y / n])
+        };
+        let goal = self
+            .episode
+            .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
+        let heading = unit2(self.velocity_m[0], self.velocity_m[1])
+            .or(goal)
+            .unwrap_or([1.0, 0.0]);
+        let goal = goal.unwrap_or(heading);
+        let serving = self.serving.index();
+        let per_site = site_features_per_site(o);
+        for (k, site) in self.world.sites.iter().enumerate() {
+            let f = &mut self.obs[range.start + k * per_site..][..per_site];
+            let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
+            let q = site.position_m;
+            let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
+            let u = unit2(d[0], d[1]).unwrap_or(heading);
+            let rel = |h: [f64; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
+            let (ch, sh) = rel(heading);
+            let (cg, sg) = rel(goal);
+            use site_feature::*;
+            f[RSRP] = ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32;
+            f[RSRP_MINUS_BEST] = ((w - best) / 10.0).clamp(-6.0, 0.0) as f32;
+            f[SERVING] = f32::from(u8::from(k == serving));
+            f[LOG_DISTANCE] = (d3d / 100.0).ln_1p() as f32;
+            f[SIN_ELEVATION] = (d[2] / d3d) as f32;
+            f[COS_BEARING_HEADING] = ch as f32;
+            f[SIN_BEARING_HEADING] = sh as f32;
+            f[COS_BEARING_GOAL] = cg as f32;
+            f[SIN_BEARING_GOAL] = sg as f32;
+            f[LOS] = f32::from(u8::from(self.world.los(SiteId(k as u16), p)));
+            if o.site_trend {
+                // NaN before the first observation of an episode: no change yet.
+                let before = self.rsrp_at_last_obs_dbm[k];
+                let d = if before.is_nan() {
+                    0.0
+                } else {
+                    w - before.max(RSRP_FLOOR_DBM)
+                };
+                f[RSRP_TREND] = (d / 10.0).clamp(-3.0, 3.0) as f32;
+            }
+        }
+        if o.site_trend {
+            self.rsrp_at_last_obs_dbm.copy_from_slice(&self.rsrp_dbm);
+        }
+    }
+}
+
+/// Distance (m) from `p` along the unit direction `d` to the lateral edge of the flight area
+/// `area = [x_min, y_min, x_max, y_max]` (∞ for a vertical ray); 0 outside the area.
+fn area_exit_m(area: [f64; 4], p: [f64; 3], d: [f64; 3]) -> f64 {
+    let mut t = f64::INFINITY;
+    for (k, (lo, hi)) in [(area[0], area[2]), (area[1], area[3])]
+        .into_iter()
+        .enumerate()
+    {
+        if d[k] > 0.0 {
+            t = t.min((hi - p[k]) / d[k]);
+        } else if d[k] < 0.0 {
+            t = t.min((lo - p[k]) / d[k]);
+        }
+    }
+    t.max(0.0)
+}
+
+/// The nearest point of the flight area's lateral edge: its distance (m, 0 outside) and the unit
+/// horizontal direction towards it.
+fn nearest_edge_m(area: [f64; 4], p: [f64; 3]) -> (f64, [f64; 3]) {
+    [
+        (p[0] - area[0], [-1.0, 0.0, 0.0]),
+        (area[2] - p[0], [1.0, 0.0, 0.0]),
+        (p[1] - area[1], [0.0, -1.0, 0.0]),
+        (area[3] - p[1], [0.0, 1.0, 0.0]),
+    ]
+    .into_iter()
+    .map(|(d, u)| (d.max(0.0), u))
+    .fold(
+        (f64::INFINITY, [0.0; 3]),
+        |b, e| if e.0 < b.0 { e } else { b },
+    )
+}

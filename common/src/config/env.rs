@@ -1,0 +1,452 @@
+//! `[env]` (the flight environment, its reward and observation; spec/env.md, docs/env.md),
+//! `[pairs]` and `[planner]`.
+
+use super::ConfigError;
+#[allow(unused_imports)]
+use super::check::*;
+use serde::{Deserialize, Serialize};
+#[allow(unused_imports)]
+use std::path::PathBuf;
+
+use super::CacheConfig;
+
+/// Scaling of obstacle-sensor distances into [0, 1] (see [`ObservationConfig::sensor_scale`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SensorScale {
+    /// d / range (spec/env.md "Observation").
+    Linear,
+    /// ln(1 + d / 1 m) / ln(1 + range / 1 m).
+    Log,
+}
+
+impl SensorScale {
+    /// Scales a sensed distance `d_m` (≤ `range_m`) into [0, 1]; 1 = nothing in range.
+    pub fn scale(self, d_m: f64, range_m: f64) -> f64 {
+        let d = d_m.clamp(0.0, range_m);
+        match self {
+            SensorScale::Linear => d / range_m,
+            SensorScale::Log => (1.0 + d).ln() / (1.0 + range_m).ln(),
+        }
+    }
+}
+
+/// Source of c_t and θ_t (see [`ObservationConfig::nearest_obstacle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NearestObstacle {
+    /// The shortest ray of the sensor fan (spec/env.md "Observation").
+    Fan,
+    /// The nearest surface point of the building mesh.
+    Exact,
+}
+
+/// How the action's move a ∈ ℝ³ becomes a displacement (see [`EnvConfig::action_clip`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionClip {
+    /// Each axis clipped to [−1, 1] (spec/env.md "UAV and motion"): a diagonal move is up to
+    /// √3 × max_step_m long.
+    Cube,
+    /// a scaled onto the unit ball when |a| > 1: every move is at most max_step_m long, so the
+    /// UAV never exceeds the paper's speed in any direction.
+    Ball,
+}
+
+/// How the serving GBS is chosen (spec/env.md "Association").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Association {
+    /// DUPAC: the action's discrete part picks the serving site.
+    Learned,
+    /// The paper's base method: the A3 rule of spec/radio.md §4.
+    A3,
+    /// Oracle (evaluation only): always the strongest site.
+    BestRsrp,
+}
+/// Where the environment gets RSRP from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RadioMode {
+    /// The memory-mapped per-site grid (`cache.*`), trilinear interpolation.
+    Cache,
+    /// A line-of-sight ray cast per site per step (validation).
+    Exact,
+}
+
+/// Reward of paper Eq. (8) plus the terminal terms of spec/env.md.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RewardConfig {
+    /// μ1, weight of the progress Δd (per metre).
+    pub mu1: f64,
+    /// μ2, weight of the RSRP (dBm) in the mediocre class.
+    pub mu2: f64,
+    /// μ3, weight of the RSRP (dBm) in the poor class.
+    pub mu3: f64,
+    /// Reward for reaching the goal (terminated).
+    pub goal_reward: f64,
+    /// Reward for a collision (terminated).
+    pub collision_reward: f64,
+    /// Reward for leaving the flight area (terminated).
+    pub out_of_bounds_reward: f64,
+    /// Reward added per handover (the paper has none: 0). A departure by default (−3): the learned
+    /// association has no hysteresis or time-to-trigger as A3 does, and without a cost a policy
+    /// that is indifferent among sites switches freely. With `site_regret_weight` = 1 a switch
+    /// pays within one decision (5 steps) when the new site is ≥ 0.6 dB stronger (docs/env.md,
+    /// docs/results.md "w_s and the handover cost", issue 15).
+    pub handover_reward: f64,
+    /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
+    /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
+    /// costs SINR against the stronger interferer; this term prefers the stronger site
+    /// (a departure, 0 in the paper; default 1 per dB; docs/env.md). Regret is capped at 60 dB.
+    pub site_regret_weight: f64,
+    /// κ_r, the route's connectivity weight: per metre flown, −μ1 · κ_r · penalty(class of the
+    /// *best* site here), with the coverage-aware planner's penalties
+    /// (`planner.penalty_mediocre`, `planner.penalty_poor`; excellent 0), so κ_r plays the role
+    /// of the planner's λ. It depends on where the UAV flies, not on the site it serves (the site
+    /// choice has its own terms). 0 = the paper's Eq. (8) alone, under which a metre in mediocre
+    /// costs ≈ 0.9 while a metre of detour costs ≈ μ1 (a departure; docs/env.md).
+    pub route_connectivity_weight: f64,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        Self {
+            mu1: 10.0,
+            mu2: 0.01,
+            mu3: 0.1,
+            goal_reward: 100.0,
+            collision_reward: -1000.0,
+            out_of_bounds_reward: -1000.0,
+            handover_reward: -3.0,
+            site_regret_weight: 1.0,
+            route_connectivity_weight: 0.5,
+        }
+    }
+}
+
+/// Which parts of the observation are present (spec/env.md "Observation"); each addition to the
+/// paper's state can be switched off for ablations.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ObservationConfig {
+    /// Goal vector and its norm.
+    pub goal: bool,
+    /// The full 26-ray obstacle-sensor fan (c_t and θ_t are always present).
+    pub sensor_fan: bool,
+    /// Measured RSRP of every site.
+    pub rsrp_all: bool,
+    /// RSRP of the serving site.
+    pub rsrp_serving: bool,
+    /// Obstacle sensor range (m).
+    pub sensor_range_m: f64,
+    /// How a sensed distance d is scaled into [0, 1] (c_t and the fan): `linear` = d / range
+    /// (spec/env.md), `log` = ln(1 + d / 1 m) / ln(1 + range / 1 m), which resolves the last
+    /// metres before a wall (a departure from the spec, the default: docs/env.md).
+    pub sensor_scale: SensorScale,
+    /// Where c_t and θ_t come from: `fan` = the shortest of the 26 rays and its direction
+    /// (spec/env.md), `exact` = the true nearest building surface point within the sensor range
+    /// (the paper's "distance and direction to the nearest obstacle"; it also sees corners that
+    /// fall between the rays).
+    pub nearest_obstacle: NearestObstacle,
+    /// The flight area's lateral edge is sensed like a wall, by the sensor fan and by c_t/θ_t
+    /// (leaving the area ends an episode as a collision does, and without this only the
+    /// normalised position tells where the edge is; a departure from the spec, whose sensors see
+    /// buildings only).
+    pub geofence: bool,
+    /// Scale of distances to the goal (m): goal vector / this.
+    pub goal_scale_m: f64,
+    /// Also observe the unit direction to the destination (with `goal`): the goal vector alone
+    /// shrinks towards 0 on the final approach, where the network must divide by a tiny norm to
+    /// find the direction (a departure from the spec, the default: docs/env.md).
+    pub goal_direction: bool,
+    /// RSRP normalisation: (RSRP − centre) / scale.
+    pub rsrp_centre_dbm: f64,
+    pub rsrp_scale_db: f64,
+    /// Per-site features for the permutation-equivariant site head (`ppo.site_head =
+    /// "equivariant"`), [`crate::obs::SITE_FEATURES`] values per site on a fixed physical scale,
+    /// at the end of the observation; the actor and critic MLPs do not read them. Written only
+    /// under `env.association = "learned"` (zeros otherwise). A departure (issue 15).
+    pub site_features: bool,
+    /// One more site feature (with `site_features`): each site's RSRP change since the previous
+    /// observation ([`crate::obs::site_feature::RSRP_TREND`]), a one-decision memory from which
+    /// the site head can tell a rising site from a passing peak (A3 has its time-to-trigger for
+    /// that). Off by default (issue 15; measured in docs/results.md "What any association can do").
+    pub site_trend: bool,
+}
+
+impl Default for ObservationConfig {
+    fn default() -> Self {
+        Self {
+            goal: true,
+            sensor_fan: true,
+            rsrp_all: true,
+            rsrp_serving: true,
+            sensor_range_m: 50.0,
+            sensor_scale: SensorScale::Log,
+            nearest_obstacle: NearestObstacle::Exact,
+            geofence: true,
+            goal_scale_m: 800.0,
+            goal_direction: true,
+            rsrp_centre_dbm: -90.0,
+            rsrp_scale_db: 30.0,
+            site_features: true,
+            site_trend: false,
+        }
+    }
+}
+
+/// The UAV flight environment (spec/env.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EnvConfig {
+    /// Lowest and highest flight altitude (m); moves are clamped to the band (FAA Part 107).
+    pub z_min_m: f64,
+    pub z_max_m: f64,
+    /// UAV radius for collisions (m).
+    pub uav_radius_m: f64,
+    /// Training only: the UAV's sphere is this much larger in training rollouts (m), so a
+    /// collision in training is coming within `uav_radius_m + training_margin_m` of a building and
+    /// the policy learns to keep that margin; evaluation, flights and planners use `uav_radius_m`
+    /// (see [`Config::training`]). 0 = train on the true sphere (the spec).
+    pub training_margin_m: f64,
+    /// Displacement per unit of the bounded action (m): the longest move of one step under
+    /// `ball`, per axis under `cube`.
+    pub max_step_m: f64,
+    /// How the move is bounded: `cube` = per axis to [−1, 1] (spec/env.md), `ball` = onto the
+    /// unit ball, so no move is longer than max_step_m (the speed of spec/env.md "Time" holds in
+    /// every direction; under `cube` a policy gains up to √3 × the progress per step by flying
+    /// the cube's diagonals, and its deterministic moves snap to those 26 directions).
+    pub action_clip: ActionClip,
+    /// Steps of the environment one decision of a policy lasts (frame skip, "action repeat" in
+    /// dm_control's words): the policy observes and acts every `action_repeat` steps, the move
+    /// and site it chose are applied to each, and their rewards add up. The environment itself,
+    /// its metrics, the A3 rule and the planners keep the paper's 1 m step; 1 = the paper's
+    /// decision every step (a departure for learning: at 1 m per decision γ = 0.95 sees 20 m
+    /// ahead; docs/env.md "Where the defaults depart from spec/env.md").
+    pub action_repeat: u32,
+    /// Flight speed (m/s) fixing the step interval Δt = max_step_m / speed_mps.
+    pub speed_mps: f64,
+    /// Goal reached within this distance of the destination (m).
+    pub goal_radius_m: f64,
+    /// Time limit T = ceil(time_limit_factor × shortest path / max_step_m) steps.
+    pub time_limit_factor: f64,
+    pub association: Association,
+    pub radio_mode: RadioMode,
+    /// A return to the previous site within this time is a ping-pong (s).
+    pub ping_pong_window_s: f64,
+    /// Minimum time of stay of the learned association (s): no handover within this time of the
+    /// previous one (the step of the handover + ceil(T / Δt) steps, inclusive); the site chosen
+    /// meanwhile is ignored and every site's reward is the serving one's, so the choice gets no
+    /// gradient. 3GPP TR 36.839 calls a handover back within the minimum time of stay (1 s) a
+    /// ping-pong; this makes the learned rule keep it, as A3's hysteresis and time-to-trigger
+    /// do heuristically. 0 = off (the paper: a free choice every decision). Learned association
+    /// only (issue 15; docs/env.md, docs/results.md "What any association can do").
+    pub min_time_of_stay_s: f64,
+    /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
+    /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
+    pub site_regret_threshold_db: f64,
+    pub reward: RewardConfig,
+    pub observation: ObservationConfig,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        Self {
+            z_min_m: 20.0,
+            z_max_m: 120.0,
+            uav_radius_m: 0.5,
+            training_margin_m: 1.0,
+            max_step_m: 1.0,
+            action_clip: ActionClip::Ball,
+            action_repeat: 5,
+            speed_mps: 75.0 / 3.6,
+            goal_radius_m: 10.0,
+            time_limit_factor: 3.0,
+            association: Association::Learned,
+            radio_mode: RadioMode::Cache,
+            ping_pong_window_s: 1.0,
+            min_time_of_stay_s: 0.0,
+            site_regret_threshold_db: 3.0,
+            reward: RewardConfig::default(),
+            observation: ObservationConfig::default(),
+        }
+    }
+}
+
+impl EnvConfig {
+    /// Step interval Δt (s) = max_step_m / speed_mps (spec/env.md "Time"); a decision of a
+    /// policy lasts `action_repeat` of them.
+    pub fn dt_s(&self) -> f64 {
+        self.max_step_m / self.speed_mps
+    }
+}
+/// Source/destination pairs (spec/env.md "Episodes").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PairsConfig {
+    /// Training pairs: shortest flyable path length uniform in [min_m, max_m].
+    pub min_m: f64,
+    pub max_m: f64,
+    /// Endpoints keep at least this clearance from buildings (m).
+    pub endpoint_clearance_m: f64,
+    /// Held-out evaluation bins (shortest path, m), ± `bin_tolerance` (fraction).
+    pub eval_bins_m: Vec<f64>,
+    pub bin_tolerance: f64,
+    /// Pairs per evaluation bin (K).
+    pub eval_per_bin: usize,
+    pub eval_seed: u64,
+    /// Where `dupac pairs` writes the evaluation set.
+    pub eval_file: PathBuf,
+}
+
+impl Default for PairsConfig {
+    fn default() -> Self {
+        Self {
+            min_m: 200.0,
+            max_m: 800.0,
+            endpoint_clearance_m: 5.0,
+            eval_bins_m: vec![200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0],
+            bin_tolerance: 0.05,
+            eval_per_bin: 50,
+            eval_seed: 2024,
+            eval_file: "out/pairs/eval_pairs.jsonl".into(),
+        }
+    }
+}
+
+/// The voxel planners (shortest flyable path, coverage-aware path).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlannerConfig {
+    /// Voxel edge (m).
+    pub voxel_m: f64,
+    /// Clearance kept from buildings (m); must be ≥ env.uav_radius_m.
+    pub clearance_m: f64,
+    /// λ of the coverage-aware planner: edge cost = length · (1 + λ · penalty(class)).
+    pub lambda: f64,
+    /// Penalty per metre by RSRP class of the best site (excellent is 0).
+    pub penalty_mediocre: f64,
+    pub penalty_poor: f64,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        Self {
+            voxel_m: 5.0,
+            clearance_m: 1.5,
+            lambda: 1.0,
+            penalty_mediocre: 1.0,
+            penalty_poor: 10.0,
+        }
+    }
+}
+
+impl EnvConfig {
+    /// Checks `[env]` (the cache's vertical range bounds the flight band).
+    pub(crate) fn validate(&self, c: &CacheConfig) -> Result<(), ConfigError> {
+        let e = self;
+        positive("env.z_min_m", e.z_min_m)?;
+        if !(e.z_max_m.is_finite() && e.z_max_m > e.z_min_m) {
+            return Err(bad("env.z_max_m", "must be > env.z_min_m"));
+        }
+        positive("env.uav_radius_m", e.uav_radius_m)?;
+        if !(e.training_margin_m.is_finite() && e.training_margin_m >= 0.0) {
+            return Err(bad("env.training_margin_m", "must be >= 0 m"));
+        }
+        positive("env.max_step_m", e.max_step_m)?;
+        if !(1..=1000).contains(&e.action_repeat) {
+            return Err(bad("env.action_repeat", "must be in 1..=1000 steps"));
+        }
+        positive("env.speed_mps", e.speed_mps)?;
+        positive("env.goal_radius_m", e.goal_radius_m)?;
+        positive("env.time_limit_factor", e.time_limit_factor)?;
+        positive("env.ping_pong_window_s", e.ping_pong_window_s)?;
+        positive("env.site_regret_threshold_db", e.site_regret_threshold_db)?;
+        if !(e.min_time_of_stay_s.is_finite() && (0.0..=60.0).contains(&e.min_time_of_stay_s)) {
+            return Err(bad("env.min_time_of_stay_s", "must be in [0, 60] s"));
+        }
+        let rw = &e.reward;
+        for (k, v) in [
+            ("env.reward.mu1", rw.mu1),
+            ("env.reward.mu2", rw.mu2),
+            ("env.reward.mu3", rw.mu3),
+            ("env.reward.goal_reward", rw.goal_reward),
+            ("env.reward.collision_reward", rw.collision_reward),
+            ("env.reward.out_of_bounds_reward", rw.out_of_bounds_reward),
+            ("env.reward.handover_reward", rw.handover_reward),
+        ] {
+            finite(k, v)?;
+        }
+        for (k, v) in [
+            ("env.reward.site_regret_weight", rw.site_regret_weight),
+            (
+                "env.reward.route_connectivity_weight",
+                rw.route_connectivity_weight,
+            ),
+        ] {
+            if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
+                return Err(bad(k, format!("must be in [0, 1000], got {v}")));
+            }
+        }
+        let o = &e.observation;
+        positive("env.observation.sensor_range_m", o.sensor_range_m)?;
+        positive("env.observation.goal_scale_m", o.goal_scale_m)?;
+        finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
+        positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;
+        if e.radio_mode == RadioMode::Cache && (c.z_min_m > e.z_min_m || c.z_max_m < e.z_max_m) {
+            return Err(bad(
+                "cache.z_min_m",
+                "the RSRP cache must span the flight band env.z_min_m..env.z_max_m",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl PairsConfig {
+    /// Checks `[pairs]` against the flight band of `[env]`.
+    pub(crate) fn validate(&self, e: &EnvConfig) -> Result<(), ConfigError> {
+        let pr = self;
+        positive("pairs.min_m", pr.min_m)?;
+        if !(pr.max_m.is_finite() && pr.max_m >= pr.min_m) {
+            return Err(bad("pairs.max_m", "must be >= pairs.min_m"));
+        }
+        finite("pairs.endpoint_clearance_m", pr.endpoint_clearance_m)?;
+        if pr.endpoint_clearance_m < e.uav_radius_m + e.training_margin_m {
+            return Err(bad(
+                "pairs.endpoint_clearance_m",
+                "must be >= env.uav_radius_m + env.training_margin_m",
+            ));
+        }
+        if pr.eval_bins_m.iter().any(|b| !(b.is_finite() && *b > 0.0)) {
+            return Err(bad("pairs.eval_bins_m", "must be positive distances"));
+        }
+        if !(pr.bin_tolerance.is_finite() && pr.bin_tolerance > 0.0 && pr.bin_tolerance < 0.5) {
+            return Err(bad("pairs.bin_tolerance", "must be in (0, 0.5)"));
+        }
+        Ok(())
+    }
+}
+
+impl PlannerConfig {
+    /// Checks `[planner]` against `[env]`.
+    pub(crate) fn validate(&self, e: &EnvConfig) -> Result<(), ConfigError> {
+        let pl = self;
+        positive("planner.voxel_m", pl.voxel_m)?;
+        if !(pl.clearance_m.is_finite() && pl.clearance_m >= e.uav_radius_m) {
+            return Err(bad("planner.clearance_m", "must be >= env.uav_radius_m"));
+        }
+        for (k, v) in [
+            ("planner.lambda", pl.lambda),
+            ("planner.penalty_mediocre", pl.penalty_mediocre),
+            ("planner.penalty_poor", pl.penalty_poor),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(k, format!("must be a finite number >= 0, got {v}")));
+            }
+        }
+        Ok(())
+    }
+}

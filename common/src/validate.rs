@@ -1,0 +1,276 @@
+//! Validation of received messages (issue 5, issue 16): nothing reaches PPO or an actor's
+//! policy before it is checked against what the receiver expects ([`ChunkExpect`]): wrong run,
+//! incarnation, fingerprint or schema, wrong dimensions, non-finite numbers. Each refusal is a
+//! [`DropReason`] (counted by the learner) with the detail of what was wrong ([`Rejection`]).
+
+use crate::codec::CodecError;
+use crate::msg::{
+    EnvTrajectory, EpisodeSummary, Header, SCHEMA_VERSION, TrajectoryChunk, WeightsMsg,
+};
+use crate::policy::MOVE_DIM;
+use std::fmt;
+
+/// Why a received message was not used. Counted by name in [`LearnerStats::drops`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DropReason {
+    /// Larger than its limit on the wire, or decoding it would allocate more than its budget
+    /// ([`MsgLimits`]).
+    TooLarge,
+    /// Not a message of this kind, or a body that does not decode.
+    Garbage,
+    /// Another [`SCHEMA_VERSION`].
+    Schema,
+    /// Another `distributed.run`.
+    WrongRun,
+    /// Another environment/radio configuration.
+    Fingerprint,
+    /// Acted with the weights of an earlier learner process.
+    Incarnation,
+    /// Acted with a policy more than `distributed.max_policy_lag` versions old.
+    Stale,
+    /// Sizes or dimensions that do not match the configuration.
+    Dimensions,
+    /// A NaN or infinity.
+    NonFinite,
+    /// The receive queue, or its sender's share of it, was full (the sender's oldest message
+    /// was dropped), or the learner already tracks `dedup::MAX_TRACKED_SENDERS` senders.
+    Overflow,
+    /// A chunk whose (actor, sender incarnation, sequence number) was already accepted: a
+    /// duplicate or a replay (at-most-once, issue 16).
+    Replay,
+}
+
+impl DropReason {
+    pub const ALL: [DropReason; 11] = [
+        DropReason::TooLarge,
+        DropReason::Garbage,
+        DropReason::Schema,
+        DropReason::WrongRun,
+        DropReason::Fingerprint,
+        DropReason::Incarnation,
+        DropReason::Stale,
+        DropReason::Dimensions,
+        DropReason::NonFinite,
+        DropReason::Overflow,
+        DropReason::Replay,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DropReason::TooLarge => "too_large",
+            DropReason::Garbage => "garbage",
+            DropReason::Schema => "schema",
+            DropReason::WrongRun => "wrong_run",
+            DropReason::Fingerprint => "fingerprint",
+            DropReason::Incarnation => "incarnation",
+            DropReason::Stale => "stale",
+            DropReason::Dimensions => "dimensions",
+            DropReason::NonFinite => "non_finite",
+            DropReason::Overflow => "overflow",
+            DropReason::Replay => "replay",
+        }
+    }
+
+    /// The reason a decoding error stands for.
+    pub fn of_codec(e: &CodecError) -> DropReason {
+        match e {
+            CodecError::TooLarge { .. } | CodecError::OverBudget { .. } => DropReason::TooLarge,
+            CodecError::Version { .. } => DropReason::Schema,
+            _ => DropReason::Garbage,
+        }
+    }
+}
+
+impl fmt::Display for DropReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A rejected message: the reason and what exactly was wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejection {
+    pub reason: DropReason,
+    pub detail: String,
+}
+
+impl fmt::Display for Rejection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.reason, self.detail)
+    }
+}
+
+/// What the learner accepts.
+#[derive(Debug, Clone)]
+pub struct ChunkExpect {
+    pub run_id: String,
+    pub incarnation: u64,
+    pub fingerprint: u64,
+    pub obs_dim: usize,
+    /// Site logits of the policy (0: base method, every site index must be 0… any < 65536).
+    pub n_sites: usize,
+    /// Most environments and steps per environment in one chunk.
+    pub max_envs: usize,
+    pub max_steps: usize,
+}
+
+impl ChunkExpect {
+    /// Upper bound (bytes) on what a valid chunk allocates when decoded, and on its encoded size:
+    /// `max_envs` trajectories of `max_steps` steps with every per-step vector full and one
+    /// episode summary per step, plus the header. A wire value is never larger than its
+    /// decoded form here (f32 4 → 4 bytes, bool 1 → 1, varint lengths ≤ 9 bytes against a
+    /// 24-byte `Vec`), so the same figure caps the message size and the decoding budget.
+    pub fn budget_bytes(&self) -> usize {
+        let f = size_of::<f32>();
+        let per_step = f * (self.obs_dim + MOVE_DIM + self.n_sites)
+            + size_of::<u32>()
+            + 5 * f
+            + 2 * size_of::<bool>()
+            + size_of::<EpisodeSummary>();
+        let per_env =
+            size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);
+        self.max_envs
+            .saturating_mul(per_env)
+            .saturating_add(HEADER_BUDGET_BYTES)
+    }
+}
+
+/// Decoding budget of a header and a small message (stats, control): run names are short.
+pub const HEADER_BUDGET_BYTES: usize = 64 * 1024;
+
+fn reject(reason: DropReason, detail: impl Into<String>) -> Rejection {
+    Rejection {
+        reason,
+        detail: detail.into(),
+    }
+}
+
+/// Checks the header of any message from this run.
+pub fn check_header(h: &Header, x: &ChunkExpect) -> Result<(), Rejection> {
+    if h.schema_version != SCHEMA_VERSION {
+        return Err(reject(
+            DropReason::Schema,
+            format!("schema {} (this build: {SCHEMA_VERSION})", h.schema_version),
+        ));
+    }
+    if h.run_id != x.run_id {
+        return Err(reject(
+            DropReason::WrongRun,
+            format!("run {:?}, expected {:?}", h.run_id, x.run_id),
+        ));
+    }
+    if h.config_fingerprint != x.fingerprint {
+        return Err(reject(
+            DropReason::Fingerprint,
+            format!(
+                "configuration fingerprint {:016x} in the message, {:016x} in this process",
+                h.config_fingerprint, x.fingerprint
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Validates a decoded chunk's header, sizes, dimensions and numbers (not its staleness, which
+/// depends on the learner's version at use).
+pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_header(&c.header, x)?;
+    if c.header.learner_incarnation != x.incarnation {
+        return Err(reject(
+            DropReason::Incarnation,
+            format!(
+                "acted with weights of learner incarnation {:016x}, this one is {:016x}",
+                c.header.learner_incarnation, x.incarnation
+            ),
+        ));
+    }
+    let dims = |d: String| reject(DropReason::Dimensions, d);
+    if c.trajectories.is_empty() || c.trajectories.len() > x.max_envs {
+        return Err(dims(format!(
+            "{} environments (1..={} allowed)",
+            c.trajectories.len(),
+            x.max_envs
+        )));
+    }
+    for (k, tr) in c.trajectories.iter().enumerate() {
+        let t = tr.len();
+        let at = |what: &str| format!("trajectory {k}: {what}");
+        if tr.env as usize >= x.max_envs {
+            return Err(dims(at(&format!(
+                "environment id {} outside 0..{}",
+                tr.env, x.max_envs
+            ))));
+        }
+        if t == 0 || t > x.max_steps {
+            return Err(dims(at(&format!(
+                "{t} steps (1..={} allowed)",
+                x.max_steps
+            ))));
+        }
+        if tr.obs_dim != x.obs_dim {
+            return Err(dims(at(&format!(
+                "observation size {}, expected {}",
+                tr.obs_dim, x.obs_dim
+            ))));
+        }
+        let want = [
+            ("obs", tr.obs.len(), t * x.obs_dim),
+            ("moves", tr.moves.len(), t * MOVE_DIM),
+            ("sites", tr.sites.len(), t),
+            ("logprobs", tr.logprobs.len(), t),
+            ("site_logprobs", tr.site_logprobs.len(), t),
+            ("values", tr.values.len(), t),
+            ("terminated", tr.terminated.len(), t),
+            ("truncated", tr.truncated.len(), t),
+            ("next_values", tr.next_values.len(), t),
+            ("bootstrap_obs", tr.bootstrap_obs.len(), x.obs_dim),
+        ];
+        for (name, got, expected) in want {
+            if got != expected {
+                return Err(dims(at(&format!(
+                    "{name} has {got} values, expected {expected}"
+                ))));
+            }
+        }
+        if !tr.site_rewards.is_empty() && tr.site_rewards.len() != t * x.n_sites {
+            return Err(dims(at(&format!(
+                "site_rewards has {} values, expected 0 or {}",
+                tr.site_rewards.len(),
+                t * x.n_sites
+            ))));
+        }
+        let max_site = x.n_sites.max(1) as u32;
+        if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
+            return Err(dims(at(&format!("site {s} outside 0..{max_site}"))));
+        }
+        if tr.episodes.len() > t {
+            return Err(dims(at(&format!(
+                "{} episodes in {t} steps",
+                tr.episodes.len()
+            ))));
+        }
+        if let Some(what) = tr.first_non_finite() {
+            return Err(reject(DropReason::NonFinite, at(&what)));
+        }
+    }
+    Ok(())
+}
+
+/// Checks received weights against the actor's expectations (fingerprint, run, shapes,
+/// finiteness).
+pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_header(&w.header, x)?;
+    let p = &w.policy;
+    if p.obs_dim != x.obs_dim || p.n_sites != x.n_sites {
+        return Err(reject(
+            DropReason::Dimensions,
+            format!(
+                "policy for {} observations and {} sites, expected {} and {}",
+                p.obs_dim, p.n_sites, x.obs_dim, x.n_sites
+            ),
+        ));
+    }
+    p.validate()
+        .map_err(|e| reject(DropReason::Dimensions, e))?;
+    Ok(())
+}

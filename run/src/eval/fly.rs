@@ -1,0 +1,292 @@
+//! Flying the evaluation: every method over every pair in parallel, each flight recorded;
+//! a learned site choice's moves re-flown with other associations (route against association).
+
+use super::records::{RecordsFile, write_records};
+use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight, refused, select};
+use crate::error::{Context, RunError};
+use crate::progress::progress_bar;
+use crate::scenario::{SharedRsrp, read_eval_pairs, world_and_cache};
+use dupac_actor::env::{Env, Episode, Outcome};
+use dupac_actor::eval::{
+    FlightRecord, NOISE_PER_RE_DBM, StepRecord, hindsight_association, sinr_db,
+};
+use dupac_actor::pairs::Pair;
+use dupac_actor::pilot::{fly_waypoints, replay_positions};
+use dupac_actor::planner::Planner;
+use dupac_actor::rollout::fly_policy;
+use dupac_common::SiteId;
+use dupac_common::config::{Association, Config};
+use dupac_radio::class::RsrpThresholds;
+use dupac_radio::world::RadioWorld;
+use rayon::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Flies every method of `args` and writes its records (and its replays') into `dir`.
+pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result<(), RunError> {
+    let methods = methods(args)?;
+    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
+        .ceil()
+        .max(1.0) as u32;
+    if args.no_replay && !args.hindsight.is_empty() {
+        return Err(refused!(
+            "--hindsight re-flies a policy's moves: it cannot go with --no-replay"
+        ));
+    }
+    let hindsight = args
+        .hindsight
+        .iter()
+        .map(|h| parse_hindsight(h, window))
+        .collect::<Result<Vec<_>, RunError>>()?;
+    let (world, rsrp) = world_and_cache(cfg, quiet)?;
+    let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    if methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_))) {
+        planner.with_coverage(rsrp.as_ref(), RsrpThresholds::from_config(&cfg.radio));
+    }
+    let (file, pairs) = read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
+    let pairs = select(pairs, args.per_bin);
+    if pairs.is_empty() {
+        return Err(refused!("{}: no pairs", file.display()));
+    }
+    let m = world.num_sites();
+    let start_serving: Vec<u16> = pairs
+        .iter()
+        .map(|p| {
+            let mut all = vec![f64::NAN; m];
+            rsrp.rsrp_all_dbm(p.source_m, &mut all);
+            argmax(&all)
+        })
+        .collect();
+    // The shortest paths once, shared by the A3 and oracle flights.
+    let need_shortest = methods.iter().any(|m| matches!(m.kind, Kind::Shortest(_)));
+    let shortest: Vec<Option<Vec<[f64; 3]>>> = if need_shortest {
+        let pb = progress_bar(pairs.len() as u64, "shortest paths", quiet);
+        let v = pairs
+            .par_iter()
+            .map(|p| {
+                let r = planner
+                    .shortest(p.source_m, p.destination_m)
+                    .ok()
+                    .map(|x| x.waypoints_m);
+                pb.inc(1);
+                r
+            })
+            .collect();
+        pb.finish_and_clear();
+        v
+    } else {
+        vec![None; pairs.len()]
+    };
+    std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
+    for method in &methods {
+        let mut mcfg = cfg.clone();
+        mcfg.env.association = match &method.kind {
+            Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
+            Kind::Policy(_) | Kind::Coverage(_) => Association::A3,
+            Kind::Shortest(a) | Kind::Replay(a) => *a,
+            Kind::Hindsight(_) => Association::Learned,
+        };
+        if let Kind::Policy(p) = &method.kind {
+            let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
+            if probe.layout().len() != p.obs_dim && p.site_head.is_none() {
+                // A policy of the paper's slot head may have been trained without the per-site
+                // features (docs/paper_dupac.toml): fly it with the layout it was trained on.
+                let o = &mut mcfg.env.observation;
+                o.site_features = !o.site_features;
+                probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
+                if probe.layout().len() != p.obs_dim {
+                    mcfg.env.observation.site_features = cfg.env.observation.site_features;
+                } else {
+                    tracing::info!(
+                        label = %method.label,
+                        site_features = mcfg.env.observation.site_features,
+                        "flying the policy with the observation layout it was trained on"
+                    );
+                }
+            }
+            if probe.layout().len() != p.obs_dim {
+                return Err(refused!(
+                    "policy {} (seed {}): it expects {} observations, this configuration gives {} (evaluate with the configuration it was trained with)",
+                    method.label,
+                    method.seed,
+                    p.obs_dim,
+                    probe.layout().len()
+                ));
+            }
+        }
+        let pb = progress_bar(
+            pairs.len() as u64,
+            &format!("{} seed {}", method.label, method.seed),
+            quiet,
+        );
+        let flights: Vec<FlightRecord> = pairs
+            .par_iter()
+            .zip(&shortest)
+            .map(|(p, sp)| {
+                let r = fly_one(&mcfg, &world, &rsrp, &planner, method, p, sp.as_deref());
+                pb.inc(1);
+                r
+            })
+            .collect::<Result<_, RunError>>()?;
+        pb.finish_and_clear();
+        // A learned site choice: the same moves re-flown with the A3 rule and with the
+        // best-RSRP oracle choosing the site, so the report separates route from association.
+        let replays = match &method.kind {
+            Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
+                let ctx = (cfg, &world, &rsrp, &planner);
+                replay_associations(ctx, method, &pairs, &flights, &hindsight)?
+            }
+            _ => Vec::new(),
+        };
+        for (label, flights) in std::iter::once((method.label.clone(), flights)).chain(replays) {
+            let rec = RecordsFile {
+                method: label,
+                seed: method.seed,
+                ping_pong_window_steps: window,
+                site_regret_threshold_db: cfg.env.site_regret_threshold_db,
+                start_serving: start_serving.clone(),
+                flights,
+            };
+            write_records(dir, &rec)?;
+        }
+        eprintln!(
+            "{} seed {}: {} flights recorded",
+            method.label,
+            method.seed,
+            pairs.len()
+        );
+    }
+    Ok(())
+}
+
+/// The positions of every flight of `method` re-flown with the A3 rule (`LABEL+a3`) and with
+/// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
+/// A replay takes one step to each recorded position in turn (`pilot::replay_positions`), so it
+/// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
+/// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
+fn replay_associations(
+    (cfg, world, rsrp, planner): (&Config, &Arc<RadioWorld>, &SharedRsrp, &Planner),
+    method: &Method,
+    pairs: &[Pair],
+    flights: &[FlightRecord],
+    hindsight: &[(String, Hindsight)],
+) -> Result<Vec<(String, Vec<FlightRecord>)>, RunError> {
+    let rules = [
+        (Kind::Replay(Association::A3), "a3".to_string()),
+        (Kind::Replay(Association::BestRsrp), "oracle".to_string()),
+    ];
+    let hindsight = hindsight
+        .iter()
+        .map(|(l, h)| (Kind::Hindsight(*h), l.clone()));
+    rules
+        .into_iter()
+        .chain(hindsight)
+        .map(|(kind, suffix)| {
+            let mut rcfg = cfg.clone();
+            rcfg.env.association = match kind {
+                Kind::Replay(a) => a,
+                _ => Association::Learned,
+            };
+            // The hindsight programme keeps its own minimum stay.
+            rcfg.env.min_time_of_stay_s = 0.0;
+            let label = format!("{}+{suffix}", method.label);
+            let replay = Method {
+                label: label.clone(),
+                seed: method.seed,
+                kind,
+            };
+            let v = pairs
+                .par_iter()
+                .zip(flights)
+                .map(|(p, f)| {
+                    let w: Vec<[f64; 3]> = f
+                        .steps
+                        .iter()
+                        .map(|s| s.position_m.map(f64::from))
+                        .collect();
+                    fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))
+                })
+                .collect::<Result<Vec<_>, RunError>>()?;
+            Ok((label, v))
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fly_one(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    planner: &Planner,
+    method: &Method,
+    p: &Pair,
+    // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
+    waypoints_m: Option<&[[f64; 3]]>,
+) -> Result<FlightRecord, RunError> {
+    let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
+    let episode = Episode {
+        source_m: p.source_m,
+        destination_m: p.destination_m,
+        shortest_m: p.shortest_m,
+    };
+    let steps = match &method.kind {
+        Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
+        Kind::Shortest(_) => {
+            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no shortest path", p.id))?;
+            fly_waypoints(&mut env, p.id, episode, w, |e| e.serving())?.steps
+        }
+        Kind::Replay(_) => {
+            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
+            replay_positions(&mut env, p.id, episode, w, |e| e.serving())?.steps
+        }
+        Kind::Hindsight(h) => {
+            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
+            let m = world.num_sites();
+            let mut rows = vec![f64::NAN; w.len() * m];
+            for (row, pos) in rows.chunks_mut(m).zip(w) {
+                rsrp.rsrp_all_dbm(*pos, row);
+            }
+            let mut start = vec![f64::NAN; m];
+            rsrp.rsrp_all_dbm(p.source_m, &mut start);
+            let sites =
+                hindsight_association(&rows, m, argmax(&start), h.cost_db, h.min_stay_steps);
+            let mut next = sites.into_iter().map(SiteId);
+            replay_positions(&mut env, p.id, episode, w, |e| {
+                next.next().unwrap_or_else(|| e.serving())
+            })?
+            .steps
+        }
+        Kind::Coverage(l) => {
+            let path = planner
+                .coverage_aware(p.source_m, p.destination_m, *l)
+                .context_with(|| format!("pair {}: coverage-aware path (λ = {l})", p.id))?;
+            fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
+        }
+    };
+    let mut all = vec![f64::NAN; world.num_sites()];
+    let remaining_m = steps.last().map_or(p.shortest_m, |s| s.distance_to_goal_m);
+    let outcome = steps
+        .last()
+        .and_then(|s| s.outcome)
+        .unwrap_or(Outcome::TimeLimit);
+    let steps = steps
+        .iter()
+        .map(|s| {
+            rsrp.rsrp_all_dbm(s.position_m, &mut all);
+            StepRecord::from_info(s, sinr_db(&all, usize::from(s.serving.0), NOISE_PER_RE_DBM))
+        })
+        .collect();
+    Ok(FlightRecord {
+        method: method.label.clone(),
+        seed: method.seed,
+        pair_id: p.id,
+        bin_m: p.bin_m.unwrap_or(p.shortest_m),
+        shortest_m: p.shortest_m,
+        straight_m: p.straight_m,
+        outcome,
+        source_m: p.source_m,
+        destination_m: p.destination_m,
+        remaining_m,
+        steps,
+    })
+}

@@ -1,0 +1,173 @@
+//! Evaluation (issue 6): every evaluation pair flown with trained policies (several training
+//! seeds per method) and with the planners (shortest path with A3 and with the best-RSRP
+//! oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a learned
+//! site choice's moves re-flown with A3, the oracle and the hindsight association ([`fly`]);
+//! the statistics and the report's tables from the records alone ([`report`]). The figures are
+//! the binary's (`dupac eval`).
+
+pub mod fly;
+pub mod records;
+pub mod report;
+
+use crate::error::{Context, RunError};
+use dupac_actor::pairs::Pair;
+use dupac_common::config::Association;
+use dupac_common::policy::PolicyWeights;
+use dupac_learner::checkpoint::load_policy;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A refusal with a formatted reason.
+macro_rules! refused {
+    ($($t:tt)*) => { $crate::error::RunError::Refused(format!($($t)*)) };
+}
+pub(crate) use refused;
+
+/// What to evaluate (the options of `dupac eval`, validated here).
+#[derive(Debug, Clone, Default)]
+pub struct EvalPlan {
+    /// `LABEL=FILE`, one per training seed of a label.
+    pub policies: Vec<String>,
+    /// λ of the coverage-aware planner (empty: 0.5, 1, 2, 4).
+    pub lambdas: Vec<f64>,
+    pub no_planners: bool,
+    /// Pairs file (default `pairs.eval_file`).
+    pub pairs: Option<PathBuf>,
+    /// The first K pairs of every bin.
+    pub per_bin: Option<usize>,
+    /// No `LABEL+a3` / `LABEL+oracle` replays.
+    pub no_replay: bool,
+    /// `C` or `C:mts` hindsight associations.
+    pub hindsight: Vec<String>,
+}
+
+/// A `--hindsight` value: handover cost (dB·steps) and the minimum stay (steps).
+#[derive(Debug, Clone, Copy)]
+pub struct Hindsight {
+    pub cost_db: f64,
+    pub min_stay_steps: u32,
+}
+
+pub fn parse_hindsight(spec: &str, window_steps: u32) -> Result<(String, Hindsight), RunError> {
+    let (c, mts) = match spec.split_once(':') {
+        Some((c, "mts")) => (c, true),
+        Some(_) => return Err(refused!("--hindsight {spec}: expected C or C:mts")),
+        None => (spec, false),
+    };
+    let cost_db: f64 = c
+        .parse()
+        .ok()
+        .filter(|x: &f64| x.is_finite() && (0.0..=1e6).contains(x))
+        .ok_or_else(|| refused!("--hindsight {spec}: C must be a number in [0, 1e6] (dB·steps)"))?;
+    let label = format!("hindsight_{cost_db}{}", if mts { "_mts" } else { "" });
+    Ok((
+        label,
+        Hindsight {
+            cost_db,
+            min_stay_steps: if mts { window_steps + 1 } else { 0 },
+        },
+    ))
+}
+
+/// How a method's flights are flown.
+pub enum Kind {
+    Policy(Box<PolicyWeights>),
+    Shortest(Association),
+    /// A recorded flight's positions re-flown with this association (`replay_associations`).
+    Replay(Association),
+    /// A recorded flight's positions re-flown with the hindsight association.
+    Hindsight(Hindsight),
+    Coverage(f64),
+}
+
+/// One method and training seed to fly.
+pub struct Method {
+    pub label: String,
+    pub seed: u32,
+    pub kind: Kind,
+}
+
+/// The methods of `plan`: its policies (seeds numbered per label in order), then the planners.
+pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
+    let mut out = Vec::new();
+    let mut seeds: BTreeMap<String, u32> = BTreeMap::new();
+    for spec in &args.policies {
+        let (label, file) = spec
+            .split_once('=')
+            .ok_or_else(|| refused!("--policy {spec}: expected LABEL=FILE"))?;
+        if label.is_empty()
+            || !label
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        {
+            return Err(refused!(
+                "--policy {spec}: the label must be letters, digits, '-', '_' or '.'"
+            ));
+        }
+        let p = load_policy(Path::new(file)).context_with(|| format!("--policy {spec}"))?;
+        let seed = seeds.entry(label.to_string()).or_insert(0);
+        out.push(Method {
+            label: label.to_string(),
+            seed: *seed,
+            kind: Kind::Policy(Box::new(p)),
+        });
+        *seed += 1;
+    }
+    if !args.no_planners {
+        out.push(Method {
+            label: "shortest_a3".into(),
+            seed: 0,
+            kind: Kind::Shortest(Association::A3),
+        });
+        out.push(Method {
+            label: "shortest_oracle".into(),
+            seed: 0,
+            kind: Kind::Shortest(Association::BestRsrp),
+        });
+        let lambdas = if args.lambdas.is_empty() {
+            vec![0.5, 1.0, 2.0, 4.0]
+        } else {
+            args.lambdas.clone()
+        };
+        for l in lambdas {
+            if !(l.is_finite() && l >= 0.0) {
+                return Err(refused!("--lambda {l}: must be a finite number >= 0"));
+            }
+            out.push(Method {
+                label: format!("coverage_l{l}"),
+                seed: 0,
+                kind: Kind::Coverage(l),
+            });
+        }
+    }
+    if out.is_empty() {
+        return Err(refused!(
+            "nothing to evaluate: give --policy LABEL=FILE, or drop --no-planners"
+        ));
+    }
+    Ok(out)
+}
+
+/// The first `k` pairs of every bin, in file order.
+pub fn select(pairs: Vec<Pair>, k: Option<usize>) -> Vec<Pair> {
+    let Some(k) = k else { return pairs };
+    let mut taken: BTreeMap<u64, usize> = BTreeMap::new();
+    pairs
+        .into_iter()
+        .filter(|p| {
+            let n = taken.entry(p.bin_m.unwrap_or(0.0).to_bits()).or_insert(0);
+            *n += 1;
+            *n <= k
+        })
+        .collect()
+}
+
+pub fn argmax(v: &[f64]) -> u16 {
+    let mut best = (0usize, f64::NEG_INFINITY);
+    for (i, &x) in v.iter().enumerate() {
+        if x > best.1 {
+            best = (i, x);
+        }
+    }
+    best.0 as u16
+}

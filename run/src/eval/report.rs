@@ -1,0 +1,465 @@
+//! The evaluation's statistics and tables, from the records alone: per method (all seeds
+//! together) success, collision and timeout rates with Wilson intervals, means with Student-t
+//! intervals, per-km handovers and ping-pongs, SINR, site regret; `summary.csv`,
+//! `fig3_fig4_bins.csv`, `failures.csv` and `report.md` with the paper's numbers beside ours.
+
+use super::records::RecordsFile;
+use crate::error::RunError;
+use dupac_actor::env::Outcome;
+use dupac_actor::eval::{
+    FlightMetrics, MeanCi, NOISE_PER_RE_DBM, Rate, flight_metrics, mean_ci95, wilson95,
+};
+use dupac_common::fsio::write_atomic_with;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The metrics of every flight of a method, all seeds together.
+#[derive(Clone)]
+pub struct MethodData {
+    pub label: String,
+    pub seeds: u32,
+    /// (bin_m, metrics) of every flight.
+    pub flights: Vec<(f64, FlightMetrics)>,
+}
+
+impl MethodData {
+    pub fn successes(&self) -> impl Iterator<Item = &(f64, FlightMetrics)> {
+        self.flights
+            .iter()
+            .filter(|(_, m)| m.outcome == Outcome::Goal)
+    }
+    /// Handovers and ping-pongs per km flown, over all flights.
+    pub fn per_km(&self) -> (f64, f64) {
+        let km: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| m.distance_m / 1000.0)
+            .sum();
+        let ho: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| f64::from(m.handovers))
+            .sum();
+        let pp: f64 = self
+            .flights
+            .iter()
+            .map(|(_, m)| f64::from(m.ping_pongs))
+            .sum();
+        (ho / km.max(1e-9), pp / km.max(1e-9))
+    }
+    pub fn rate(&self, o: Outcome) -> Rate {
+        let k = self.flights.iter().filter(|(_, m)| m.outcome == o).count();
+        wilson95(k, self.flights.len())
+    }
+    pub fn ci(&self, bin: Option<f64>, f: impl Fn(&FlightMetrics) -> f64) -> MeanCi {
+        let v: Vec<f64> = self
+            .successes()
+            .filter(|(b, _)| bin.is_none_or(|x| (x - b).abs() < 1e-6))
+            .map(|(_, m)| f(m))
+            .collect();
+        mean_ci95(&v)
+    }
+    pub fn all_ci(&self, f: impl Fn(&FlightMetrics) -> f64) -> MeanCi {
+        mean_ci95(&self.flights.iter().map(|(_, m)| f(m)).collect::<Vec<_>>())
+    }
+}
+
+pub fn gather(files: &[RecordsFile]) -> Vec<MethodData> {
+    let mut by: BTreeMap<String, MethodData> = BTreeMap::new();
+    for f in files {
+        let d = by.entry(f.method.clone()).or_insert_with(|| MethodData {
+            label: f.method.clone(),
+            seeds: 0,
+            flights: Vec::new(),
+        });
+        d.seeds += 1;
+        for (r, &s0) in f.flights.iter().zip(&f.start_serving) {
+            d.flights.push((
+                r.bin_m,
+                flight_metrics(r, s0, f.ping_pong_window_steps, f.site_regret_threshold_db),
+            ));
+        }
+    }
+    // Policies first (as given), planners after.
+    let mut v: Vec<MethodData> = by.into_values().collect();
+    v.sort_by_key(|d| (is_planner(&d.label), d.label.clone()));
+    v
+}
+
+pub fn is_planner(label: &str) -> bool {
+    label.starts_with("shortest_") || label.starts_with("coverage_l")
+}
+
+pub fn bins_of(data: &[MethodData]) -> Vec<f64> {
+    let mut b: Vec<f64> = data
+        .iter()
+        .flat_map(|d| d.flights.iter().map(|f| f.0))
+        .collect();
+    b.sort_by(f64::total_cmp);
+    b.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    b
+}
+
+pub fn fmt_ci(c: MeanCi, scale: f64, digits: usize) -> String {
+    if c.n == 0 {
+        return "–".into();
+    }
+    if c.half_width.is_nan() {
+        return format!("{:.*}", digits, c.mean * scale);
+    }
+    format!(
+        "{:.*} ± {:.*}",
+        digits,
+        c.mean * scale,
+        digits,
+        c.half_width * scale
+    )
+}
+
+pub fn fmt_rate(r: Rate) -> String {
+    format!(
+        "{:.1} % [{:.1}, {:.1}]",
+        100.0 * r.rate,
+        100.0 * r.lo,
+        100.0 * r.hi
+    )
+}
+
+/// The report's tables into `out` (`summary.csv`, `fig3_fig4_bins.csv`, `failures.csv`,
+/// `report.md`, `dupac` and `base` being the labels compared with the paper's methods); returns
+/// the methods' data (association replays `LABEL+…` left out: the figures show methods) and the
+/// distance bins, for the figures.
+pub fn write_tables(
+    out: &Path,
+    files: &[RecordsFile],
+    dupac: &str,
+    base: &str,
+) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
+    let data = gather(files);
+    let bins = bins_of(&data);
+    // summary.csv
+    write_atomic_with(&out.join("summary.csv"), |w| {
+        writeln!(
+            w,
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret"
+        )?;
+        for d in &data {
+            let s = d.rate(Outcome::Goal);
+            let ov = d.ci(None, |m| m.overhead);
+            let rs = d.ci(None, |m| m.mean_rsrp_dbm);
+            let ex = d.ci(None, |m| m.frac_class[0]);
+            let (ho_km, pp_km) = d.per_km();
+            writeln!(
+                w,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                d.label,
+                d.seeds,
+                d.flights.len(),
+                s.rate,
+                s.lo,
+                s.hi,
+                d.rate(Outcome::Collision).rate,
+                d.rate(Outcome::OutOfBounds).rate,
+                d.rate(Outcome::TimeLimit).rate,
+                ov.mean,
+                ov.half_width,
+                rs.mean,
+                rs.half_width,
+                100.0 * ex.mean,
+                100.0 * ex.half_width,
+                ho_km,
+                pp_km,
+                d.all_ci(|m| m.mean_sinr_db).mean,
+                100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+                d.all_ci(|m| m.mean_site_regret_db).mean,
+                100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
+                100.0 * d.all_ci(|m| m.frac_class_regret).mean,
+            )?;
+        }
+        Ok(())
+    })?;
+    // fig3.csv / fig4.csv: per method and bin, successful flights.
+    write_atomic_with(&out.join("fig3_fig4_bins.csv"), |w| {
+        writeln!(
+            w,
+            "method,bin_m,successes,distance_m,distance_ci,overhead,overhead_ci,mean_rsrp_dbm,rsrp_ci,frac_excellent,frac_mediocre,frac_poor"
+        )?;
+        for d in &data {
+            for &b in &bins {
+                let dist = d.ci(Some(b), |m| m.distance_m);
+                let ov = d.ci(Some(b), |m| m.overhead);
+                let rs = d.ci(Some(b), |m| m.mean_rsrp_dbm);
+                let f = [0, 1, 2].map(|k| d.ci(Some(b), |m| m.frac_class[k]).mean);
+                writeln!(
+                    w,
+                    "{},{b},{},{},{},{},{},{},{},{},{},{}",
+                    d.label,
+                    dist.n,
+                    dist.mean,
+                    dist.half_width,
+                    ov.mean,
+                    ov.half_width,
+                    rs.mean,
+                    rs.half_width,
+                    f[0],
+                    f[1],
+                    f[2]
+                )?;
+            }
+        }
+        Ok(())
+    })?;
+    write_failures(&out.join("failures.csv"), files)?;
+    // The figures show methods; the association replays (`LABEL+a3`, `LABEL+oracle`) are in the
+    // tables only.
+    let methods: Vec<MethodData> = data
+        .iter()
+        .filter(|d| !d.label.contains('+'))
+        .cloned()
+        .collect();
+    crate::run_dir::write_plain(
+        &out.join("report.md"),
+        report_md(&data, dupac, base, regret_threshold_db(files)).as_bytes(),
+    )?;
+    Ok((methods, bins))
+}
+
+/// `failures.csv`: one row per flight that did not reach its goal, to see where and how policies
+/// fail: how far along the straight line they got, the altitude, the last move, and the angle
+/// between the last move and the direction to the destination (a collision flown head-on into
+/// the goal direction reads ≈ 0°; one while sliding along a wall ≈ 45–90°).
+fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<(), RunError> {
+    write_atomic_with(path, |w| {
+        writeln!(
+            w,
+            "method,seed,pair_id,bin_m,outcome,steps,straight_m,remaining_m,progress,x_m,y_m,z_m,last_move_x_m,last_move_y_m,last_move_z_m,angle_to_goal_deg"
+        )?;
+        // The association replays (`LABEL+a3`, `LABEL+oracle`) are the policy's own flights.
+        let flights = files
+            .iter()
+            .filter(|r| !r.method.contains('+'))
+            .flat_map(|r| &r.flights);
+        for f in flights {
+            if f.outcome == Outcome::Goal {
+                continue;
+            }
+            let n = f.steps.len();
+            let at = |i: usize| -> [f64; 3] {
+                if i == 0 {
+                    f.source_m
+                } else {
+                    f.steps[i - 1].position_m.map(f64::from)
+                }
+            };
+            let end = at(n);
+            let prev = at(n.saturating_sub(1));
+            let mv = [end[0] - prev[0], end[1] - prev[1], end[2] - prev[2]];
+            let to_goal = [
+                f.destination_m[0] - prev[0],
+                f.destination_m[1] - prev[1],
+                f.destination_m[2] - prev[2],
+            ];
+            let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            let dot = mv[0] * to_goal[0] + mv[1] * to_goal[1] + mv[2] * to_goal[2];
+            let angle = (dot / (norm(mv) * norm(to_goal)).max(1e-12))
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            writeln!(
+                w,
+                "{},{},{},{},{:?},{},{:.1},{:.1},{:.3},{:.1},{:.1},{:.1},{:.3},{:.3},{:.3},{:.1}",
+                f.method,
+                f.seed,
+                f.pair_id,
+                f.bin_m,
+                f.outcome,
+                n,
+                f.straight_m,
+                f.remaining_m,
+                1.0 - f.remaining_m / f.straight_m.max(1e-9),
+                end[0],
+                end[1],
+                end[2],
+                mv[0],
+                mv[1],
+                mv[2],
+                angle
+            )?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}
+
+/// The site-regret threshold of the records (the first file's; every file of one evaluation
+/// has the same).
+fn regret_threshold_db(files: &[RecordsFile]) -> f64 {
+    files.first().map_or(3.0, |f| f.site_regret_threshold_db)
+}
+
+fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# DUPAC evaluation report\n");
+    let _ = writeln!(
+        s,
+        "Distance, overhead, RSRP and class fractions are over successful flights; rates over all flights; intervals are 95 % (Student t for means across seeds and pairs, Wilson for rates). SINR: serving RSRP against all other sites as full-load co-channel interferers plus thermal noise per resource element ({NOISE_PER_RE_DBM:.1} dBm).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| method | seeds | flights | success | collision | timeout | overhead (%) | mean RSRP (dBm) | excellent (%) | handovers/km | ping-pongs/km | mean SINR (dB) | SINR < −6 dB (%) | site regret (dB) | regret > {regret_db} dB (%) | class regret (%) |"
+    );
+    let _ = writeln!(
+        s,
+        "|---|---:|---:|---|---:|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for d in data {
+        let (ho_km, pp_km) = d.per_km();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
+            d.label,
+            d.seeds,
+            d.flights.len(),
+            fmt_rate(d.rate(Outcome::Goal)),
+            100.0 * d.rate(Outcome::Collision).rate,
+            100.0 * d.rate(Outcome::TimeLimit).rate,
+            fmt_ci(d.ci(None, |m| m.overhead), 100.0, 1),
+            fmt_ci(d.ci(None, |m| m.mean_rsrp_dbm), 1.0, 1),
+            fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
+            ho_km,
+            pp_km,
+            d.all_ci(|m| m.mean_sinr_db).mean,
+            100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+            d.all_ci(|m| m.mean_site_regret_db).mean,
+            100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
+            100.0 * d.all_ci(|m| m.frac_class_regret).mean,
+        );
+    }
+    route_or_association(&mut s, data);
+    let find = |l: &str| data.iter().find(|d| d.label == l);
+    let _ = writeln!(s, "\n## Against the paper\n");
+    match (find(dupac), find(base)) {
+        (Some(a), Some(b)) => {
+            let (oa, ob) = (a.ci(None, |m| m.overhead), b.ci(None, |m| m.overhead));
+            let (ra, rb) = (
+                a.ci(None, |m| m.mean_rsrp_dbm),
+                b.ci(None, |m| m.mean_rsrp_dbm),
+            );
+            let (ea, eb) = (
+                a.ci(None, |m| m.frac_class[0]),
+                b.ci(None, |m| m.frac_class[0]),
+            );
+            let gain = (rb.mean - ra.mean) / rb.mean.abs() * -100.0;
+            let _ = writeln!(s, "| quantity | paper | ours |\n|---|---:|---:|");
+            let _ = writeln!(
+                s,
+                "| distance overhead, DUPAC | ≈ 11 % | {} % |",
+                fmt_ci(oa, 100.0, 1)
+            );
+            let _ = writeln!(
+                s,
+                "| distance overhead, base method | ≈ 9 % | {} % |",
+                fmt_ci(ob, 100.0, 1)
+            );
+            let _ = writeln!(
+                s,
+                "| mean RSRP, DUPAC vs base (relative, + = DUPAC better) | ≈ +7.5 % | {gain:+.1} % ({:.1} vs {:.1} dBm) |",
+                ra.mean, rb.mean
+            );
+            let _ = writeln!(
+                s,
+                "| time in excellent RSRP, DUPAC − base | ≈ +9 points | {:+.1} points ({:.1} vs {:.1} %) |",
+                100.0 * (ea.mean - eb.mean),
+                100.0 * ea.mean,
+                100.0 * eb.mean
+            );
+            let _ = writeln!(
+                s,
+                "| success rate (not reported by the paper) | – | {} vs {} |",
+                fmt_rate(a.rate(Outcome::Goal)),
+                fmt_rate(b.rate(Outcome::Goal))
+            );
+            let agree = |ok: bool| {
+                if ok {
+                    "agrees with"
+                } else {
+                    "is the opposite of"
+                }
+            };
+            let _ = writeln!(
+                s,
+                "\nIn direction: DUPAC's mean RSRP against the base method's {} the paper (paper: DUPAC better); its time in excellent RSRP {} the paper (paper: DUPAC more); DUPAC's distance overhead against the base method's {} the paper (paper: DUPAC flies a little longer). DUPAC hands over {:.1} times per km ({:.1} of them ping-pongs), the base method {:.1}. Flights that missed the goal, DUPAC / base: {:.1} / {:.1} % collisions, {:.1} / {:.1} % timeouts, {:.1} / {:.1} % out of bounds (where each ended: `failures.csv`). Discussion: docs/results.md, docs/training.md.",
+                agree(ra.mean > rb.mean),
+                agree(ea.mean > eb.mean),
+                agree(oa.mean > ob.mean),
+                a.per_km().0,
+                a.per_km().1,
+                b.per_km().0,
+                100.0 * a.rate(Outcome::Collision).rate,
+                100.0 * b.rate(Outcome::Collision).rate,
+                100.0 * a.rate(Outcome::TimeLimit).rate,
+                100.0 * b.rate(Outcome::TimeLimit).rate,
+                100.0 * a.rate(Outcome::OutOfBounds).rate,
+                100.0 * b.rate(Outcome::OutOfBounds).rate,
+            );
+        }
+        _ => {
+            let _ = writeln!(
+                s,
+                "(no `{dupac}` and `{base}` policies among the methods: give them with --policy {dupac}=FILE --policy {base}=FILE)"
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nFigures: `fig3.png` (Fig. 3: flight distance, overhead and mean RSRP against the shortest distance), `fig4.png` (Fig. 4: time per RSRP class per bin), `pareto.png` (overhead against time in excellent RSRP, every method). Data: `summary.csv`, `fig3_fig4_bins.csv`; every step: `records/*.bin` (`dupac eval --report-only --out DIR` recomputes this report from them)."
+    );
+    s
+}
+
+/// "Route or association": each learned-site policy beside its own moves re-flown with A3 and
+/// with the best-RSRP oracle choosing the site (the replays `LABEL+a3`, `LABEL+oracle`).
+fn route_or_association(s: &mut String, data: &[MethodData]) {
+    let policies: Vec<&MethodData> = data
+        .iter()
+        .filter(|d| {
+            data.iter()
+                .any(|r| r.label == format!("{}+oracle", d.label))
+        })
+        .collect();
+    if policies.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Route or association\n\nEach learned-site policy's own moves, re-flown with the A3 rule and with the best-RSRP oracle choosing the site. The route is the same in the three rows, so the oracle row is the best this route allows, and the gap from the policy's row to it is the association's alone; the gap between policies' oracle rows is the routes'. Excellent time over successful flights, the rest over all flights.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| policy | site by | excellent (%) | mean RSRP (dBm) | SINR < −6 dB (%) | handovers/km | ping-pongs/km | site regret (dB) |\n|---|---|---|---|---:|---:|---:|---:|"
+    );
+    for p in policies {
+        for (by, label) in [
+            ("policy", p.label.clone()),
+            ("A3", format!("{}+a3", p.label)),
+            ("oracle", format!("{}+oracle", p.label)),
+        ] {
+            let Some(d) = data.iter().find(|d| d.label == label) else {
+                continue;
+            };
+            let (ho_km, pp_km) = d.per_km();
+            let _ = writeln!(
+                s,
+                "| {} | {by} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
+                p.label,
+                fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
+                fmt_ci(d.all_ci(|m| m.mean_rsrp_dbm), 1.0, 1),
+                100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+                ho_km,
+                pp_km,
+                d.all_ci(|m| m.mean_site_regret_db).mean,
+            );
+        }
+    }
+}
