@@ -62,7 +62,7 @@ enum Command {
     Plan(commands::plan::PlanArgs),
     /// Train DUPAC (`--association learned`) or the base method (`a3`): a learner and actor
     /// processes over Zenoh on this machine (or `--single-process`).
-    Train(commands::train::TrainArgs),
+    Train(commands::run_args::TrainArgs),
     /// The PPO learner of a Zenoh run (receives trajectories, publishes weights).
     Learner(commands::learner::LearnerArgs),
     /// One actor of a Zenoh run (simulates episodes, publishes trajectories).

@@ -276,7 +276,7 @@ pub fn flight_metrics(
         distance_m +=
             ((p[0] - prev[0]).powi(2) + (p[1] - prev[1]).powi(2) + (p[2] - prev[2]).powi(2)).sqrt();
         prev = p;
-        frac_class[class_index(s.class)] += 1.0;
+        frac_class[s.class.index()] += 1.0;
         rsrp += f64::from(s.serving_rsrp_dbm);
         sinr += f64::from(s.sinr_db);
         if s.sinr_db < -6.0 {
@@ -313,14 +313,6 @@ pub fn flight_metrics(
         mean_site_regret_db: regret / n,
         frac_site_regret_high: regret_high / n,
         frac_class_regret: class_regret / n,
-    }
-}
-
-fn class_index(c: RsrpClass) -> usize {
-    match c {
-        RsrpClass::Excellent => 0,
-        RsrpClass::Mediocre => 1,
-        RsrpClass::Poor => 2,
     }
 }
 

@@ -2,12 +2,12 @@
 //! summaries: [`EpisodeAccumulator`] folds an episode's [`StepInfo`] records into an
 //! [`EpisodeSummary`] (what rollouts report and the learner's rolling metrics read);
 //! [`DomainStats`] aggregates a set of summaries (rates per episode, link measures weighted by
-//! steps); [`put_domain`] writes them as metrics under one prefix (`domain/…` for training
-//! episodes, `eval/…` for the held-out evaluation).
+//! steps); [`put_domain`] writes them as metrics under one set of keys (`domain/…` for training
+//! episodes, `eval/…` for the held-out evaluation: [`dupac_common::metric`]).
 
 use crate::env::{Outcome, StepInfo};
+use dupac_common::metric::DomainKeys;
 pub use dupac_common::msg::EpisodeSummary;
-use dupac_radio::class::RsrpClass;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -45,12 +45,7 @@ impl EpisodeAccumulator {
         self.class_regret += u32::from(info.class_regret());
         self.steps += 1;
         self.rsrp_sum_dbm += info.serving_rsrp_dbm;
-        let k = match info.class {
-            RsrpClass::Excellent => 0,
-            RsrpClass::Mediocre => 1,
-            RsrpClass::Poor => 2,
-        };
-        self.class_counts[k] += 1;
+        self.class_counts[info.class.index()] += 1;
         self.handovers += u32::from(info.handover);
         self.ping_pongs += u32::from(info.ping_pong);
         self.distance_flown_m = info.distance_flown_m;
@@ -157,23 +152,23 @@ pub fn domain_stats(eps: &[EpisodeSummary]) -> DomainStats {
     }
 }
 
-/// Adds the domain statistics under `prefix/…`.
-pub fn put_domain(row: &mut BTreeMap<String, f64>, prefix: &str, d: &DomainStats) {
+/// Adds the domain statistics under `keys` ([`dupac_common::metric::TRAIN`] or `EVAL`).
+pub fn put_domain(row: &mut BTreeMap<String, f64>, keys: &DomainKeys, d: &DomainStats) {
     let mut put = |k: &str, v: f64| {
-        row.insert(format!("{prefix}/{k}"), v);
+        row.insert(k.to_string(), v);
     };
-    put("episodes", d.episodes as f64);
-    put("success_rate", d.success_rate);
-    put("collision_rate", d.collision_rate);
-    put("out_of_bounds_rate", d.out_of_bounds_rate);
-    put("timeout_rate", d.timeout_rate);
-    put("mean_rsrp_dbm", d.mean_rsrp_dbm);
-    put("pct_excellent", d.pct_excellent);
-    put("pct_mediocre", d.pct_mediocre);
-    put("pct_poor", d.pct_poor);
-    put("handovers_per_km", d.handovers_per_km);
-    put("distance_overhead", d.distance_overhead);
-    put("site_regret_db", d.site_regret_db);
-    put("pct_site_regret_high", d.pct_site_regret_high);
-    put("pct_class_regret", d.pct_class_regret);
+    put(keys.episodes, d.episodes as f64);
+    put(keys.success_rate, d.success_rate);
+    put(keys.collision_rate, d.collision_rate);
+    put(keys.out_of_bounds_rate, d.out_of_bounds_rate);
+    put(keys.timeout_rate, d.timeout_rate);
+    put(keys.mean_rsrp_dbm, d.mean_rsrp_dbm);
+    put(keys.pct_excellent, d.pct_excellent);
+    put(keys.pct_mediocre, d.pct_mediocre);
+    put(keys.pct_poor, d.pct_poor);
+    put(keys.handovers_per_km, d.handovers_per_km);
+    put(keys.distance_overhead, d.distance_overhead);
+    put(keys.site_regret_db, d.site_regret_db);
+    put(keys.pct_site_regret_high, d.pct_site_regret_high);
+    put(keys.pct_class_regret, d.pct_class_regret);
 }

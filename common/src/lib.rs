@@ -13,6 +13,7 @@ pub mod fingerprint;
 pub mod fsio;
 pub mod ids;
 pub mod keys;
+pub mod metric;
 pub mod msg;
 pub mod normalize;
 pub mod obs;

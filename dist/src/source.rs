@@ -5,6 +5,7 @@
 //! (also while waiting for data) and with the last update; a completed run tells actors to stop.
 
 use crate::learner::{LearnerNode, NodeError};
+use dupac_common::metric;
 use dupac_common::msg::DropReason;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::source::{Collected, Progress, SourceError, Sourced, TrajectorySource};
@@ -56,8 +57,8 @@ impl TrajectorySource for ZenohSource {
         });
         let Some(batch) = batch else { return Ok(None) };
         let mut metrics = BTreeMap::new();
-        metrics.insert("time/wait_s".into(), batch.wait_s);
-        metrics.insert("dist/chunks".into(), batch.chunks.len() as f64);
+        metrics.insert(metric::WAIT_S.into(), batch.wait_s);
+        metrics.insert(metric::CHUNKS.into(), batch.chunks.len() as f64);
         let trajectories = batch
             .chunks
             .into_iter()
@@ -85,12 +86,12 @@ impl TrajectorySource for ZenohSource {
         let node = self.node()?;
         let t = Instant::now();
         node.publish_weights(policy)?;
-        row.insert("time/publish_s".into(), t.elapsed().as_secs_f64());
-        row.insert("dist/alive_actors".into(), node.alive_actors() as f64);
+        row.insert(metric::PUBLISH_S.into(), t.elapsed().as_secs_f64());
+        row.insert(metric::ALIVE_ACTORS.into(), node.alive_actors() as f64);
         let drops = node.drops();
         for r in DropReason::ALL {
             row.insert(
-                format!("dist/dropped_{}", r.as_str()),
+                metric::dropped(r.as_str()),
                 drops.get(r.as_str()).copied().unwrap_or(0) as f64,
             );
         }

@@ -18,6 +18,7 @@ use crate::site_horizon::{route_site_rewards, serving_before};
 use crate::source::{Progress, SourceError, TrajectorySource};
 use dupac_common::ActorId;
 use dupac_common::config::{Config, SiteGradient, SiteHead, SiteHorizon};
+use dupac_common::metric;
 use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::obs::ObsLayout;
 use dupac_common::policy::{
@@ -317,7 +318,7 @@ impl Learner {
         let mut report = self.learn(&policy, &segments, Timings { collect_s })?;
         report
             .row
-            .insert("time/ppo_s".into(), t_ppo.elapsed().as_secs_f64());
+            .insert(metric::PPO_S.into(), t_ppo.elapsed().as_secs_f64());
         report.row.extend(batch.metrics);
         source
             .publish(&self.policy(), &mut report.row)
@@ -375,39 +376,39 @@ impl Learner {
         let mut put = |k: &str, v: f64| {
             row.insert(k.to_string(), v);
         };
-        put("global_step", self.global_step as f64);
-        put("update", self.update as f64);
-        put("time_s", self.train_seconds);
-        put("charts/SPS", n_samples as f64 / elapsed);
-        put("charts/rollout_s", timings.collect_s);
-        put("charts/update_s", update_s);
-        put("charts/learning_rate", lr);
+        put(metric::GLOBAL_STEP, self.global_step as f64);
+        put(metric::UPDATE, self.update as f64);
+        put(metric::TIME_S, self.train_seconds);
+        put(metric::SPS, n_samples as f64 / elapsed);
+        put(metric::ROLLOUT_S, timings.collect_s);
+        put(metric::UPDATE_S, update_s);
+        put(metric::LEARNING_RATE, lr);
         let older: usize = segments
             .iter()
             .filter(|s| s.behaviour_version != policy.version)
             .map(|s| s.traj.len())
             .sum();
         put(
-            "charts/older_policy_frac",
+            metric::OLDER_POLICY_FRAC,
             older as f64 / n_samples.max(1) as f64,
         );
-        put("losses/policy_loss", stats.policy_loss);
-        put("losses/value_loss", stats.value_loss);
-        put("losses/entropy", stats.entropy);
-        put("losses/entropy_move", stats.entropy_move);
-        put("losses/entropy_site", stats.entropy_site);
-        put("losses/site_loss", stats.site_loss);
-        put("losses/old_approx_kl", stats.old_approx_kl);
-        put("losses/approx_kl", stats.approx_kl);
-        put("losses/clipfrac", stats.clipfrac);
-        put("losses/explained_variance", stats.explained_variance);
-        put("losses/grad_norm", stats.grad_norm);
-        put("losses/skipped_nonfinite", stats.skipped_nonfinite as f64);
+        put(metric::POLICY_LOSS, stats.policy_loss);
+        put(metric::VALUE_LOSS, stats.value_loss);
+        put(metric::ENTROPY, stats.entropy);
+        put(metric::ENTROPY_MOVE, stats.entropy_move);
+        put(metric::ENTROPY_SITE, stats.entropy_site);
+        put(metric::SITE_LOSS, stats.site_loss);
+        put(metric::OLD_APPROX_KL, stats.old_approx_kl);
+        put(metric::APPROX_KL, stats.approx_kl);
+        put(metric::CLIPFRAC, stats.clipfrac);
+        put(metric::EXPLAINED_VARIANCE, stats.explained_variance);
+        put(metric::GRAD_NORM, stats.grad_norm);
+        put(metric::SKIPPED_NONFINITE, stats.skipped_nonfinite as f64);
         put(
-            "numerics/skipped_update",
+            metric::SKIPPED_UPDATE,
             f64::from(u8::from(skipped.is_some())),
         );
-        put("numerics/skipped_updates", self.skipped_updates as f64);
+        put(metric::SKIPPED_UPDATES, self.skipped_updates as f64);
         let max = self.cfg.ppo.max_bad_updates;
         if let Some(last) = skipped
             && max > 0

@@ -30,6 +30,16 @@ impl RsrpClass {
             RsrpClass::Poor => "poor",
         }
     }
+
+    /// Index of the class in [`RsrpClass::ALL`] (0 excellent, 1 mediocre, 2 poor): the one
+    /// place per-class counts and shares are indexed from.
+    pub fn index(self) -> usize {
+        match self {
+            RsrpClass::Excellent => 0,
+            RsrpClass::Mediocre => 1,
+            RsrpClass::Poor => 2,
+        }
+    }
 }
 
 /// The two class boundaries in dBm (spec/radio.md §3; config keys `radio.rsrp_excellent_dbm`,

@@ -23,7 +23,6 @@ pub struct CoverageSlice {
     pub los: Vec<bool>,
 }
 
-use crate::class::RsrpClass;
 use crate::world::RadioWorld;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -136,12 +135,7 @@ pub fn summarise(world: &RadioWorld, slice: &CoverageSlice) -> SliceSummary {
         }
         let r = f64::from(*r);
         vals.push(r);
-        let k = match world.link.thresholds.classify(r) {
-            RsrpClass::Excellent => 0,
-            RsrpClass::Mediocre => 1,
-            RsrpClass::Poor => 2,
-        };
-        counts[k] += 1;
+        counts[world.link.thresholds.classify(r).index()] += 1;
         if !slice.los[i] {
             nlos += 1;
         }

@@ -3,6 +3,7 @@
 //! training and domain metrics.
 
 use dupac_common::ActorId;
+use dupac_common::metric;
 use dupac_common::msg::{ActorStats, LearnerStats};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -34,24 +35,24 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
             let _ = writeln!(
                 t,
                 "return {:.1}  success {:.1} %  collision {:.1} %  RSRP {:.1} dBm  excellent/mediocre/poor {:.0}/{:.0}/{:.0} %  handovers {:.1}/km  site regret {:.2} dB (> threshold {:.0} %, class {:.0} %)",
-                metric(s, "charts/episodic_return"),
-                100.0 * metric(s, "domain/success_rate"),
-                100.0 * metric(s, "domain/collision_rate"),
-                metric(s, "domain/mean_rsrp_dbm"),
-                metric(s, "domain/pct_excellent"),
-                metric(s, "domain/pct_mediocre"),
-                metric(s, "domain/pct_poor"),
-                metric(s, "domain/handovers_per_km"),
-                metric(s, "domain/site_regret_db"),
-                metric(s, "domain/pct_site_regret_high"),
-                metric(s, "domain/pct_class_regret"),
+                metric(s, metric::EPISODIC_RETURN),
+                100.0 * metric(s, metric::TRAIN.success_rate),
+                100.0 * metric(s, metric::TRAIN.collision_rate),
+                metric(s, metric::TRAIN.mean_rsrp_dbm),
+                metric(s, metric::TRAIN.pct_excellent),
+                metric(s, metric::TRAIN.pct_mediocre),
+                metric(s, metric::TRAIN.pct_poor),
+                metric(s, metric::TRAIN.handovers_per_km),
+                metric(s, metric::TRAIN.site_regret_db),
+                metric(s, metric::TRAIN.pct_site_regret_high),
+                metric(s, metric::TRAIN.pct_class_regret),
             );
             let _ = writeln!(
                 t,
                 "update time: wait {:.3} s  ppo {:.3} s  publish {:.4} s   chunks accepted {}",
-                metric(s, "time/wait_s"),
-                metric(s, "time/ppo_s"),
-                metric(s, "time/publish_s"),
+                metric(s, metric::WAIT_S),
+                metric(s, metric::PPO_S),
+                metric(s, metric::PUBLISH_S),
                 s.accepted_chunks
             );
             let drops: Vec<String> = s.drops.iter().map(|(k, v)| format!("{k} {v}")).collect();

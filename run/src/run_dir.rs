@@ -7,6 +7,7 @@ use crate::error::{BoxError, Context, RunError};
 use crate::metrics_table::MetricsTable;
 use dupac_common::Config;
 use dupac_common::fsio::write_atomic_with;
+use dupac_common::metric;
 use dupac_learner::checkpoint::{LoadedCheckpoint, load_checkpoint, save_policy};
 use dupac_learner::{Learner, MetricsRow};
 use std::io::Write as _;
@@ -112,7 +113,7 @@ impl RunOutput {
         write_plain(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
         let metrics_path = out.join("metrics.jsonl");
         let mut rows = read_rows(&metrics_path)?;
-        rows.retain(|r| r.get("update").copied().unwrap_or(0.0) <= start_update as f64);
+        rows.retain(|r| r.get(metric::UPDATE).copied().unwrap_or(0.0) <= start_update as f64);
         write_rows(&metrics_path, &rows)?;
         let rows = MetricsTable::from_rows(&rows);
         let metrics = std::fs::OpenOptions::new()

@@ -13,6 +13,7 @@ use crate::run_dir::RunOutput;
 use dupac_actor::metrics::{EpisodeSummary, domain_stats, put_domain};
 use dupac_common::Config;
 use dupac_common::config::Association;
+use dupac_common::metric;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::{Learner, MetricsRow, TrajectorySource};
 use std::collections::VecDeque;
@@ -63,13 +64,13 @@ pub fn train(
             recent.push_back(e);
         }
         let d = domain_stats(recent.make_contiguous());
-        row.insert("charts/episodic_return".into(), d.episodic_return);
-        row.insert("charts/episodic_length".into(), d.episodic_length);
-        put_domain(&mut row, "domain", &d);
+        row.insert(metric::EPISODIC_RETURN.into(), d.episodic_return);
+        row.insert(metric::EPISODIC_LENGTH.into(), d.episodic_length);
+        put_domain(&mut row, &metric::TRAIN, &d);
         let last = learner.done();
         if eval_due(&cfg, learner.update, last) {
             let eps = evaluate(&learner.policy())?;
-            put_domain(&mut row, "eval", &domain_stats(&eps));
+            put_domain(&mut row, &metric::EVAL, &domain_stats(&eps));
         }
         on_row(learner, &row);
         tracing::debug!(?row, "update");
@@ -117,11 +118,11 @@ pub fn summary_line(learner: &Learner, last: &MetricsRow) -> String {
         learner.update,
         learner.global_step,
         learner.train_seconds,
-        100.0 * g("eval/success_rate"),
-        100.0 * g("eval/collision_rate"),
-        100.0 * g("eval/distance_overhead"),
-        g("eval/mean_rsrp_dbm"),
-        g("eval/pct_excellent"),
-        g("eval/site_regret_db"),
+        100.0 * g(metric::EVAL.success_rate),
+        100.0 * g(metric::EVAL.collision_rate),
+        100.0 * g(metric::EVAL.distance_overhead),
+        g(metric::EVAL.mean_rsrp_dbm),
+        g(metric::EVAL.pct_excellent),
+        g(metric::EVAL.site_regret_db),
     )
 }

@@ -7,8 +7,7 @@
 
 use super::children::{child, free_port, reap, signal};
 use super::net::{ConnectArgs, ModeArg, stop_flag};
-use super::run_args::{DeviceArg, device, resolve_config};
-use super::train::TrainArgs;
+use super::run_args::{DeviceArg, TrainArgs, device, resolve_config};
 use crate::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};

@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use dupac_common::Config;
 use dupac_common::config::Association;
+use dupac_common::metric;
 use dupac_learner::MetricsRow;
 use std::path::PathBuf;
 
@@ -89,9 +90,28 @@ pub fn resolve_config(
 pub fn progress_message(row: &MetricsRow) -> String {
     format!(
         "ret {:.0} succ {:.0}%",
-        row.get("charts/episodic_return")
+        row.get(metric::EPISODIC_RETURN)
             .copied()
             .unwrap_or(f64::NAN),
-        100.0 * row.get("domain/success_rate").copied().unwrap_or(f64::NAN)
+        100.0
+            * row
+                .get(metric::TRAIN.success_rate)
+                .copied()
+                .unwrap_or(f64::NAN)
     )
+}
+
+/// `dupac train`'s arguments (its own page runs `--single-process`; `commands::orchestrate`
+/// the default, a learner and actor processes).
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Actor processes to start (default `distributed.actors`; 0 there = one per core).
+    #[arg(long, value_name = "N")]
+    pub actors: Option<usize>,
+    /// Train in this one process (environments on worker threads; bit-reproducible from
+    /// `train.seed`) instead of a learner and actor processes over Zenoh.
+    #[arg(long, conflicts_with = "actors")]
+    pub single_process: bool,
 }

@@ -3,26 +3,12 @@
 //! local rollout workers on threads as the trajectory source of the one training loop
 //! (`commands::training`), bit-reproducible from `train.seed`.
 
-use super::run_args::RunArgs;
+use super::run_args::TrainArgs;
 use super::training::Training;
 use crate::GlobalArgs;
 use anyhow::Result;
-use clap::Args;
 use dupac_run::local::LocalWorkers;
 use std::process::ExitCode;
-
-#[derive(Args, Debug)]
-pub struct TrainArgs {
-    #[command(flatten)]
-    pub run: RunArgs,
-    /// Actor processes to start (default `distributed.actors`; 0 there = one per core).
-    #[arg(long, value_name = "N")]
-    pub actors: Option<usize>,
-    /// Train in this one process (environments on worker threads; bit-reproducible from
-    /// `train.seed`) instead of a learner and actor processes over Zenoh.
-    #[arg(long, conflicts_with = "actors")]
-    pub single_process: bool,
-}
 
 pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     if !args.single_process {

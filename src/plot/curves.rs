@@ -2,6 +2,7 @@
 //! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
 use anyhow::{Context, Result};
+use dupac_common::metric;
 use dupac_run::metrics_table::MetricsTable;
 use dupac_run::run_dir::CurveRenderer;
 use plotters::prelude::*;
@@ -9,32 +10,38 @@ use std::path::Path;
 
 /// The panels drawn: (metric key, panel title with units).
 pub const PANELS: &[(&str, &str)] = &[
+    (metric::EPISODIC_RETURN, "episodic return (train, last 100)"),
+    (metric::TRAIN.success_rate, "success rate (train, last 100)"),
     (
-        "charts/episodic_return",
-        "episodic return (train, last 100)",
-    ),
-    ("domain/success_rate", "success rate (train, last 100)"),
-    (
-        "eval/success_rate",
+        metric::EVAL.success_rate,
         "success rate (held-out pairs, deterministic)",
     ),
-    ("eval/collision_rate", "collision rate (held-out pairs)"),
-    ("domain/mean_rsrp_dbm", "mean serving RSRP (dBm, train)"),
-    ("domain/pct_excellent", "time in excellent RSRP (%, train)"),
     (
-        "eval/distance_overhead",
+        metric::EVAL.collision_rate,
+        "collision rate (held-out pairs)",
+    ),
+    (
+        metric::TRAIN.mean_rsrp_dbm,
+        "mean serving RSRP (dBm, train)",
+    ),
+    (
+        metric::TRAIN.pct_excellent,
+        "time in excellent RSRP (%, train)",
+    ),
+    (
+        metric::EVAL.distance_overhead,
         "distance overhead (fraction, held-out successes)",
     ),
-    ("domain/handovers_per_km", "handovers per km (train)"),
+    (metric::TRAIN.handovers_per_km, "handovers per km (train)"),
     (
-        "eval/site_regret_db",
+        metric::EVAL.site_regret_db,
         "site regret best − serving (dB, held-out)",
     ),
-    ("losses/site_loss", "site loss (all-sites gradient)"),
-    ("losses/value_loss", "value loss"),
-    ("losses/entropy", "entropy (move + site, nats)"),
-    ("losses/approx_kl", "approx KL"),
-    ("charts/SPS", "timesteps (decisions) per second"),
+    (metric::SITE_LOSS, "site loss (all-sites gradient)"),
+    (metric::VALUE_LOSS, "value loss"),
+    (metric::ENTROPY, "entropy (move + site, nats)"),
+    (metric::APPROX_KL, "approx KL"),
+    (metric::SPS, "timesteps (decisions) per second"),
 ];
 
 /// The run directory's curve renderer for runs titled `title`.
@@ -60,7 +67,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
     )?;
     let cells = body.split_evenly((4, 4));
     for (cell, (key, label)) in cells.iter().zip(PANELS) {
-        let pts = rows.points("global_step", key);
+        let pts = rows.points(metric::GLOBAL_STEP, key);
         let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);
         let (mut y_min, mut y_max) = pts
             .iter()

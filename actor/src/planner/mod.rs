@@ -143,11 +143,7 @@ pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// Class code stored per voxel: 0 excellent, 1 mediocre, 2 poor.
 fn class_code(c: RsrpClass) -> u8 {
-    match c {
-        RsrpClass::Excellent => 0,
-        RsrpClass::Mediocre => 1,
-        RsrpClass::Poor => 2,
-    }
+    c.index() as u8
 }
 
 /// The planners of one city: the free space, the optional per-voxel RSRP classes, and a pool of

@@ -134,11 +134,7 @@ struct Derived {
 fn derive(t: &FlightTrace) -> Derived {
     let mut dist_m = Vec::with_capacity(t.points_m.len());
     let mut share = [0.0; 3];
-    let idx = |c: RsrpClass| match c {
-        RsrpClass::Excellent => 0,
-        RsrpClass::Mediocre => 1,
-        RsrpClass::Poor => 2,
-    };
+    let idx = RsrpClass::index;
     let mut d = 0.0;
     for (k, p) in t.points_m.iter().enumerate() {
         if k > 0 {
