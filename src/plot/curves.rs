@@ -1,6 +1,7 @@
 //! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
 //! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
+use super::{FONT, series_colour};
 use anyhow::{Context, Result};
 use dupac_common::metric;
 use dupac_run::metrics_table::MetricsTable;
@@ -60,11 +61,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
     let root = BitMapBackend::new(tmp, (1800, 1700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(50);
-    head.draw_text(
-        title,
-        &("sans-serif", 26).into_font().color(&BLACK),
-        (20, 12),
-    )?;
+    head.draw_text(title, &(FONT, 26).into_font().color(&BLACK), (20, 12))?;
     let cells = body.split_evenly((4, 4));
     for (cell, (key, label)) in cells.iter().zip(PANELS) {
         let pts = rows.points(metric::GLOBAL_STEP, key);
@@ -83,7 +80,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
         }
         let pad = 0.05 * (y_max - y_min);
         let mut chart = ChartBuilder::on(cell)
-            .caption(*label, ("sans-serif", 17))
+            .caption(*label, (FONT, 17))
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(60)
@@ -91,7 +88,7 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
         chart
             .configure_mesh()
             .x_desc("timesteps (policy decisions)")
-            .label_style(("sans-serif", 12))
+            .label_style((FONT, 12))
             .x_label_formatter(&|x| format_steps(*x))
             .x_labels(5)
             .y_labels(5)
@@ -99,9 +96,15 @@ fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
         if pts.is_empty() {
             continue;
         }
-        chart.draw_series(LineSeries::new(pts.iter().copied(), BLUE.stroke_width(2)))?;
+        chart.draw_series(LineSeries::new(
+            pts.iter().copied(),
+            series_colour(0).stroke_width(2),
+        ))?;
         if pts.len() < 40 {
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, BLUE.filled())))?;
+            chart.draw_series(
+                pts.iter()
+                    .map(|&p| Circle::new(p, 3, series_colour(0).filled())),
+            )?;
         }
     }
     root.present()?;

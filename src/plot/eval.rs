@@ -4,6 +4,7 @@
 //! statistics of `dupac_run::eval::report`, thresholds from the configuration.
 
 use super::plan::{FlightTrace, render_plan_png};
+use super::{CLASS_COLOURS, FONT, series_colour};
 use crate::io::write_atomic_with;
 use anyhow::{Context, Result};
 use dupac_actor::env::Outcome;
@@ -13,19 +14,6 @@ use dupac_run::eval::records::RecordsFile;
 use dupac_run::eval::report::MethodData;
 use plotters::prelude::*;
 use std::path::Path;
-
-const COLORS: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
 
 pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
     let path = out.join("fig3.png");
@@ -74,7 +62,7 @@ pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
             }
             let pad = 0.05 * (hi - lo).max(1e-6);
             let mut chart = ChartBuilder::on(panel)
-                .caption(title, ("sans-serif", 20))
+                .caption(title, (FONT, 20))
                 .margin(12)
                 .x_label_area_size(40)
                 .y_label_area_size(60)
@@ -82,10 +70,10 @@ pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
             chart
                 .configure_mesh()
                 .x_desc("shortest flyable distance D (m)")
-                .label_style(("sans-serif", 14))
+                .label_style((FONT, 14))
                 .draw()?;
             for (k, (label, pts)) in series.iter().enumerate() {
-                let c = COLORS[k % COLORS.len()];
+                let c = series_colour(k);
                 let dx = (k as f64 - series.len() as f64 / 2.0) * 4.0;
                 let good: Vec<(f64, MeanCi)> =
                     pts.iter().copied().filter(|(_, c)| c.n > 0).collect();
@@ -113,7 +101,7 @@ pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
                 .configure_series_labels()
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK)
-                .label_font(("sans-serif", 13))
+                .label_font((FONT, 13))
                 .position(SeriesLabelPosition::UpperLeft)
                 .draw()?;
         }
@@ -133,7 +121,7 @@ pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
         // One group's width of room on the right for the legend.
         let x_max = (bins.len() as f64 + 1.7) * group;
         let mut chart = ChartBuilder::on(&root)
-            .caption("Fig. 4: fraction of flight time per RSRP class (successful flights); bars per method, groups per distance bin", ("sans-serif", 20))
+            .caption("Fig. 4: fraction of flight time per RSRP class (successful flights); bars per method, groups per distance bin", (FONT, 20))
             .margin(14)
             .x_label_area_size(70)
             .y_label_area_size(60)
@@ -144,14 +132,13 @@ pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
             .y_desc("flight time (%)")
             .x_desc("groups of bars: one per distance bin (labelled above), one bar per method")
             .x_labels(0)
-            .label_style(("sans-serif", 14))
+            .label_style((FONT, 14))
             .draw()?;
-        let class_colors = [RGBColor(46, 160, 67), RGBColor(240, 180, 40), RGBColor(200, 40, 40)];
         for (bi, &b) in bins.iter().enumerate() {
             chart.draw_series(std::iter::once(Text::new(
                 format!("D ≈ {b:.0} m"),
                 (bi as f64 * group + 0.5, 104.5),
-                ("sans-serif", 15),
+                (FONT, 15),
             )))?;
             for (mi, d) in data.iter().enumerate() {
                 let x = bi as f64 * group + mi as f64 + 0.5;
@@ -162,22 +149,22 @@ pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
                 let mut y = 0.0;
                 for (k, v) in f.iter().enumerate() {
                     let top = y + 100.0 * v;
-                    chart.draw_series(std::iter::once(Rectangle::new([(x, y), (x + 0.9, top)], class_colors[k].filled())))?;
+                    chart.draw_series(std::iter::once(Rectangle::new([(x, y), (x + 0.9, top)], CLASS_COLOURS[k].filled())))?;
                     y = top;
                 }
                 // Method marker under each bar: its colour.
-                chart.draw_series(std::iter::once(Rectangle::new([(x, 0.0), (x + 0.9, 1.5)], COLORS[mi % COLORS.len()].filled())))?;
+                chart.draw_series(std::iter::once(Rectangle::new([(x, 0.0), (x + 0.9, 1.5)], series_colour(mi).filled())))?;
             }
         }
         for (k, name) in ["excellent (≥ −80 dBm)", "mediocre", "poor (< −100 dBm)"].iter().enumerate() {
-            let c = class_colors[k];
+            let c = CLASS_COLOURS[k];
             chart
                 .draw_series(std::iter::once(Rectangle::new([(0.0, 0.0), (0.0, 0.0)], c.filled())))?
                 .label(*name)
                 .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 14, y + 6)], c.filled()));
         }
         for (mi, d) in data.iter().enumerate() {
-            let c = COLORS[mi % COLORS.len()];
+            let c = series_colour(mi);
             chart
                 .draw_series(std::iter::once(Rectangle::new([(0.0, 0.0), (0.0, 0.0)], c.filled())))?
                 .label(format!("bar {}: {}", mi + 1, d.label))
@@ -187,7 +174,7 @@ pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
             .configure_series_labels()
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
-            .label_font(("sans-serif", 13))
+            .label_font((FONT, 13))
             .position(SeriesLabelPosition::LowerRight)
             .draw()?;
         root.present()?;
@@ -255,7 +242,7 @@ pub fn draw_pareto(out: &Path, data: &[MethodData]) -> Result<()> {
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 "Distance overhead against time in excellent RSRP (successful flights, 95 % CI)",
-                ("sans-serif", 20),
+                (FONT, 20),
             )
             .margin(16)
             .x_label_area_size(50)
@@ -265,10 +252,10 @@ pub fn draw_pareto(out: &Path, data: &[MethodData]) -> Result<()> {
             .configure_mesh()
             .x_desc("distance overhead over the shortest path (%)")
             .y_desc("flight time in excellent RSRP (%)")
-            .label_style(("sans-serif", 14))
+            .label_style((FONT, 14))
             .draw()?;
         for (k, (label, o, e)) in pts.iter().enumerate() {
-            let c = COLORS[k % COLORS.len()];
+            let c = series_colour(k);
             let (x, y) = (100.0 * o.mean, 100.0 * e.mean);
             chart.draw_series(std::iter::once(hbar(
                 y,
@@ -291,7 +278,7 @@ pub fn draw_pareto(out: &Path, data: &[MethodData]) -> Result<()> {
             .configure_series_labels()
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
-            .label_font(("sans-serif", 14))
+            .label_font((FONT, 14))
             .position(SeriesLabelPosition::LowerRight)
             .draw()?;
         root.present()?;

@@ -70,6 +70,51 @@ const MARGIN: i32 = 14;
 const X_LABEL_AREA: i32 = 78;
 const Y_LABEL_AREA: i32 = 100;
 pub(crate) const FONT: &str = "sans-serif";
+
+/// The one palette of every figure. RSRP classes (ColorBrewer-like green / orange / red, in
+/// [`RsrpClass::ALL`] order) wherever a class is drawn.
+pub(crate) const CLASS_COLOURS: [RGBColor; 3] = [
+    RGBColor(26, 152, 80),
+    RGBColor(240, 140, 20),
+    RGBColor(215, 25, 35),
+];
+/// Series of a chart (methods, metrics): matplotlib's tab10.
+pub(crate) const SERIES: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+/// Paths drawn over class-coloured segments (plan figures): away from the class colours.
+pub(crate) const TRACES: [RGBColor; 6] = [
+    RGBColor(30, 80, 190),
+    RGBColor(150, 45, 170),
+    RGBColor(25, 25, 25),
+    RGBColor(0, 165, 205),
+    RGBColor(135, 85, 50),
+    RGBColor(120, 120, 120),
+];
+
+/// The colour of an RSRP class.
+pub(crate) fn class_colour(c: RsrpClass) -> RGBColor {
+    CLASS_COLOURS[c.index()]
+}
+
+/// The colour of chart series `i`.
+pub(crate) fn series_colour(i: usize) -> RGBColor {
+    SERIES[i % SERIES.len()]
+}
+
+/// The colour of plan path `i`.
+pub(crate) fn trace_colour(i: usize) -> RGBColor {
+    TRACES[i % TRACES.len()]
+}
 const TITLE_PX: f64 = 32.0;
 /// Height of the title strip (px).
 const TITLE_H: i32 = 64;

@@ -7,7 +7,7 @@
 //! above the serving-RSRP profile, sharing the distance axis. Each trace keeps one identity colour
 //! throughout: the outline of its path on the map and its line in both profiles.
 
-use crate::plot::{FONT, ensure_font, pe};
+use crate::plot::{FONT, class_colour, ensure_font, pe, trace_colour};
 use anyhow::{Context, Result, bail};
 use dupac_radio::city::Building;
 use dupac_radio::class::RsrpClass;
@@ -67,37 +67,12 @@ const LABEL_PX: f64 = 18.0;
 const DESC_PX: f64 = 21.0;
 const LEGEND_PX: f64 = 18.0;
 
-/// RSRP class colours (ColorBrewer-like green / orange / red).
-const EXCELLENT: RGBColor = RGBColor(26, 152, 80);
-const MEDIOCRE: RGBColor = RGBColor(240, 140, 20);
-const POOR: RGBColor = RGBColor(215, 25, 35);
-/// Trace identity colours, chosen away from the class colours.
-const TRACE_COLOURS: [RGBColor; 6] = [
-    RGBColor(30, 80, 190),
-    RGBColor(150, 45, 170),
-    RGBColor(25, 25, 25),
-    RGBColor(0, 165, 205),
-    RGBColor(135, 85, 50),
-    RGBColor(120, 120, 120),
-];
 /// Map background (streets) and building outline.
 const GROUND: RGBColor = RGBColor(252, 252, 250);
 const OUTLINE: RGBColor = RGBColor(70, 70, 70);
 /// Building fill grey for the lowest and the tallest building in view.
 const GREY_LOW: f64 = 222.0;
 const GREY_HIGH: f64 = 100.0;
-
-fn class_colour(c: RsrpClass) -> RGBColor {
-    match c {
-        RsrpClass::Excellent => EXCELLENT,
-        RsrpClass::Mediocre => MEDIOCRE,
-        RsrpClass::Poor => POOR,
-    }
-}
-
-fn trace_colour(i: usize) -> RGBColor {
-    TRACE_COLOURS[i % TRACE_COLOURS.len()]
-}
 
 /// Map stroke widths (px) of trace `i`: outline (identity colour) and class-coloured core.
 /// Earlier traces are wider, so a later one drawn on top of a shared stretch leaves the

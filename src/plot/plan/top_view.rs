@@ -85,7 +85,7 @@ pub(super) fn draw_icon(
             ))
             .map_err(pe)?;
             let third = w / 3;
-            for (k, c) in [EXCELLENT, MEDIOCRE, POOR].into_iter().enumerate() {
+            for (k, c) in crate::plot::CLASS_COLOURS.into_iter().enumerate() {
                 let k = k as i32;
                 area.draw(&PathElement::new(
                     vec![(x + k * third, y), (x + (k + 1) * third, y)],
