@@ -4,6 +4,7 @@
 //! of `dupac eval` is computed from saved records without flying again.
 
 use crate::env::StepInfo;
+pub use crate::metrics::{FlightMetrics, count_handovers, flight_metrics};
 use dupac_common::msg::Outcome;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
@@ -95,58 +96,6 @@ pub struct FlightRecord {
     /// Distance left to the destination at the end (m; ≤ the goal radius on success).
     pub remaining_m: f64,
     pub steps: Vec<StepRecord>,
-}
-
-/// Metrics of one flight (spec/env.md "Metrics").
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct FlightMetrics {
-    pub outcome: Outcome,
-    /// Flight distance L: the sum of step lengths (m).
-    pub distance_m: f64,
-    /// (L + remaining) / D − 1 against the shortest flyable path D (a success ends within the
-    /// goal radius; the remainder is counted as flown, as in training's `distance_overhead`).
-    pub overhead: f64,
-    /// Mean serving RSRP over the steps (dBm).
-    pub mean_rsrp_dbm: f64,
-    /// Fraction of flight time (= of steps) in excellent / mediocre / poor RSRP.
-    pub frac_class: [f64; 3],
-    pub handovers: u32,
-    pub ping_pongs: u32,
-    /// Handovers per km flown.
-    pub handovers_per_km: f64,
-    pub mean_sinr_db: f64,
-    /// Fraction of flight time with SINR < −6 dB (below which an LTE link is hardly usable).
-    pub frac_sinr_below_m6db: f64,
-    /// Mean site regret: best RSRP − serving RSRP over the steps (dB, issue 15).
-    pub mean_site_regret_db: f64,
-    /// Fraction of flight time with site regret over the threshold (`env.site_regret_threshold_db`).
-    pub frac_site_regret_high: f64,
-    /// Fraction of flight time with class regret: the best site excellent, the serving one not.
-    pub frac_class_regret: f64,
-}
-
-/// Handovers (changes of the serving site) and ping-pongs (a handover back to the site of the
-/// previous handover within `window_steps` of it) of a serving-site sequence; the first element
-/// is the site at the start (before the first step), as in the environment.
-pub fn count_handovers(serving: &[u16], window_steps: u32) -> (u32, u32) {
-    let (mut handovers, mut ping_pongs) = (0u32, 0u32);
-    let mut last: Option<(u16, usize)> = None; // (site left, step of that handover)
-    for (t, w) in serving.windows(2).enumerate() {
-        let (before, now) = (w[0], w[1]);
-        if before == now {
-            continue;
-        }
-        handovers += 1;
-        let step = t + 1;
-        if let Some((left, at)) = last
-            && left == now
-            && step - at <= window_steps as usize
-        {
-            ping_pongs += 1;
-        }
-        last = Some((before, step));
-    }
-    (handovers, ping_pongs)
 }
 
 /// The hindsight association of a recorded route: the serving site of every step that minimises
@@ -252,68 +201,6 @@ pub fn hindsight_association(
         s = back[t * ns + s] as usize;
     }
     sites
-}
-
-/// The metrics of `r`; `start_serving` is the serving site before the first step,
-/// `ping_pong_window_steps` the env's window in steps and `site_regret_threshold_db` the regret
-/// that counts as high (`env.site_regret_threshold_db`).
-pub fn flight_metrics(
-    r: &FlightRecord,
-    start_serving: u16,
-    ping_pong_window_steps: u32,
-    site_regret_threshold_db: f64,
-) -> FlightMetrics {
-    let n = r.steps.len().max(1) as f64;
-    let mut distance_m = 0.0;
-    let mut prev = r.source_m;
-    let mut frac_class = [0.0; 3];
-    let (mut rsrp, mut sinr, mut low_sinr) = (0.0, 0.0, 0.0);
-    let (mut regret, mut regret_high, mut class_regret) = (0.0, 0.0, 0.0);
-    let mut serving = Vec::with_capacity(r.steps.len() + 1);
-    serving.push(start_serving);
-    for s in &r.steps {
-        let p = s.position_m.map(f64::from);
-        distance_m +=
-            ((p[0] - prev[0]).powi(2) + (p[1] - prev[1]).powi(2) + (p[2] - prev[2]).powi(2)).sqrt();
-        prev = p;
-        frac_class[s.class.index()] += 1.0;
-        rsrp += f64::from(s.serving_rsrp_dbm);
-        sinr += f64::from(s.sinr_db);
-        if s.sinr_db < -6.0 {
-            low_sinr += 1.0;
-        }
-        let r_db = f64::from(s.best_rsrp_dbm - s.serving_rsrp_dbm).max(0.0);
-        regret += r_db;
-        if r_db > site_regret_threshold_db {
-            regret_high += 1.0;
-        }
-        if s.best_class == RsrpClass::Excellent && s.class != RsrpClass::Excellent {
-            class_regret += 1.0;
-        }
-        serving.push(s.serving);
-    }
-    let (handovers, ping_pongs) = count_handovers(&serving, ping_pong_window_steps);
-    let (frac_class, rsrp, sinr, low_sinr) =
-        (frac_class.map(|c| c / n), rsrp / n, sinr / n, low_sinr / n);
-    FlightMetrics {
-        outcome: r.outcome,
-        distance_m,
-        overhead: (distance_m + r.remaining_m) / r.shortest_m - 1.0,
-        mean_rsrp_dbm: rsrp,
-        frac_class,
-        handovers,
-        ping_pongs,
-        handovers_per_km: if distance_m > 0.0 {
-            f64::from(handovers) / (distance_m / 1000.0)
-        } else {
-            0.0
-        },
-        mean_sinr_db: sinr,
-        frac_sinr_below_m6db: low_sinr,
-        mean_site_regret_db: regret / n,
-        frac_site_regret_high: regret_high / n,
-        frac_class_regret: class_regret / n,
-    }
 }
 
 /// A mean with its 95 % confidence interval (Student t, n − 1 degrees of freedom).

@@ -815,3 +815,45 @@ fn handover_cost_site_regret_and_route_terms() {
     let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
     assert!((r - (10.0 - 0.9 - 5.0)).abs() < 1e-9, "{r}");
 }
+
+/// Issue 17: one definition of handovers and ping-pongs. The environment's per-step flags (what
+/// training counts) and evaluation's recount of the recorded serving sites (`dupac eval`) agree
+/// on a flight whose learned choice jumps between sites at pseudo-random steps.
+#[test]
+fn the_environment_flags_and_the_evaluation_recount_agree() {
+    let cfg = {
+        let mut c = Config::default();
+        c.env.association = Association::Learned;
+        c
+    };
+    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
+        .ceil()
+        .max(1.0) as u32;
+    let mut e = env_with(Association::Learned, EXCELLENT);
+    e.reset(1, ep([0.0, -90.0, 50.0], [0.0, 100.0, 50.0]))
+        .expect("reset");
+    let mut serving = vec![e.serving().0];
+    let (mut handovers, mut ping_pongs) = (0u32, 0u32);
+    let mut x = 12345u64;
+    for _ in 0..150 {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let site = ((x >> 33) % 7).min(1) as u16; // mostly site 1, now and then site 0
+        let st = e.step(&mv(0.0, 0.5, 0.0, site)).expect("step");
+        serving.push(st.info.serving.0);
+        handovers += u32::from(st.info.handover);
+        ping_pongs += u32::from(st.info.ping_pong);
+        if st.terminated || st.truncated {
+            break;
+        }
+    }
+    assert!(
+        handovers >= 10 && ping_pongs >= 2,
+        "{handovers} {ping_pongs}"
+    );
+    assert_eq!(
+        dupac_actor::metrics::count_handovers(&serving, window),
+        (handovers, ping_pongs)
+    );
+}

@@ -13,6 +13,7 @@ mod info;
 mod observe;
 mod reward;
 
+use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
 pub use info::{Outcome, StepInfo};
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
@@ -103,7 +104,6 @@ pub struct Env {
     layout: ObsLayout,
     slots: Slots,
     sensor_dirs: [[f64; 3]; 26],
-    ping_pong_steps: u32,
     /// `env.min_time_of_stay_s` in steps (0: off); learned association only.
     min_stay_steps: u32,
     /// A decision whose site choice has not yet been applied (the lock of the minimum time of
@@ -122,8 +122,8 @@ pub struct Env {
     time_limit: u32,
     distance_flown_m: f64,
     distance_to_goal_m: f64,
-    /// (site before the last handover, step of the last handover).
-    last_handover: Option<(SiteId, u32)>,
+    /// Handovers and ping-pongs (`env.ping_pong_window_s` in steps), and the last handover.
+    handovers: HandoverCounter,
     done: bool,
     seed: u64,
     obs: Vec<f32>,
@@ -188,7 +188,6 @@ impl Env {
             layout,
             slots,
             sensor_dirs,
-            ping_pong_steps,
             min_stay_steps,
             choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
@@ -202,7 +201,7 @@ impl Env {
             time_limit: 0,
             distance_flown_m: 0.0,
             distance_to_goal_m: 0.0,
-            last_handover: None,
+            handovers: HandoverCounter::new(ping_pong_steps),
             done: true,
             seed: 0,
             obs,
@@ -329,7 +328,7 @@ impl Env {
             .clamp(1.0, f64::from(u32::MAX)) as u32;
         self.distance_flown_m = 0.0;
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
-        self.last_handover = None;
+        self.handovers.reset();
         self.choice_pending = false;
         self.rsrp_at_last_obs_dbm.fill(f64::NAN);
         self.substeps.clear();
@@ -454,7 +453,8 @@ impl Env {
         // The minimum time of stay: no handover within `min_stay_steps` of the last one.
         let locked = self.min_stay_steps > 0
             && self
-                .last_handover
+                .handovers
+                .last()
                 .is_some_and(|(_, at)| self.step - at <= self.min_stay_steps);
         let chosen = if locked { before } else { action.site };
         // The step at which this decision's choice takes effect (a handover only here).
@@ -463,17 +463,7 @@ impl Env {
             self.choice_pending = false;
         }
         self.serving = self.associator.next(chosen, &self.rsrp_dbm);
-        let handover = self.serving != before;
-        let mut ping_pong = false;
-        if handover {
-            if let Some((prev, at)) = self.last_handover
-                && prev == self.serving
-                && self.step - at <= self.ping_pong_steps
-            {
-                ping_pong = true;
-            }
-            self.last_handover = Some((before, self.step));
-        }
+        let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
         let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
         let class = self.thresholds.classify(serving_rsrp_dbm);
         let best_site = argmax(&self.rsrp_dbm);
