@@ -11,7 +11,6 @@ use crate::GlobalArgs;
 use crate::plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_pareto};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use dupac_radio::class::RsrpThresholds;
 use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
 use dupac_run::eval::records::read_records;
@@ -96,12 +95,7 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     draw_fig4(&args.out, &methods, &bins)?;
     draw_pareto(&args.out, &methods)?;
     let world = dupac_radio::world::RadioWorld::build(&cfg).context("building the radio world")?;
-    draw_examples(
-        &args.out,
-        &world,
-        &files,
-        &RsrpThresholds::from_config(&cfg.radio),
-    )?;
+    draw_examples(&args.out, &world, &files, &cfg.radio)?;
     if args.maps {
         super::map::run(
             global,

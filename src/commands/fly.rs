@@ -4,7 +4,7 @@
 
 use crate::GlobalArgs;
 use crate::io::write_atomic;
-use crate::plot::plan::render_plan_png;
+use crate::plot::plan::render_world_plan;
 use crate::plot::plan::trace_of;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
@@ -159,12 +159,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         "{}: pair {} ({:.0} m shortest), {} → {:?}",
         world.city.name, p.id, p.shortest_m, method, summary.outcome
     );
-    render_plan_png(
-        &world.city.buildings,
-        &world.sites,
-        world.city.area_m,
+    render_world_plan(
+        &world,
+        &cfg.radio,
         &traces,
-        &dupac_radio::class::RsrpThresholds::from_config(&cfg.radio),
         &title,
         &args.out.join("fly.png"),
     )?;

@@ -3,7 +3,7 @@
 
 use crate::GlobalArgs;
 use crate::io::write_atomic;
-use crate::plot::plan::{render_plan_png, trace_of};
+use crate::plot::plan::{render_world_plan, trace_of};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode};
@@ -144,12 +144,10 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         straight,
         episode.shortest_m
     );
-    render_plan_png(
-        &world.city.buildings,
-        &world.sites,
-        world.city.area_m,
+    render_world_plan(
+        &world,
+        &cfg.radio,
         &traces,
-        &dupac_radio::class::RsrpThresholds::from_config(&cfg.radio),
         &title,
         &args.out.join("plan.png"),
     )?;

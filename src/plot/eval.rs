@@ -3,13 +3,12 @@
 //! overhead against time in excellent RSRP, and example flights over the city. Drawn from the
 //! statistics of `dupac_run::eval::report`, thresholds from the configuration.
 
-use super::plan::{FlightTrace, render_plan_png};
+use super::plan::{FlightTrace, render_world_plan};
 use super::{CLASS_COLOURS, FONT, series_colour};
 use crate::io::write_atomic_with;
 use anyhow::{Context, Result};
 use dupac_actor::env::Outcome;
 use dupac_actor::eval::{FlightMetrics, MeanCi};
-use dupac_radio::class::RsrpThresholds;
 use dupac_run::eval::records::RecordsFile;
 use dupac_run::eval::report::MethodData;
 use plotters::prelude::*;
@@ -304,7 +303,7 @@ pub fn draw_examples(
     out: &Path,
     world: &dupac_radio::world::RadioWorld,
     files: &[RecordsFile],
-    thresholds: &RsrpThresholds,
+    radio: &dupac_common::config::RadioConfig,
 ) -> Result<()> {
     // Seed 0 of every method; of the coverage-aware sweep only λ = 1 (readability).
     let seed0: Vec<&RecordsFile> = files
@@ -363,15 +362,8 @@ pub fn draw_examples(
             "held-out pair {} (bin {:.0} m): shortest flyable {:.0} m, straight {:.0} m; colour = RSRP class",
             pair.pair_id, pair.bin_m, pair.shortest_m, pair.straight_m
         );
-        render_plan_png(
-            &world.city.buildings,
-            &world.sites,
-            world.city.area_m,
-            &traces,
-            thresholds,
-            &title,
-            &out.join(format!("example_pair{}.png", pair.pair_id)),
-        )?;
+        let png = out.join(format!("example_pair{}.png", pair.pair_id));
+        render_world_plan(world, radio, &traces, &title, &png)?;
     }
     Ok(())
 }

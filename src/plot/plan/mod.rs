@@ -209,6 +209,27 @@ pub fn render_plan_png(
     .with_context(|| format!("cannot write path plot {}", path.display()))
 }
 
+/// [`render_plan_png`] over `world`'s buildings, sites and area, with the RSRP class thresholds
+/// of `radio` (`radio.rsrp_excellent_dbm`, `radio.rsrp_poor_dbm`): what `dupac plan`, `dupac fly`
+/// and `dupac eval` draw.
+pub fn render_world_plan(
+    world: &dupac_radio::world::RadioWorld,
+    radio: &dupac_common::config::RadioConfig,
+    traces: &[FlightTrace],
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    render_plan_png(
+        &world.city.buildings,
+        &world.sites,
+        world.city.area_m,
+        traces,
+        &RsrpThresholds::from_config(radio),
+        title,
+        path,
+    )
+}
+
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 fn draw(
