@@ -189,8 +189,7 @@ pub fn flight_metrics(
     serving.push(start_serving);
     for s in &r.steps {
         let p = s.position_m.map(f64::from);
-        distance_m +=
-            ((p[0] - prev[0]).powi(2) + (p[1] - prev[1]).powi(2) + (p[2] - prev[2]).powi(2)).sqrt();
+        distance_m += dupac_common::geometry::distance_m(p, prev);
         prev = p;
         frac_class[s.class.index()] += 1.0;
         rsrp += f64::from(s.serving_rsrp_dbm);

@@ -4,6 +4,7 @@
 
 use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
 use dupac_common::SiteId;
+use dupac_common::geometry::distance_m as dist;
 
 /// A flown episode.
 #[derive(Debug, Clone)]
@@ -81,10 +82,6 @@ fn fly(
         outcome: Outcome::TimeLimit,
         episodic_return,
     })
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Re-flies a recorded flight: one step per recorded position, each the move from where the UAV

@@ -11,6 +11,7 @@ pub mod dedup;
 pub mod fault;
 pub mod fingerprint;
 pub mod fsio;
+pub mod geometry;
 pub mod ids;
 pub mod keys;
 pub mod metric;

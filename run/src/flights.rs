@@ -113,11 +113,6 @@ pub fn slug(s: &str) -> String {
         .collect()
 }
 
-/// Euclidean distance (m).
-pub fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
 /// Writes one row per step record (the columns evaluation re-plots from), atomically.
 pub fn write_steps_csv(path: &std::path::Path, steps: &[StepInfo]) -> Result<(), RunError> {
     write_atomic_with(path, |w| {

@@ -15,6 +15,7 @@ mod reward;
 
 use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
+use dupac_common::geometry::distance_m as dist;
 pub use info::{Outcome, StepInfo};
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
@@ -563,9 +564,4 @@ pub fn bounded_move(a: [f64; 3], clip: ActionClip) -> [f64; 3] {
             if n > 1.0 { a.map(|v| v / n) } else { a }
         }
     }
-}
-
-#[inline]
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }

@@ -31,6 +31,7 @@ mod smooth;
 pub use free_space::{FreeSpace, SMOOTHING_MARGIN_M};
 
 use dupac_common::config::{EnvConfig, PlannerConfig};
+pub(crate) use dupac_common::geometry::distance_m as dist;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::City;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
@@ -133,12 +134,6 @@ pub enum PlanError {
     /// λ must be a finite number ≥ 0.
     #[error("coverage weight lambda must be a finite number >= 0, got {0}")]
     BadLambda(f64),
-}
-
-/// Euclidean distance (m).
-#[inline]
-pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Class code stored per voxel: 0 excellent, 1 mediocre, 2 poor.
