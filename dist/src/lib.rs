@@ -3,8 +3,10 @@
 //! - [`net`]: the connection options every process takes (zenoh's examples' shared arguments).
 //! - [`actor`]: an actor process's node: environments stepped with the newest weights,
 //!   trajectory chunks published, a live-weights [`actor::Follower`] for `dupac fly --follow`.
-//! - [`learner`]: the learner's node: chunks received, validated and batched, weights and
-//!   statistics published; a [`dupac_learner::source::TrajectorySource`] for the one training loop.
+//! - [`learner`]: the learner's node: chunks received ([`inbox`]), validated and batched,
+//!   weights and statistics published; [`source`]: the node as a
+//!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
+//! - [`follow`]: a flight with live weights (`dupac fly --follow`).
 
 pub mod actor;
 pub mod follow;

@@ -7,16 +7,16 @@ use super::run_args::TrainArgs;
 use super::training::Training;
 use crate::GlobalArgs;
 use anyhow::Result;
-use dupac_run::local::LocalWorkers;
 use std::process::ExitCode;
 
 pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     if !args.single_process {
         return super::orchestrate::run(global, args);
     }
-    let t = Training::prepare(global, &args.run, "", true)?;
-    let pool = t.pool.clone().unwrap_or_default();
-    let mut workers = LocalWorkers::new(&t.cfg, &t.world, &t.rsrp, &pool)?;
+    let mut t = Training::prepare(global, &args.run, "", true)?;
+    let Some(mut workers) = t.local.take() else {
+        anyhow::bail!("no local rollout workers were started");
+    };
     eprintln!(
         "training {} in one process: {} updates × {} samples, {} envs, seed {}",
         t.method,

@@ -13,6 +13,7 @@ use dupac_common::Config;
 use dupac_learner::{Learner, TrajectorySource};
 use dupac_radio::world::RadioWorld;
 use dupac_run::evaluate::evaluate;
+use dupac_run::local::LocalWorkers;
 use dupac_run::progress::progress_bar;
 use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};
 use dupac_run::scenario::{SharedRsrp, held_out_pairs, make_pool, spread, world_and_cache};
@@ -26,8 +27,8 @@ pub struct Training {
     pub cfg: Config,
     pub world: Arc<RadioWorld>,
     pub rsrp: SharedRsrp,
-    /// The training pool (`train.pool_size` pairs), when asked for (local workers draw from it).
-    pub pool: Option<Arc<Vec<Pair>>>,
+    /// Rollout workers in this process, when asked for (`--single-process`).
+    pub local: Option<LocalWorkers>,
     pub learner: Learner,
     pub out: RunOutput,
     pub method: &'static str,
@@ -36,14 +37,10 @@ pub struct Training {
 
 impl Training {
     /// Resolves the configuration, builds the world, reads (or makes) the held-out pairs,
-    /// draws the training pool when `with_pool`, creates or resumes the learner and locks the
-    /// run directory; `how` ends the curves' title.
-    pub fn prepare(
-        global: &GlobalArgs,
-        run: &RunArgs,
-        how: &str,
-        with_pool: bool,
-    ) -> Result<Training> {
+    /// with `local` draws the training pool and starts rollout workers on it, creates or resumes
+    /// the learner, and only then locks and opens the run directory (a failure before leaves it
+    /// as it was); `how` ends the curves' title.
+    pub fn prepare(global: &GlobalArgs, run: &RunArgs, how: &str, local: bool) -> Result<Training> {
         let cfg = resolve_config(global, run.association, run.out.as_ref())?;
         let checkpoint = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
         let device = device(run.device)?;
@@ -54,8 +51,11 @@ impl Training {
             &held_out_pairs(&cfg, &planner, global.quiet)?,
             cfg.train.eval_pairs,
         );
-        let pool = match with_pool {
-            true => Some(Arc::new(make_pool(&cfg, &planner, global.quiet)?)),
+        let local = match local {
+            true => {
+                let pool = Arc::new(make_pool(&cfg, &planner, global.quiet)?);
+                Some(LocalWorkers::new(&cfg, &world, &rsrp, &pool)?)
+            }
             false => None,
         };
         drop(planner);
@@ -77,7 +77,7 @@ impl Training {
             cfg,
             world,
             rsrp,
-            pool,
+            local,
             learner,
             out,
             method,
@@ -108,6 +108,16 @@ impl Training {
             &mut |l, row| {
                 pb.set_position(l.global_step);
                 pb.set_message(progress_message(row));
+                if global.quiet {
+                    // Without a progress bar (the children of `dupac train`, services): one
+                    // line per update.
+                    tracing::info!(
+                        update = l.update,
+                        global_step = l.global_step,
+                        "{}",
+                        progress_message(row)
+                    );
+                }
             },
         )?;
         pb.finish_and_clear();

@@ -199,8 +199,8 @@ impl Config {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}"))
     }
 
-    /// Range checks that serde cannot express; each error names the key.    /// Validates every section (each error names the key), then the bounds of values that size
-    /// memory or time.
+    /// Range checks that serde cannot express: every section's own checks (each error names the
+    /// key), then the bounds of values that size memory or time.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.scenario.validate()?;
         self.radio.validate()?;
