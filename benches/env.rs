@@ -6,6 +6,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use dupac_actor::env::{Action, Env, Episode};
+use dupac_common::geometry::Point;
 use dupac_common::{Config, SiteId};
 use dupac_radio::cache::RsrpCache;
 use dupac_radio::world::RadioWorld;
@@ -21,11 +22,11 @@ fn benches(c: &mut Criterion) {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let a = world.city.area_m;
     let mut free = || loop {
-        let p = [
-            rng.random_range(a[0] * 0.8..a[2] * 0.8),
-            rng.random_range(a[1] * 0.8..a[3] * 0.8),
+        let p = Point::new(
+            rng.random_range(a.min_m.x * 0.8..a.max_m.x * 0.8),
+            rng.random_range(a.min_m.y * 0.8..a.max_m.y * 0.8),
             rng.random_range(30.0..110.0),
-        ];
+        );
         if !world.city.is_inside_building(p) && world.city.mesh.sphere_sweep(p, p, 5.0).is_none() {
             return p;
         }
@@ -71,10 +72,10 @@ fn benches(c: &mut Criterion) {
 fn fly_on(env: &mut Env, k: &mut usize, episodes: &[Episode], decide: bool) {
     let p = env.position_m();
     let d = env.episode().map(|e| e.destination_m).unwrap_or(p);
-    let v = [d[0] - p[0], d[1] - p[1], d[2] - p[2]];
+    let v = d - p;
     let n = v.iter().map(|x| x.abs()).fold(1e-9, f64::max);
     let a = Action {
-        move_: [v[0] / n, v[1] / n, v[2] / n],
+        move_: v / n,
         site: SiteId((*k % 30) as u16),
     };
     let s = if decide { env.act(&a) } else { env.step(&a) }.expect("step");

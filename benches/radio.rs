@@ -4,6 +4,7 @@
 //! Run: `cargo bench --bench radio` (from the repository root, so `data/` resolves).
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use dupac_common::geometry::Point;
 use dupac_common::{Config, SiteId};
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
 use dupac_radio::world::RadioWorld;
@@ -17,16 +18,16 @@ fn world() -> (Config, RadioWorld) {
 }
 
 /// Random UAV positions in free airspace (outside buildings) in the flight area and band.
-fn free_points(w: &RadioWorld, n: usize, seed: u64) -> Vec<[f64; 3]> {
+fn free_points(w: &RadioWorld, n: usize, seed: u64) -> Vec<Point> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let a = w.city.area_m;
     let mut v = Vec::with_capacity(n);
     while v.len() < n {
-        let p = [
-            rng.random_range(a[0]..a[2]),
-            rng.random_range(a[1]..a[3]),
+        let p = Point::new(
+            rng.random_range(a.min_m.x..a.max_m.x),
+            rng.random_range(a.min_m.y..a.max_m.y),
             rng.random_range(20.0..120.0),
-        ];
+        );
         if !w.city.is_inside_building(p) {
             v.push(p);
         }

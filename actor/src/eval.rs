@@ -5,6 +5,7 @@
 
 use crate::env::StepInfo;
 pub use crate::metrics::{FlightMetrics, count_handovers, flight_metrics};
+use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
@@ -90,9 +91,11 @@ pub struct FlightRecord {
     pub straight_m: f64,
     pub outcome: Outcome,
     /// Source of the flight (m): the first step's distance is measured from it.
-    pub source_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub source_m: Point,
     /// Destination of the flight (m).
-    pub destination_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub destination_m: Point,
     /// Distance left to the destination at the end (m; ≤ the goal radius on success).
     pub remaining_m: f64,
     pub steps: Vec<StepRecord>,
@@ -416,8 +419,8 @@ mod tests {
             shortest_m: 5.0,
             straight_m: 5.0,
             outcome: Outcome::Goal,
-            source_m: [0.0, 0.0, 50.0],
-            destination_m: [5.0, 0.0, 50.0],
+            source_m: Point::new(0.0, 0.0, 50.0),
+            destination_m: Point::new(5.0, 0.0, 50.0),
             remaining_m: 0.5,
             steps: vec![
                 step(1.0, 3, -70.0, Excellent, 10.0),

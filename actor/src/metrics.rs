@@ -9,6 +9,7 @@
 
 use crate::env::{Outcome, StepInfo};
 use crate::eval::FlightRecord;
+use dupac_common::geometry::Point;
 use dupac_common::metric::DomainKeys;
 pub use dupac_common::msg::EpisodeSummary;
 use dupac_radio::class::RsrpClass;
@@ -188,7 +189,7 @@ pub fn flight_metrics(
     let mut serving = Vec::with_capacity(r.steps.len() + 1);
     serving.push(start_serving);
     for s in &r.steps {
-        let p = s.position_m.map(f64::from);
+        let p = Point::from(s.position_m.map(f64::from));
         distance_m += dupac_common::geometry::distance_m(p, prev);
         prev = p;
         frac_class[s.class.index()] += 1.0;

@@ -29,6 +29,7 @@
 
 use crate::planner::{Planner, dist};
 use dupac_common::config::{EnvConfig, PairsConfig};
+use dupac_common::geometry::Point;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -56,9 +57,11 @@ pub struct Pair {
     /// Position in its set (evaluation: across bins in order; training: in the pool).
     pub id: u64,
     /// Source (m).
-    pub source_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub source_m: Point,
     /// Destination (m).
-    pub destination_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub destination_m: Point,
     /// Length of the shortest flyable path within the band (m), [`Planner::shortest`].
     pub shortest_m: f64,
     /// Straight-line distance between the endpoints (m).
@@ -74,8 +77,10 @@ pub struct Pair {
 #[serde(deny_unknown_fields)]
 struct PairInput {
     id: Option<u64>,
-    source_m: [f64; 3],
-    destination_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    source_m: Point,
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    destination_m: Point,
     shortest_m: Option<f64>,
     straight_m: Option<f64>,
     bin_m: Option<f64>,
@@ -109,7 +114,7 @@ pub enum PairsError {
 /// `[env.z_min_m, env.z_max_m]` (the planner's band), not inside a building, and at least
 /// `clearance_m` (m; `pairs.endpoint_clearance_m`, spec/env.md: 5 m) from every building surface.
 /// The error says why, with the position.
-pub fn check_endpoint(planner: &Planner, p_m: [f64; 3], clearance_m: f64) -> Result<(), String> {
+pub fn check_endpoint(planner: &Planner, p_m: Point, clearance_m: f64) -> Result<(), String> {
     let fs = planner.free_space();
     let city = planner.city();
     if !p_m.iter().all(|v| v.is_finite()) {
@@ -117,7 +122,7 @@ pub fn check_endpoint(planner: &Planner, p_m: [f64; 3], clearance_m: f64) -> Res
     }
     if !city.in_area(p_m[0], p_m[1]) {
         return Err(format!(
-            "{p_m:?} is outside the flight area {:?}",
+            "{p_m:?} is outside the flight area {}",
             city.area_m
         ));
     }
@@ -163,18 +168,18 @@ fn stream(seed: u64, domain: u64, index: u64) -> ChaCha8Rng {
 
 /// A uniform point of area × band that passes [`check_endpoint`], or `None` after
 /// [`ENDPOINT_TRIES`] draws.
-fn free_endpoint(planner: &Planner, clearance_m: f64, rng: &mut ChaCha8Rng) -> Option<[f64; 3]> {
+fn free_endpoint(planner: &Planner, clearance_m: f64, rng: &mut ChaCha8Rng) -> Option<Point> {
     let a = planner.city().area_m;
     let [z0, z1] = planner.free_space().band_m();
-    if !(a[0] < a[2] && a[1] < a[3] && z0 <= z1) {
+    if !(a.min_m.x < a.max_m.x && a.min_m.y < a.max_m.y && z0 <= z1) {
         return None;
     }
     for _ in 0..ENDPOINT_TRIES {
-        let p = [
-            rng.random_range(a[0]..=a[2]),
-            rng.random_range(a[1]..=a[3]),
+        let p = Point::new(
+            rng.random_range(a.min_m.x..=a.max_m.x),
+            rng.random_range(a.min_m.y..=a.max_m.y),
             rng.random_range(z0..=z1),
-        ];
+        );
         if check_endpoint(planner, p, clearance_m).is_ok() {
             return Some(p);
         }
@@ -187,10 +192,10 @@ fn free_endpoint(planner: &Planner, clearance_m: f64, rng: &mut ChaCha8Rng) -> O
 fn destination_near(
     planner: &Planner,
     clearance_m: f64,
-    source: [f64; 3],
+    source: Point,
     target_m: f64,
     rng: &mut ChaCha8Rng,
-) -> Option<[f64; 3]> {
+) -> Option<Point> {
     let [z0, z1] = planner.free_space().band_m();
     for _ in 0..DESTINATION_TRIES {
         let r = rng.random_range(target_m / 1.5..=target_m);
@@ -201,11 +206,11 @@ fn destination_near(
         }
         let h = (r * r - dz * dz).sqrt();
         let azimuth = rng.random_range(0.0..std::f64::consts::TAU);
-        let p = [
+        let p = Point::new(
             source[0] + h * azimuth.cos(),
             source[1] + h * azimuth.sin(),
             z,
-        ];
+        );
         if check_endpoint(planner, p, clearance_m).is_ok() {
             return Some(p);
         }
@@ -646,7 +651,8 @@ mod tests {
         assert_eq!(names.len(), 1);
 
         // A user file with only the endpoints: shortest and straight are computed.
-        let (s, t) = (pairs[0].source_m, pairs[0].destination_m);
+        let (s, t): ([f64; 3], [f64; 3]) =
+            (pairs[0].source_m.into(), pairs[0].destination_m.into());
         let user = dir.path().join("user.jsonl");
         std::fs::write(
             &user,
@@ -687,8 +693,9 @@ mod tests {
                 [c[0], c[1], 30.0]
             })
             .expect("a tall building");
-        assert!(city.is_inside_building(inside));
-        let s = good.source_m;
+        assert!(city.is_inside_building(Point::from(inside)));
+        let s: [f64; 3] = good.source_m.into();
+        let d: [f64; 3] = good.destination_m.into();
         let cases: Vec<(String, &str)> = vec![
             ("{not json".into(), "invalid pair"),
             (
@@ -700,13 +707,11 @@ mod tests {
                 "source",
             ),
             (
-                serde_json::json!({"source_m": s, "destination_m": [1.0e4, 0.0, 50.0]})
-                    .to_string(),
+                serde_json::json!({"source_m": s, "destination_m": [1.0e4, 0.0, 50.0]}).to_string(),
                 "outside the flight area",
             ),
             (
-                serde_json::json!({"source_m": s, "destination_m": [s[0], s[1], 5.0]})
-                    .to_string(),
+                serde_json::json!({"source_m": s, "destination_m": [s[0], s[1], 5.0]}).to_string(),
                 "outside the altitude band",
             ),
             (
@@ -714,13 +719,12 @@ mod tests {
                 "invalid pair",
             ),
             (
-                serde_json::json!({"source_m": s, "destination_m": good.destination_m, "shortest_m": 0.0})
+                serde_json::json!({"source_m": s, "destination_m": d, "shortest_m": 0.0})
                     .to_string(),
                 "shortest_m must be",
             ),
             (
-                serde_json::json!({"source_m": s, "destination_m": good.destination_m, "extra": 1})
-                    .to_string(),
+                serde_json::json!({"source_m": s, "destination_m": d, "extra": 1}).to_string(),
                 "unknown field",
             ),
             (good_line.clone(), "duplicate id"),

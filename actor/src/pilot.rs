@@ -5,6 +5,7 @@
 use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
 use dupac_common::SiteId;
 use dupac_common::geometry::distance_m as dist;
+use dupac_common::geometry::{Point, Vector};
 
 /// A flown episode.
 #[derive(Debug, Clone)]
@@ -33,7 +34,7 @@ pub fn fly_waypoints(
     env: &mut Env,
     seed: u64,
     episode: Episode,
-    waypoints_m: &[[f64; 3]],
+    waypoints_m: &[Point],
     site: impl FnMut(&Env) -> SiteId,
 ) -> Result<Flight, EnvError> {
     env.reset(seed, episode)?;
@@ -50,7 +51,7 @@ pub fn fly_waypoints(
             .copied()
             .unwrap_or(episode.destination_m);
         let scale = dist(target, p).max(max_step);
-        Some([0, 1, 2].map(|k| (target[k] - p[k]) / scale))
+        Some((target - p) / scale)
     })
 }
 
@@ -59,7 +60,7 @@ pub fn fly_waypoints(
 fn fly(
     env: &mut Env,
     mut site: impl FnMut(&Env) -> SiteId,
-    mut next_move: impl FnMut(&Env) -> Option<[f64; 3]>,
+    mut next_move: impl FnMut(&Env) -> Option<Vector>,
 ) -> Result<Flight, EnvError> {
     let (mut steps, mut episodic_return) = (Vec::new(), 0.0);
     while let Some(move_) = next_move(env) {
@@ -94,7 +95,7 @@ pub fn replay_positions(
     env: &mut Env,
     seed: u64,
     episode: Episode,
-    positions_m: &[[f64; 3]],
+    positions_m: &[Point],
     site: impl FnMut(&Env) -> SiteId,
 ) -> Result<Flight, EnvError> {
     env.reset(seed, episode)?;
@@ -102,8 +103,6 @@ pub fn replay_positions(
     let mut targets = positions_m.iter();
     fly(env, site, |env| {
         let p = env.position_m();
-        targets
-            .next()
-            .map(|t| [0, 1, 2].map(|k| (t[k] - p[k]) / max_step))
+        targets.next().map(|&t| (t - p) / max_step)
     })
 }

@@ -8,6 +8,7 @@ use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
 pub use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
 use dupac_common::SiteId;
+use dupac_common::geometry::Vector;
 pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
 pub use dupac_common::seed::stream_seed;
@@ -136,7 +137,7 @@ impl Worker {
             let rng = &mut self.rng;
             let a = policy.act_sample(&self.obs, &mut self.scratch, || rng.random::<f64>());
             let action = Action {
-                move_: a.move_raw.map(f64::from),
+                move_: Vector::from(a.move_raw.map(f64::from)),
                 site: SiteId(a.site as u16),
             };
             // One decision: `env.action_repeat` steps of the environment.
@@ -207,7 +208,7 @@ pub fn fly_policy(
     loop {
         let a = policy.act_deterministic(&obs, &mut scratch);
         let step = env.act(&Action {
-            move_: a.move_raw.map(f64::from),
+            move_: Vector::from(a.move_raw.map(f64::from)),
             site: SiteId(a.site as u16),
         })?;
         for info in env.substeps() {

@@ -3,6 +3,7 @@
 use dupac_actor::env::{Action, Env, EnvError, Episode, Outcome};
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config};
+use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::obs::field;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::{Building, City};
@@ -12,13 +13,13 @@ use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
 /// A scripted RSRP field: site `s` gives `f(s, p)`.
-struct Field(fn(usize, [f64; 3]) -> f64, usize);
+struct Field(fn(usize, Point) -> f64, usize);
 
 impl RsrpSource for Field {
     fn num_sites(&self) -> usize {
         self.1
     }
-    fn rsrp_all_dbm(&self, p: [f64; 3], out: &mut [f64]) {
+    fn rsrp_all_dbm(&self, p: Point, out: &mut [f64]) {
         for (s, o) in out.iter_mut().enumerate().take(self.1) {
             *o = (self.0)(s, p);
         }
@@ -35,7 +36,7 @@ fn block(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, z0: f64, z1: f64) -> Buil
     }
 }
 
-fn site(id: u16, xyz: [f64; 3]) -> Site {
+fn site(id: u16, xyz: Point) -> Site {
     Site {
         id: SiteId(id),
         name: format!("s{id}"),
@@ -54,7 +55,7 @@ fn world() -> Arc<RadioWorld> {
     let cfg = Config::default();
     let city = City::from_buildings(
         "test",
-        [-200.0, -200.0, 200.0, 200.0],
+        Bounds2::new(-200.0, -200.0, 200.0, 200.0),
         vec![
             block("block", 50.0, -100.0, 70.0, 100.0, 0.0, 60.0),
             block("thin", -50.0, -20.0, -49.0, 20.0, 0.0, 100.0),
@@ -64,7 +65,10 @@ fn world() -> Arc<RadioWorld> {
     .expect("city");
     Arc::new(RadioWorld::from_parts(
         city,
-        vec![site(0, [-150.0, 0.0, 25.0]), site(1, [150.0, 150.0, 25.0])],
+        vec![
+            site(0, Point::new(-150.0, 0.0, 25.0)),
+            site(1, Point::new(150.0, 150.0, 25.0)),
+        ],
         &cfg.radio,
     ))
 }
@@ -77,14 +81,14 @@ fn paper_reward(cfg: &mut Config) {
     cfg.env.reward.route_connectivity_weight = 0.0;
 }
 
-fn env_with(assoc: Association, f: fn(usize, [f64; 3]) -> f64) -> Env {
+fn env_with(assoc: Association, f: fn(usize, Point) -> f64) -> Env {
     let mut cfg = Config::default();
     cfg.env.association = assoc;
     paper_reward(&mut cfg);
     Env::new(&cfg, world(), Arc::new(Field(f, 2))).expect("env")
 }
 
-fn ep(src: [f64; 3], dst: [f64; 3]) -> Episode {
+fn ep(src: Point, dst: Point) -> Episode {
     let d =
         ((src[0] - dst[0]).powi(2) + (src[1] - dst[1]).powi(2) + (src[2] - dst[2]).powi(2)).sqrt();
     Episode {
@@ -96,19 +100,22 @@ fn ep(src: [f64; 3], dst: [f64; 3]) -> Episode {
 
 fn mv(x: f64, y: f64, z: f64, s: u16) -> Action {
     Action {
-        move_: [x, y, z],
+        move_: Vector::new(x, y, z),
         site: SiteId(s),
     }
 }
 
-const EXCELLENT: fn(usize, [f64; 3]) -> f64 = |s, _| if s == 0 { -70.0 } else { -95.0 };
+const EXCELLENT: fn(usize, Point) -> f64 = |s, _| if s == 0 { -70.0 } else { -95.0 };
 
 #[test]
 fn reward_follows_the_class_of_the_serving_site() {
     // Site 0 is excellent (−70), site 1 mediocre (−95); learned association.
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     assert_eq!(e.serving(), SiteId(0), "starts on the strongest site");
     let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
     assert!(
@@ -128,8 +135,11 @@ fn reward_follows_the_class_of_the_serving_site() {
         Association::Learned,
         |s, _| if s == 0 { -70.0 } else { -105.0 },
     );
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     let s = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step");
     assert_eq!(s.info.class, RsrpClass::Poor);
     assert!(
@@ -144,8 +154,11 @@ fn reward_follows_the_class_of_the_serving_site() {
 #[test]
 fn collision_with_a_wall_stops_at_contact_and_terminates() {
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([45.0, 0.0, 30.0], [45.0, 150.0, 30.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(45.0, 0.0, 30.0), Point::new(45.0, 150.0, 30.0)),
+    )
+    .expect("reset");
     let mut last = None;
     for _ in 0..10 {
         let s = e.step(&mv(1.0, 0.0, 0.0, 0)).expect("step");
@@ -172,16 +185,22 @@ fn collision_with_a_wall_stops_at_contact_and_terminates() {
 #[test]
 fn collision_with_a_roof_and_with_a_thin_part() {
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([60.0, 0.0, 62.0], [0.0, 0.0, 62.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(60.0, 0.0, 62.0), Point::new(0.0, 0.0, 62.0)),
+    )
+    .expect("reset");
     let s1 = e.step(&mv(0.0, 0.0, -1.0, 0)).expect("step");
     assert!(!s1.terminated, "61 m: 0.5 m above the roof plus margin");
     let s2 = e.step(&mv(0.0, 0.0, -1.0, 0)).expect("step");
     assert_eq!(s2.info.outcome, Some(Outcome::Collision), "roof at 60 m");
     // The 1 m thick part: diagonal moves must not tunnel through it.
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([-52.0, 0.0, 50.0], [-30.0, 0.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(-52.0, 0.0, 50.0), Point::new(-30.0, 0.0, 50.0)),
+    )
+    .expect("reset");
     let mut hit = false;
     for _ in 0..5 {
         let s = e.step(&mv(1.0, 1.0, 1.0, 0)).expect("step");
@@ -196,8 +215,11 @@ fn collision_with_a_roof_and_with_a_thin_part() {
 #[test]
 fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([0.0, 0.0, 119.5], [0.0, 100.0, 100.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 119.5), Point::new(0.0, 100.0, 100.0)),
+    )
+    .expect("reset");
     let s = e.step(&mv(0.0, 0.0, 1.0, 0)).expect("step");
     assert_eq!(s.info.position_m[2], 120.0);
     assert!(!s.terminated);
@@ -207,8 +229,14 @@ fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
         "clipped action, clamped altitude"
     );
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([-199.5, 150.0, 30.0], [0.0, 150.0, 30.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(
+            Point::new(-199.5, 150.0, 30.0),
+            Point::new(0.0, 150.0, 30.0),
+        ),
+    )
+    .expect("reset");
     let s = e.step(&mv(-1.0, 0.0, 0.0, 0)).expect("step");
     assert_eq!(s.info.outcome, Some(Outcome::OutOfBounds));
     assert!(s.terminated);
@@ -218,8 +246,11 @@ fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
 #[test]
 fn goal_terminates_and_time_limit_truncates() {
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 12.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 12.0, 50.0)),
+    )
+    .expect("reset");
     let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
     assert!(!s.terminated);
     let s = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step");
@@ -228,8 +259,11 @@ fn goal_terminates_and_time_limit_truncates() {
     assert!((s.reward - 110.0).abs() < 1e-9, "progress 10 + goal 100");
 
     // T = ceil(3 · 12 / 1) = 36 steps of hovering: truncated on step 36, not terminated.
-    e.reset(2, ep([0.0, 0.0, 50.0], [0.0, 12.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        2,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 12.0, 50.0)),
+    )
+    .expect("reset");
     assert_eq!(e.time_limit(), 36);
     for i in 1..=36 {
         let s = e.step(&mv(0.0, 0.0, 0.0, 0)).expect("step");
@@ -244,14 +278,17 @@ fn goal_terminates_and_time_limit_truncates() {
 #[test]
 fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
     // Site 1 is 6 dB stronger than site 0 for y ≥ 5 (> Off + Hys = 4 dB), weaker before.
-    let f: fn(usize, [f64; 3]) -> f64 = |s, p| match (s, p[1] >= 5.0) {
+    let f: fn(usize, Point) -> f64 = |s, p| match (s, p[1] >= 5.0) {
         (0, _) => -80.0,
         (_, true) => -74.0,
         (_, false) => -90.0,
     };
     let mut e = env_with(Association::A3, f);
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     assert_eq!(e.serving(), SiteId(0));
     // TTT 160 ms at Δt = 1 m / 20.83 m/s = 48 ms → 4 steps. y = 5 is reached on step 5; the
     // condition holds on steps 5, 6, 7, 8 → handover on step 8.
@@ -267,8 +304,11 @@ fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
     assert_eq!(handover_step, Some(8));
     // The oracle switches at once.
     let mut e = env_with(Association::BestRsrp, f);
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     let mut first = None;
     for i in 1..=8 {
         if e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").info.handover && first.is_none() {
@@ -288,8 +328,11 @@ fn the_minimum_time_of_stay_leaves_no_ping_pong() {
         cfg.env.association = Association::Learned;
         cfg.env.min_time_of_stay_s = mts_s;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-        e.reset(1, ep([0.0, -90.0, 50.0], [0.0, 100.0, 50.0]))
-            .expect("reset");
+        e.reset(
+            1,
+            ep(Point::new(0.0, -90.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+        )
+        .expect("reset");
         let mut handover_steps = Vec::new();
         let mut ping_pongs = 0;
         for t in 0..120u32 {
@@ -316,8 +359,11 @@ fn the_minimum_time_of_stay_leaves_no_ping_pong() {
 #[test]
 fn handovers_and_ping_pongs_are_counted() {
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     let sites = [1, 0, 0, 1];
     let mut flags = Vec::new();
     for s in sites {
@@ -336,9 +382,10 @@ fn handovers_and_ping_pongs_are_counted() {
 fn same_episode_and_actions_give_a_bit_identical_trajectory() {
     let w = world();
     let cfg = Config::default();
-    let run = |src: [f64; 3]| {
+    let run = |src: Point| {
         let mut e = Env::new(&cfg, w.clone(), w.clone()).expect("env");
-        e.reset(7, ep(src, [0.0, 150.0, 60.0])).expect("reset");
+        e.reset(7, ep(src, Point::new(0.0, 150.0, 60.0)))
+            .expect("reset");
         let mut trace: Vec<Vec<f32>> = vec![e.observation().to_vec()];
         let mut rewards = Vec::new();
         for i in 0..40 {
@@ -357,10 +404,10 @@ fn same_episode_and_actions_give_a_bit_identical_trajectory() {
         }
         (trace, rewards)
     };
-    let a = run([0.0, 0.0, 50.0]);
-    let b = run([0.0, 0.0, 50.0]);
+    let a = run(Point::new(0.0, 0.0, 50.0));
+    let b = run(Point::new(0.0, 0.0, 50.0));
     assert_eq!(a, b, "bit-identical");
-    let c = run([10.0, 0.0, 50.0]);
+    let c = run(Point::new(10.0, 0.0, 50.0));
     assert_ne!(a.0, c.0, "a different episode differs");
 }
 
@@ -368,33 +415,48 @@ fn same_episode_and_actions_give_a_bit_identical_trajectory() {
 fn bad_input_is_an_error_not_a_panic() {
     let mut e = env_with(Association::Learned, EXCELLENT);
     let inside = e
-        .reset(1, ep([60.0, 0.0, 30.0], [0.0, 0.0, 30.0]))
+        .reset(
+            1,
+            ep(Point::new(60.0, 0.0, 30.0), Point::new(0.0, 0.0, 30.0)),
+        )
         .unwrap_err();
     assert!(
         inside.to_string().contains("source") && inside.to_string().contains("inside a building"),
         "{inside}"
     );
     let outside = e
-        .reset(1, ep([0.0, 0.0, 30.0], [500.0, 0.0, 30.0]))
+        .reset(
+            1,
+            ep(Point::new(0.0, 0.0, 30.0), Point::new(500.0, 0.0, 30.0)),
+        )
         .unwrap_err();
     assert!(
         outside.to_string().contains("destination") && outside.to_string().contains("outside"),
         "{outside}"
     );
     let low = e
-        .reset(1, ep([0.0, 0.0, 5.0], [0.0, 50.0, 30.0]))
+        .reset(
+            1,
+            ep(Point::new(0.0, 0.0, 5.0), Point::new(0.0, 50.0, 30.0)),
+        )
         .unwrap_err();
     assert!(low.to_string().contains("band"), "{low}");
     let nan = e
-        .reset(1, ep([f64::NAN, 0.0, 30.0], [0.0, 50.0, 30.0]))
+        .reset(
+            1,
+            ep(Point::new(f64::NAN, 0.0, 30.0), Point::new(0.0, 50.0, 30.0)),
+        )
         .unwrap_err();
     assert!(nan.to_string().contains("not finite"));
     assert!(matches!(
         e.step(&mv(0.0, 0.0, 0.0, 0)),
         Err(EnvError::EpisodeOver)
     ));
-    e.reset(1, ep([0.0, 0.0, 30.0], [0.0, 50.0, 30.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 30.0), Point::new(0.0, 50.0, 30.0)),
+    )
+    .expect("reset");
     assert!(matches!(
         e.step(&mv(f64::NAN, 0.0, 0.0, 0)),
         Err(EnvError::NonFiniteAction(_))
@@ -423,8 +485,11 @@ fn observation_layout_holds_what_it_documents() {
     cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
     cfg.env.observation.nearest_obstacle = dupac_common::config::NearestObstacle::Fan;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-    e.reset(1, ep([45.0, 0.0, 70.0], [45.0, 80.0, 70.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(45.0, 0.0, 70.0), Point::new(45.0, 80.0, 70.0)),
+    )
+    .expect("reset");
     let l = e.layout().clone();
     assert_eq!(e.observation().len(), l.len());
     let o = e.observation().to_vec();
@@ -463,15 +528,18 @@ fn observation_layout_holds_what_it_documents() {
     // Defaults: c_t and θ_t of the true nearest surface point, the block's roof edge at
     // (50, 0, 60), √125 m away (nearer than the 14.1 m the fan sees), on the log scale.
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([45.0, 0.0, 70.0], [45.0, 80.0, 70.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(45.0, 0.0, 70.0), Point::new(45.0, 80.0, 70.0)),
+    )
+    .expect("reset");
     let o = e.observation().to_vec();
     let d_m = 125f64.sqrt();
     let c = o[l.range(field::OBSTACLE_DISTANCE).expect("c_t")][0];
     let want = ((1.0 + d_m).ln() / 51f64.ln()) as f32;
     assert!((c - want).abs() < 1e-4, "c_t = {c}, want {want}");
     let d = o[l.range(field::OBSTACLE_DIRECTION).expect("θ_t")].to_vec();
-    let u = [5.0 / d_m, 0.0, -10.0 / d_m];
+    let u = Vector::new(5.0 / d_m, 0.0, -10.0 / d_m);
     for k in 0..3 {
         assert!((f64::from(d[k]) - u[k]).abs() < 1e-3, "{d:?}");
     }
@@ -479,19 +547,22 @@ fn observation_layout_holds_what_it_documents() {
 
 #[test]
 fn ball_clip_caps_every_move_at_max_step_while_cube_clips_per_axis() {
-    let run = |clip: ActionClip, a: [f64; 3]| {
+    let run = |clip: ActionClip, a: Vector| {
         let mut cfg = Config::default();
         cfg.env.action_clip = clip;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-        e.reset(1, ep([0.0, -150.0, 70.0], [0.0, 150.0, 70.0]))
-            .expect("reset");
+        e.reset(
+            1,
+            ep(Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0)),
+        )
+        .expect("reset");
         e.step(&mv(a[0], a[1], a[2], 0)).expect("step").info
     };
     // Cube: the diagonal (3, 3, 3) is clipped to (1, 1, 1): √3 m in one step.
-    let cube = run(ActionClip::Cube, [3.0, 3.0, 3.0]);
+    let cube = run(ActionClip::Cube, Vector::new(3.0, 3.0, 3.0));
     assert!((cube.step_length_m - 3f64.sqrt()).abs() < 1e-9);
     // Ball: the same action flies 1 m along the same direction.
-    let ball = run(ActionClip::Ball, [3.0, 3.0, 3.0]);
+    let ball = run(ActionClip::Ball, Vector::new(3.0, 3.0, 3.0));
     assert!(
         (ball.step_length_m - 1.0).abs() < 1e-9,
         "{}",
@@ -503,7 +574,7 @@ fn ball_clip_caps_every_move_at_max_step_while_cube_clips_per_axis() {
     }
     // Inside the ball nothing changes: (0.3, −0.4, 0) flies 0.5 m under both.
     for clip in [ActionClip::Cube, ActionClip::Ball] {
-        let s = run(clip, [0.3, -0.4, 0.0]);
+        let s = run(clip, Vector::new(0.3, -0.4, 0.0));
         assert!((s.step_length_m - 0.5).abs() < 1e-9, "{clip:?}");
     }
 }
@@ -513,8 +584,14 @@ fn goal_direction_is_the_unit_vector_to_the_destination() {
     let mut cfg = Config::default();
     cfg.env.observation.goal_direction = true;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-    e.reset(1, ep([0.0, -150.0, 70.0], [30.0, -110.0, 70.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(
+            Point::new(0.0, -150.0, 70.0),
+            Point::new(30.0, -110.0, 70.0),
+        ),
+    )
+    .expect("reset");
     let l = e.layout().clone();
     let r = l.range(field::GOAL_DIRECTION).expect("goal_direction");
     assert_eq!(e.observation()[r.clone()].to_vec(), vec![0.6, 0.8, 0.0]);
@@ -547,7 +624,7 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
         Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env")
     };
     // Five steps one at a time and one decision of five give the same flight, step for step.
-    let pair = ep([0.0, -150.0, 70.0], [0.0, 150.0, 70.0]);
+    let pair = ep(Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
     let mut single = make(1);
     single.reset(3, pair).expect("reset");
     let a = mv(0.6, 0.8, 0.0, 1);
@@ -575,8 +652,11 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     // A decision stops at the step that ends the episode: the goal 12 m ahead (radius 10 m) is
     // reached at the 2nd of 5 steps, and the decision's reward includes the goal reward.
     let mut e = make(5);
-    e.reset(3, ep([0.0, -150.0, 70.0], [0.0, -138.0, 70.0]))
-        .expect("reset");
+    e.reset(
+        3,
+        ep(Point::new(0.0, -150.0, 70.0), Point::new(0.0, -138.0, 70.0)),
+    )
+    .expect("reset");
     let s = e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
     assert!(s.terminated && !s.truncated);
     assert_eq!(e.substeps().len(), 2);
@@ -588,8 +668,11 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     );
     assert_eq!(e.act(&mv(0.0, 1.0, 0.0, 0)), Err(EnvError::EpisodeOver));
     // The time limit cuts a decision too: T = ⌈3 · 12 / 1⌉ = 36 steps, flown sideways.
-    e.reset(3, ep([0.0, -150.0, 70.0], [0.0, -138.0, 70.0]))
-        .expect("reset");
+    e.reset(
+        3,
+        ep(Point::new(0.0, -150.0, 70.0), Point::new(0.0, -138.0, 70.0)),
+    )
+    .expect("reset");
     let mut steps = 0;
     let last = loop {
         let s = e.act(&mv(0.0, 0.0, 0.0, 0)).expect("act");
@@ -609,7 +692,7 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
 fn site_trend_is_the_rsrp_change_over_one_decision() {
     use dupac_common::obs::{site_feature, site_features_per_site};
     // Site 0 falls 0.5 dB per metre north, site 1 rises 0.5 dB.
-    let field: fn(usize, [f64; 3]) -> f64 = |s, p| {
+    let field: fn(usize, Point) -> f64 = |s, p| {
         if s == 0 {
             -70.0 - 0.5 * p[1]
         } else {
@@ -632,8 +715,11 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
         let o = &e.observation()[r];
         [0, 1].map(|k| o[k * per_site + site_feature::RSRP_TREND])
     };
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 150.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 150.0, 50.0)),
+    )
+    .expect("reset");
     assert_eq!(trend(&e), [0.0, 0.0]);
     // One decision: 5 steps of 1 m north, −2.5 and +2.5 dB.
     e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
@@ -647,8 +733,11 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
     assert_eq!(trend(&e), [0.0, 0.0]);
     // A new episode starts from 0 again.
     e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
-    e.reset(2, ep([0.0, 0.0, 50.0], [0.0, 150.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        2,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 150.0, 50.0)),
+    )
+    .expect("reset");
     assert_eq!(trend(&e), [0.0, 0.0]);
     // Without the key the layout is today's: 10 features per site.
     let plain = Env::new(&Config::default(), world(), Arc::new(Field(field, 2))).expect("env");
@@ -666,8 +755,14 @@ fn geofence_makes_the_area_edge_a_sensed_wall() {
         cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
         // 10 m south of the north edge (y = 200), far from both buildings.
-        e.reset(1, ep([-120.0, 190.0, 70.0], [-120.0, 100.0, 70.0]))
-            .expect("reset");
+        e.reset(
+            1,
+            ep(
+                Point::new(-120.0, 190.0, 70.0),
+                Point::new(-120.0, 100.0, 70.0),
+            ),
+        )
+        .expect("reset");
         let l = e.layout().clone();
         let o = e.observation().to_vec();
         let ray = |dir: [i8; 3]| {
@@ -697,7 +792,7 @@ fn geofence_makes_the_area_edge_a_sensed_wall() {
 
 /// A field where the sites trade places along y: site 0 falls from excellent to poor, site 1
 /// rises from poor to excellent.
-const CROSSING: fn(usize, [f64; 3]) -> f64 = |s, p| {
+const CROSSING: fn(usize, Point) -> f64 = |s, p| {
     if s == 0 {
         -70.0 - 0.5 * p[1]
     } else {
@@ -730,7 +825,7 @@ fn site_rewards_match_their_counterfactuals(cfg: &Config) {
     assert!(cfg.env.reward.handover_reward < 0.0 && cfg.env.reward.site_regret_weight > 0.0);
     assert!(cfg.env.reward.route_connectivity_weight > 0.0);
     let make = || Env::new(cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
-    let episode = ep([0.0, 0.0, 50.0], [0.0, 120.0, 50.0]);
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
     // A scripted flight that switches sites now and then.
     let plan: Vec<Action> = (0..16)
         .map(|t| mv(0.0, 1.0, 0.0, [0, 0, 1, 1, 0, 1, 1, 1][t % 8]))
@@ -781,8 +876,11 @@ fn handover_cost_site_regret_and_route_terms() {
         paper_reward(&mut cfg);
         f(&mut cfg);
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-        e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-            .expect("reset");
+        e.reset(
+            1,
+            ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+        )
+        .expect("reset");
         e
     };
     // Handover to site 1 (mediocre, −95): Eq. (8) 10 − 0.95, plus −2 once.
@@ -810,8 +908,11 @@ fn handover_cost_site_regret_and_route_terms() {
     paper_reward(&mut cfg);
     cfg.env.reward.route_connectivity_weight = 0.5;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(|_, _| -90.0, 2))).expect("env");
-    e.reset(1, ep([0.0, 0.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
     assert!((r - (10.0 - 0.9 - 5.0)).abs() < 1e-9, "{r}");
 }
@@ -830,8 +931,11 @@ fn the_environment_flags_and_the_evaluation_recount_agree() {
         .ceil()
         .max(1.0) as u32;
     let mut e = env_with(Association::Learned, EXCELLENT);
-    e.reset(1, ep([0.0, -90.0, 50.0], [0.0, 100.0, 50.0]))
-        .expect("reset");
+    e.reset(
+        1,
+        ep(Point::new(0.0, -90.0, 50.0), Point::new(0.0, 100.0, 50.0)),
+    )
+    .expect("reset");
     let mut serving = vec![e.serving().0];
     let (mut handovers, mut ping_pongs) = (0u32, 0u32);
     let mut x = 12345u64;

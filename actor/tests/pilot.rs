@@ -7,6 +7,7 @@ use dupac_actor::pairs::eval_pairs;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Association, Config, RadioMode};
+use dupac_common::geometry::Point;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
@@ -19,7 +20,7 @@ impl RsrpSource for Flat {
     fn num_sites(&self) -> usize {
         self.0
     }
-    fn rsrp_all_dbm(&self, _: [f64; 3], out: &mut [f64]) {
+    fn rsrp_all_dbm(&self, _: Point, out: &mut [f64]) {
         out[..self.0].fill(-70.0);
     }
 }
@@ -65,7 +66,7 @@ fn scripted_pilot_reaches_the_goal_on_every_evaluation_pair() {
                     }
                     // Replaying the flight's positions as `dupac eval` records them (f32)
                     // reproduces it: the same steps, end and positions (issue 15's replays).
-                    let pos: Vec<[f64; 3]> = f
+                    let pos: Vec<Point> = f
                         .steps
                         .iter()
                         .map(|s| s.position_m.map(|v| f64::from(v as f32)))

@@ -6,6 +6,7 @@ use crate::actor::{ActorError, Follower};
 use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
 use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
 use dupac_common::SiteId;
+use dupac_common::geometry::Vector;
 use dupac_common::policy::{PolicyWeights, Scratch};
 use std::time::Duration;
 
@@ -30,7 +31,7 @@ pub fn fly_following(
         }
         let a = policy.act_deterministic(&obs, &mut scratch);
         let step = env.act(&Action {
-            move_: a.move_raw.map(f64::from),
+            move_: Vector::from(a.move_raw.map(f64::from)),
             site: SiteId(a.site as u16),
         })?;
         for info in env.substeps() {

@@ -20,6 +20,7 @@ use crate::error::RadioError;
 use crate::world::RadioWorld;
 use dupac_common::SiteId;
 use dupac_common::config::CacheConfig;
+use dupac_common::geometry::{Bounds2, Point};
 use memmap2::Mmap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -37,14 +38,14 @@ pub trait RsrpSource: Sync {
     /// M, the number of sites.
     fn num_sites(&self) -> usize;
     /// RSRP (dBm) of every site at `p_m`, into `out[0..M]`.
-    fn rsrp_all_dbm(&self, p_m: [f64; 3], out: &mut [f64]);
+    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]);
 }
 
 impl RsrpSource for RadioWorld {
     fn num_sites(&self) -> usize {
         RadioWorld::num_sites(self)
     }
-    fn rsrp_all_dbm(&self, p_m: [f64; 3], out: &mut [f64]) {
+    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
         RadioWorld::rsrp_all_dbm(self, p_m, out)
     }
 }
@@ -70,19 +71,19 @@ pub struct GridSpec {
 impl GridSpec {
     /// Grid covering `area_m` and `[z_min_m, z_max_m]` at the configured steps (the last point is
     /// at or beyond the far edge).
-    pub fn covering(area_m: [f64; 4], cfg: &CacheConfig) -> GridSpec {
+    pub fn covering(area_m: Bounds2, cfg: &CacheConfig) -> GridSpec {
         // `as` saturates: a degenerate step gives a huge count, refused by `check_size`.
         let n = |span: f64, step: f64| {
             ((span / step - 1e-9).ceil().max(1.0) as usize).saturating_add(1)
         };
         GridSpec {
-            x0_m: area_m[0],
-            y0_m: area_m[1],
+            x0_m: area_m.min_m.x,
+            y0_m: area_m.min_m.y,
             z0_m: cfg.z_min_m,
             dxy_m: cfg.horizontal_m,
             dz_m: cfg.vertical_m,
-            nx: n(area_m[2] - area_m[0], cfg.horizontal_m),
-            ny: n(area_m[3] - area_m[1], cfg.horizontal_m),
+            nx: n(area_m.max_m.x - area_m.min_m.x, cfg.horizontal_m),
+            ny: n(area_m.max_m.y - area_m.min_m.y, cfg.horizontal_m),
             nz: n(cfg.z_max_m - cfg.z_min_m, cfg.vertical_m),
         }
     }
@@ -100,12 +101,12 @@ impl GridSpec {
     }
 
     /// Position of grid point `(ix, iy, iz)` (m).
-    pub fn point_m(&self, ix: usize, iy: usize, iz: usize) -> [f64; 3] {
-        [
+    pub fn point_m(&self, ix: usize, iy: usize, iz: usize) -> Point {
+        Point::new(
             self.x0_m + ix as f64 * self.dxy_m,
             self.y0_m + iy as f64 * self.dxy_m,
             self.z0_m + iz as f64 * self.dz_m,
-        ]
+        )
     }
 }
 
@@ -362,7 +363,7 @@ impl RsrpCache {
     }
 
     /// Trilinear interpolation of site `site`'s RSRP (dBm) at `p_m` (clamped to the grid).
-    pub fn rsrp_dbm(&self, site: SiteId, p_m: [f64; 3]) -> f64 {
+    pub fn rsrp_dbm(&self, site: SiteId, p_m: Point) -> f64 {
         let g = &self.header.grid;
         let m = self.header.n_sites;
         let v = self.values();
@@ -393,7 +394,7 @@ impl RsrpSource for RsrpCache {
     }
 
     /// Trilinear interpolation of all sites at once (positions outside the grid are clamped).
-    fn rsrp_all_dbm(&self, p_m: [f64; 3], out: &mut [f64]) {
+    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
         let g = &self.header.grid;
         let m = self.header.n_sites;
         let v = self.values();

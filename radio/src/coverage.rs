@@ -1,6 +1,8 @@
 //! Coverage maps: best-server RSRP on horizontal slices (issue 2, paper Fig. 2(b)).
 
 use dupac_common::SiteId;
+use dupac_common::geometry::Bounds2;
+use dupac_common::geometry::Point;
 
 /// One horizontal slice of the best-server map. Cell `(ix, iy)` has its centre at
 /// `(x0_m + (ix + 0.5)·resolution_m, y0_m + (iy + 0.5)·resolution_m)`; arrays are row-major with
@@ -54,17 +56,21 @@ pub enum Server {
 pub fn compute_slice(
     world: &RadioWorld,
     server: Server,
-    area_m: [f64; 4],
+    area_m: Bounds2,
     altitude_m: f64,
     resolution_m: f64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> CoverageSlice {
-    let nx = ((area_m[2] - area_m[0]) / resolution_m).floor().max(1.0) as usize;
-    let ny = ((area_m[3] - area_m[1]) / resolution_m).floor().max(1.0) as usize;
+    let nx = ((area_m.max_m.x - area_m.min_m.x) / resolution_m)
+        .floor()
+        .max(1.0) as usize;
+    let ny = ((area_m.max_m.y - area_m.min_m.y) / resolution_m)
+        .floor()
+        .max(1.0) as usize;
     let mut slice = CoverageSlice {
         altitude_m,
-        x0_m: area_m[0],
-        y0_m: area_m[1],
+        x0_m: area_m.min_m.x,
+        y0_m: area_m.min_m.y,
         resolution_m,
         nx,
         ny,
@@ -78,7 +84,7 @@ pub fn compute_slice(
             let row = (0..nx)
                 .map(|ix| {
                     let [x, y] = slice.cell_centre_m(ix, iy);
-                    let p = [x, y, altitude_m];
+                    let p = Point::new(x, y, altitude_m);
                     if world.city.is_inside_building(p) {
                         (f32::NAN, None, false)
                     } else {

@@ -1,5 +1,6 @@
 //! Errors of the radio crate. Every variant names the file, line, feature or field at fault.
 
+use dupac_common::geometry::Point;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
@@ -33,7 +34,7 @@ pub enum RadioError {
     #[error("position {what} = {value:?} is {message}")]
     Position {
         what: &'static str,
-        value: [f64; 3],
+        value: Point,
         message: String,
     },
     #[error("cache {path}: {message}")]

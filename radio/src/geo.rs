@@ -4,6 +4,7 @@
 //! metres per degree at the centre latitude: accurate to centimetres over the 2 km Midtown area.
 
 use dupac_common::config::LonLatBox;
+use dupac_common::geometry::Bounds2;
 
 /// Local tangent-plane projection about an origin (lon₀, lat₀).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,10 +57,10 @@ impl LocalProjection {
     }
 
     /// The box `[x_min, y_min, x_max, y_max]` (m) of a lon/lat box in this projection.
-    pub fn box_m(&self, area: &LonLatBox) -> [f64; 4] {
+    pub fn box_m(&self, area: &LonLatBox) -> Bounds2 {
         let sw = self.to_local_m(area.lon_min_deg, area.lat_min_deg);
         let ne = self.to_local_m(area.lon_max_deg, area.lat_max_deg);
-        [sw[0], sw[1], ne[0], ne[1]]
+        Bounds2::new(sw[0], sw[1], ne[0], ne[1])
     }
 }
 
@@ -72,12 +73,12 @@ mod tests {
         let area = dupac_common::config::ScenarioConfig::default().area;
         let p = LocalProjection::centred_on(&area);
         let b = p.box_m(&area);
-        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        let (w, h) = (b.max_m.x - b.min_m.x, b.max_m.y - b.min_m.y);
         // spec/env.md: ≈ 1.43 × 1.45 km, ≈ 2.07 km².
         assert!((w - 1432.0).abs() < 5.0, "width {w}");
         assert!((h - 1443.0).abs() < 5.0, "height {h}");
         assert!(
-            (b[0] + b[2]).abs() < 1e-6 && (b[1] + b[3]).abs() < 1e-6,
+            (b.min_m.x + b.max_m.x).abs() < 1e-6 && (b.min_m.y + b.max_m.y).abs() < 1e-6,
             "centred"
         );
     }

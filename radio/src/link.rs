@@ -5,6 +5,7 @@ use crate::antenna::AntennaPattern;
 use crate::class::{RsrpClass, RsrpThresholds};
 use crate::pathloss::{PathLossModel, Scenario};
 use dupac_common::config::RadioConfig;
+use dupac_common::geometry::Point;
 use serde::Serialize;
 
 /// Everything about one link, as `dupac radio link` prints it.
@@ -43,7 +44,7 @@ pub struct LinkModel {
 #[derive(Debug, Clone, Copy)]
 pub struct Transmitter<'a> {
     /// Antenna position (m), z = antenna height above ground.
-    pub position_m: [f64; 3],
+    pub position_m: Point,
     pub antenna: &'a AntennaPattern,
     pub boresights_deg: &'a [f64],
     pub scenario: Scenario,
@@ -61,7 +62,7 @@ impl LinkModel {
     }
 
     /// The full budget of the link `tx → uav_m` with the given LoS state.
-    pub fn evaluate(&self, tx: &Transmitter<'_>, uav_m: [f64; 3], los: bool) -> LinkBudget {
+    pub fn evaluate(&self, tx: &Transmitter<'_>, uav_m: Point, los: bool) -> LinkBudget {
         let (d2d_m, d3d_m, theta_deg, phi_deg) = geometry(tx.position_m, uav_m);
         let phi_deg = crate::antenna::wrap_deg(phi_deg);
         let g = tx
@@ -87,7 +88,7 @@ impl LinkModel {
 
     /// RSRP only (dBm): the hot path of coverage maps and the cache.
     #[inline]
-    pub fn rsrp_dbm(&self, tx: &Transmitter<'_>, uav_m: [f64; 3], los: bool) -> f64 {
+    pub fn rsrp_dbm(&self, tx: &Transmitter<'_>, uav_m: Point, los: bool) -> f64 {
         let (_, d3d_m, theta_deg, phi_deg) = geometry(tx.position_m, uav_m);
         let g = tx
             .antenna
@@ -102,7 +103,7 @@ impl LinkModel {
 /// Link geometry (spec/radio.md §2): `(d2D m, d3D m, θ deg zenith at the GBS, φ deg CCW from
 /// east, unwrapped)`.
 #[inline(always)]
-fn geometry(bs_m: [f64; 3], uav_m: [f64; 3]) -> (f64, f64, f64, f64) {
+fn geometry(bs_m: Point, uav_m: Point) -> (f64, f64, f64, f64) {
     let dx = uav_m[0] - bs_m[0];
     let dy = uav_m[1] - bs_m[1];
     let dz = uav_m[2] - bs_m[2];

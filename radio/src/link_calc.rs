@@ -9,6 +9,7 @@ use crate::link::{LinkModel, Transmitter};
 use crate::pathloss::Scenario;
 use crate::world::RadioWorld;
 use dupac_common::Config;
+use dupac_common::geometry::Point;
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
@@ -16,8 +17,10 @@ use std::io::{BufRead, Write};
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LinkRequest {
-    bs_xyz: [f64; 3],
-    uav_xyz: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    bs_xyz: Point,
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    uav_xyz: Point,
     scenario: Scenario,
     los: Option<bool>,
     boresights_deg: Option<Vec<f64>>,
@@ -102,7 +105,7 @@ const MAX_HEIGHT_M: f64 = 10_000.0;
 
 /// A position inside the physical range of the models: finite, within [`MAX_RANGE_M`]
 /// horizontally, on or above the ground and below [`MAX_HEIGHT_M`].
-fn check_position(name: &str, v: [f64; 3]) -> Result<(), String> {
+fn check_position(name: &str, v: Point) -> Result<(), String> {
     if !v.iter().all(|x| x.is_finite()) {
         return Err(format!("field `{name}`: {v:?} is not finite"));
     }
@@ -178,7 +181,7 @@ fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String,
                     let a = c.area_m;
                     return Err(format!(
                         "field `{name}`: {p:?} is outside the map (x in [{:.1}, {:.1}], y in [{:.1}, {:.1}] m); give `los` explicitly for points off the map",
-                        a[0], a[2], a[1], a[3]
+                        a.min_m.x, a.max_m.x, a.min_m.y, a.max_m.y
                     ));
                 }
             }

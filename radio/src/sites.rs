@@ -2,6 +2,7 @@
 
 use crate::pathloss::Scenario;
 use dupac_common::SiteId;
+use dupac_common::geometry::Point;
 use serde::{Deserialize, Serialize};
 
 /// Site class (spec/radio.md §5 item 10): `macro` when the antenna is above the surrounding
@@ -30,7 +31,8 @@ pub struct Site {
     /// Human-readable origin, e.g. `enb:12345` or a user-given name.
     pub name: String,
     /// Antenna position `[x_m, y_m, z_m]`, z = antenna height above ground.
-    pub position_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub position_m: Point,
     pub kind: SiteKind,
     /// Sector boresights (deg, CCW from east).
     pub boresights_deg: Vec<f64>,
@@ -425,7 +427,7 @@ fn resolve_spec(
         }
     }
     let (position_m, mount) = match finite("z_m", spec.z_m)? {
-        Some(z) if z > 0.0 && z <= MAX_SITE_HEIGHT_M => ([xy[0], xy[1], z], Mount::User),
+        Some(z) if z > 0.0 && z <= MAX_SITE_HEIGHT_M => (Point::new(xy[0], xy[1], z), Mount::User),
         Some(z) => {
             return Err(format!(
                 "field `z_m` = {z} must be in (0, {MAX_SITE_HEIGHT_M}] (antenna height, m)"
@@ -470,7 +472,7 @@ fn resolve_spec(
 /// Mounts an antenna near `xy_m`: on the nearest roof within `roof_search_m` (at the point of the
 /// roof edge nearest `xy_m`, 1 m inside it, at the highest roof there + `roof_mast_m`) or on a
 /// street pole of `pole_height_m`.
-pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3], Mount) {
+pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> (Point, Mount) {
     let [x, y] = xy_m;
     let mut best: Option<(f64, [f64; 2], &Building)> = None;
     for i in city.index.near(x, y, cfg.roof_search_m) {
@@ -507,14 +509,14 @@ pub fn mount_site(city: &City, xy_m: [f64; 2], cfg: &ScenarioConfig) -> ([f64; 3
             };
             let roof_m = city.roof_height_m(on[0], on[1]).max(b.z_max_m);
             (
-                [on[0], on[1], roof_m + cfg.roof_mast_m],
+                Point::new(on[0], on[1], roof_m + cfg.roof_mast_m),
                 Mount::Roof {
                     building: b.id.clone(),
                     roof_m,
                 },
             )
         }
-        None => ([x, y, cfg.pole_height_m], Mount::Pole),
+        None => (Point::new(x, y, cfg.pole_height_m), Mount::Pole),
     }
 }
 
@@ -550,7 +552,7 @@ const ROOFTOP_SAMPLE_M: f64 = 5.0;
 
 /// `macro` when the antenna is above the median rooftop height of the built area within
 /// `radius_m` (spec/radio.md §5 item 10), else `micro`. No buildings around: `macro`.
-pub fn classify_kind(city: &City, antenna_m: [f64; 3], radius_m: f64) -> SiteKind {
+pub fn classify_kind(city: &City, antenna_m: Point, radius_m: f64) -> SiteKind {
     let mut roofs = Vec::new();
     let n = (radius_m / ROOFTOP_SAMPLE_M).ceil() as i64;
     for j in -n..=n {

@@ -8,6 +8,7 @@ use crate::link::{LinkBudget, LinkModel, Transmitter};
 use crate::sites::{Site, place_sites};
 use dupac_common::SiteId;
 use dupac_common::config::{Config, RadioConfig};
+use dupac_common::geometry::Point;
 
 /// City, sites and radio model, ready for link queries.
 #[derive(Debug, Clone)]
@@ -67,7 +68,7 @@ impl RadioWorld {
     }
 
     /// Checks that a UAV position is finite and inside the flight area.
-    pub fn check_uav(&self, uav_m: [f64; 3]) -> Result<(), RadioError> {
+    pub fn check_uav(&self, uav_m: Point) -> Result<(), RadioError> {
         if uav_m.iter().any(|v| !v.is_finite()) {
             return Err(RadioError::Position {
                 what: "uav_xyz",
@@ -82,7 +83,7 @@ impl RadioWorld {
                 value: uav_m,
                 message: format!(
                     "outside the map: x must be in [{:.1}, {:.1}] and y in [{:.1}, {:.1}] m",
-                    a[0], a[2], a[1], a[3]
+                    a.min_m.x, a.max_m.x, a.min_m.y, a.max_m.y
                 ),
             });
         }
@@ -91,14 +92,14 @@ impl RadioWorld {
 
     /// Whether site `id` sees the UAV (no building on the antenna → UAV segment).
     #[inline]
-    pub fn los(&self, id: SiteId, uav_m: [f64; 3]) -> bool {
+    pub fn los(&self, id: SiteId, uav_m: Point) -> bool {
         !self
             .city
             .segment_blocked(self.sites[id.index()].position_m, uav_m)
     }
 
     /// Full link budget of site `id` at `uav_m`, LoS decided geometrically.
-    pub fn link_budget(&self, id: SiteId, uav_m: [f64; 3]) -> LinkBudget {
+    pub fn link_budget(&self, id: SiteId, uav_m: Point) -> LinkBudget {
         let los = self.los(id, uav_m);
         self.link
             .evaluate(&self.transmitter(id.index()), uav_m, los)
@@ -106,21 +107,21 @@ impl RadioWorld {
 
     /// Exact RSRP (dBm) of site `id` at `uav_m`.
     #[inline]
-    pub fn rsrp_dbm(&self, id: SiteId, uav_m: [f64; 3]) -> f64 {
+    pub fn rsrp_dbm(&self, id: SiteId, uav_m: Point) -> f64 {
         let los = self.los(id, uav_m);
         self.link
             .rsrp_dbm(&self.transmitter(id.index()), uav_m, los)
     }
 
     /// Exact RSRP (dBm) of every site at `uav_m`, written into `out[site]` (`out.len()` ≥ M).
-    pub fn rsrp_all_dbm(&self, uav_m: [f64; 3], out: &mut [f64]) {
+    pub fn rsrp_all_dbm(&self, uav_m: Point, out: &mut [f64]) {
         for (i, o) in out.iter_mut().enumerate().take(self.sites.len()) {
             *o = self.rsrp_dbm(SiteId(i as u16), uav_m);
         }
     }
 
     /// The strongest site at `uav_m`: `(site, RSRP dBm, LoS)`; lowest id on ties.
-    pub fn best_server(&self, uav_m: [f64; 3]) -> (SiteId, f64, bool) {
+    pub fn best_server(&self, uav_m: Point) -> (SiteId, f64, bool) {
         let mut best = (SiteId(0), f64::NEG_INFINITY, false);
         for i in 0..self.sites.len() {
             let id = SiteId(i as u16);

@@ -7,6 +7,7 @@
 //! feature, column or key; valid files still load.
 
 use dupac_common::config::{BuildingDetail, CityKind, Config, ScenarioConfig};
+use dupac_common::geometry::Bounds2;
 use dupac_radio::RadioError;
 use dupac_radio::city::osm::parse_buildings;
 use dupac_radio::city::{Building, City};
@@ -20,7 +21,7 @@ use std::sync::OnceLock;
 const GEO_PATH: &str = "fuzz-buildings.geojson";
 const LON0: f64 = -73.985;
 const LAT0: f64 = 40.75;
-const BIG: [f64; 4] = [-1e9, -1e9, 1e9, 1e9];
+const BIG: Bounds2 = Bounds2::new(-1e9, -1e9, 1e9, 1e9);
 
 fn projection() -> LocalProjection {
     LocalProjection::new(LON0, LAT0)
@@ -120,7 +121,7 @@ fn judge_geojson(text: &str) -> Vec<Result<Vec<Building>, String>> {
                     // What the loader hands on must build a city (mesh and footprint index).
                     let city = City::from_buildings(
                         "fuzz",
-                        [-1e3, -1e3, 1e3, 1e3],
+                        Bounds2::new(-1e3, -1e3, 1e3, 1e3),
                         buildings.clone(),
                         None,
                     );

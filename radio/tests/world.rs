@@ -3,6 +3,7 @@
 
 use dupac_common::SiteId;
 use dupac_common::config::{CityKind, Config};
+use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::cache::{GridSpec, Opened, RsrpCache, RsrpSource};
 use dupac_radio::city::{Building, City};
 use dupac_radio::class::RsrpClass;
@@ -20,7 +21,7 @@ fn block(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, h: f64) -> Building {
     }
 }
 
-fn macro_site(id: u16, xyz: [f64; 3]) -> Site {
+fn macro_site(id: u16, xyz: Point) -> Site {
     Site {
         id: SiteId(id),
         name: format!("s{id}"),
@@ -39,12 +40,16 @@ fn tower_world() -> RadioWorld {
     let cfg = Config::default();
     let city = City::from_buildings(
         "tower",
-        [-500.0, -500.0, 500.0, 500.0],
+        Bounds2::new(-500.0, -500.0, 500.0, 500.0),
         vec![block("tower", 200.0, -30.0, 260.0, 30.0, 80.0)],
         None,
     )
     .expect("city");
-    RadioWorld::from_parts(city, vec![macro_site(0, [0.0, 0.0, 25.0])], &cfg.radio)
+    RadioWorld::from_parts(
+        city,
+        vec![macro_site(0, Point::new(0.0, 0.0, 25.0))],
+        &cfg.radio,
+    )
 }
 
 #[test]
@@ -52,7 +57,7 @@ fn tower_shadows_the_link_and_nlos_follows_the_spec_formula() {
     let w = tower_world();
     // UAV at 50 m, 400 m east, behind the tower: NLoS. At 100 m: the segment clears 80 m? The
     // segment from 25 m to 100 m over 400 m is at 25 + 75·(200/400) = 62.5 m at x = 200: blocked.
-    let behind = [400.0, 0.0, 50.0];
+    let behind = Point::new(400.0, 0.0, 50.0);
     let b = w.link_budget(SiteId(0), behind);
     assert!(!b.los);
     // Independent arithmetic (spec §1, UMa-AV NLoS ω8 at h = 50): d3D = hypot(400, 25) = 400.78 m,
@@ -60,13 +65,13 @@ fn tower_shadows_the_link_and_nlos_follows_the_spec_formula() {
     assert!((b.d3d_m - 400.780_488).abs() < 1e-5, "{}", b.d3d_m);
     assert!((b.pl_db - 109.7403).abs() < 1e-3, "{}", b.pl_db);
     // North of the tower the same distance is LoS: ω4 = 28 + 22 log10 400.78 + 20 log10 2 = 91.2845 dB.
-    let clear = [0.0, 400.0, 50.0];
+    let clear = Point::new(0.0, 400.0, 50.0);
     let c = w.link_budget(SiteId(0), clear);
     assert!(c.los);
     assert!((c.pl_db - 91.2845).abs() < 1e-3, "{}", c.pl_db);
     assert!(c.rsrp_dbm > b.rsrp_dbm + 10.0);
     // Far above the tower: LoS again.
-    assert!(w.los(SiteId(0), [400.0, 0.0, 300.0]));
+    assert!(w.los(SiteId(0), Point::new(400.0, 0.0, 300.0)));
 }
 
 #[test]
@@ -76,13 +81,17 @@ fn spec_table_row_macro_500m_through_the_world() {
     let cfg = Config::default();
     let city = City::from_buildings(
         "empty",
-        [-1000.0, -1000.0, 1000.0, 1000.0],
+        Bounds2::new(-1000.0, -1000.0, 1000.0, 1000.0),
         vec![block("far", 900.0, 900.0, 950.0, 950.0, 10.0)],
         None,
     )
     .expect("city");
-    let w = RadioWorld::from_parts(city, vec![macro_site(0, [0.0, 0.0, 25.0])], &cfg.radio);
-    let b = w.link_budget(SiteId(0), [500.0, 0.0, 100.0]);
+    let w = RadioWorld::from_parts(
+        city,
+        vec![macro_site(0, Point::new(0.0, 0.0, 25.0))],
+        &cfg.radio,
+    );
+    let b = w.link_budget(SiteId(0), Point::new(500.0, 0.0, 100.0));
     assert!(b.los);
     assert!((b.theta_deg - 81.47).abs() < 0.01, "{}", b.theta_deg);
     assert!((b.gain_dbi - 0.41).abs() < 0.01, "{}", b.gain_dbi);
@@ -97,7 +106,7 @@ fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     let slice = compute_slice(
         &w,
         Server::Best,
-        [-500.0, -500.0, 500.0, 500.0],
+        Bounds2::new(-500.0, -500.0, 500.0, 500.0),
         30.0,
         10.0,
         &|_| {},
@@ -120,7 +129,7 @@ fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     let one = compute_slice(
         &w,
         Server::Site(SiteId(0)),
-        [-500.0, -500.0, 500.0, 500.0],
+        Bounds2::new(-500.0, -500.0, 500.0, 500.0),
         30.0,
         10.0,
         &|_| {},
@@ -196,7 +205,7 @@ fn cache_matches_exact_mode_at_grid_points_and_detects_staleness() {
     // Midway between two grid points the value is their mean (trilinear along one axis).
     let a = g.point_m(7, 13, 3);
     let b = g.point_m(8, 13, 3);
-    let mid = [(a[0] + b[0]) / 2.0, a[1], a[2]];
+    let mid = Point::new((a[0] + b[0]) / 2.0, a[1], a[2]);
     let (ea, eb) = (cache.rsrp_dbm(SiteId(2), a), cache.rsrp_dbm(SiteId(2), b));
     assert!((cache.rsrp_dbm(SiteId(2), mid) - (ea + eb) / 2.0).abs() < 1e-4);
 
@@ -256,7 +265,7 @@ fn sites_file_overrides_placement_and_bad_files_name_the_line() {
     let city = City::load(&cfg.scenario).expect("city");
     let sites = place_sites(&cfg.scenario, &cfg.radio, &city).expect("sites");
     assert_eq!(sites.len(), 2);
-    assert_eq!(sites[0].position_m, [10.0, 20.0, 30.0]);
+    assert_eq!(sites[0].position_m, Point::new(10.0, 20.0, 30.0));
     assert_eq!(sites[0].boresights_deg, vec![0.0, 120.0, 240.0]);
     assert_eq!(sites[0].electrical_tilt_deg, 6.0);
     assert_eq!(sites[0].tx_power_dbm, 18.0);
@@ -315,7 +324,7 @@ fn sites_file_overrides_placement_and_bad_files_name_the_line() {
     .expect("write");
     cfg.scenario.sites_file = Some(toml.clone());
     let sites = place_sites(&cfg.scenario, &cfg.radio, &city).expect("sites");
-    assert_eq!(sites[0].position_m, [1.0, 2.0, 40.0]);
+    assert_eq!(sites[0].position_m, Point::new(1.0, 2.0, 40.0));
     std::fs::write(&toml, "[[site]]\nname = \"t\"\nx_m = 1.0\n").expect("write");
     let e = place_sites(&cfg.scenario, &cfg.radio, &city)
         .unwrap_err()

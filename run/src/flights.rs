@@ -12,6 +12,7 @@ use dupac_actor::planner::Planner;
 use dupac_common::Config;
 use dupac_common::config::Association;
 use dupac_common::fsio::write_atomic_with;
+use dupac_common::geometry::Point;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::world::RadioWorld;
@@ -93,7 +94,7 @@ pub fn summary_md(title: &str, rows: &[FlightSummary]) -> String {
 }
 
 /// The best RSRP over all sites at `p` (dBm).
-pub fn env_rsrp_at(rsrp: &dyn RsrpSource, world: &RadioWorld, p: [f64; 3]) -> f64 {
+pub fn env_rsrp_at(rsrp: &dyn RsrpSource, world: &RadioWorld, p: Point) -> f64 {
     let mut all = vec![0.0; world.num_sites()];
     rsrp.rsrp_all_dbm(p, &mut all);
     all.iter().copied().fold(f64::NEG_INFINITY, f64::max)

@@ -9,6 +9,7 @@ use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, CityKind, Config, RadioMode};
+use dupac_common::geometry::Vector;
 use dupac_learner::Learner;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
@@ -63,11 +64,11 @@ fn random_policy_success(
         .expect("reset");
         loop {
             let a = Action {
-                move_: [
+                move_: Vector::new(
                     rng.random_range(-1.0..1.0),
                     rng.random_range(-1.0..1.0),
                     rng.random_range(-1.0..1.0),
-                ],
+                ),
                 site: SiteId(rng.random_range(0..6)),
             };
             let s = env.act(&a).expect("act");

@@ -3,6 +3,7 @@
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use dupac_common::geometry::Point;
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
 use dupac_radio::world::RadioWorld;
 use rand::{RngExt, SeedableRng};
@@ -112,11 +113,11 @@ pub fn check(
     let mut best_err = 0.0;
     let mut points = 0usize;
     while points < samples {
-        let p = [
-            rng.random_range(a[0]..a[2]),
-            rng.random_range(a[1]..a[3]),
+        let p = Point::new(
+            rng.random_range(a.min_m.x..a.max_m.x),
+            rng.random_range(a.min_m.y..a.max_m.y),
             rng.random_range(z_min_m..z_max_m),
-        ];
+        );
         if world.city.is_inside_building(p) {
             continue;
         }

@@ -60,7 +60,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
     let mut summaries: Vec<SliceSummary> = Vec::new();
     for &alt in &cfg.map.altitudes_m {
         let t = Instant::now();
-        let ny = ((world.city.area_m[3] - world.city.area_m[1]) / cfg.map.resolution_m)
+        let ny = ((world.city.area_m.max_m.y - world.city.area_m.min_m.y) / cfg.map.resolution_m)
             .floor()
             .max(1.0) as u64;
         let pb = super::progress_bar(ny, &format!("map at {alt} m"), global.quiet);

@@ -11,7 +11,7 @@ use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
-use dupac_common::geometry::distance_m as dist;
+use dupac_common::geometry::{Point, distance_m as dist};
 use dupac_radio::cache::{RsrpCache, RsrpSource};
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
@@ -47,14 +47,14 @@ pub struct PlanArgs {
     pub out: PathBuf,
 }
 
-fn parse_xyz(s: &str, what: &str) -> Result<[f64; 3]> {
+fn parse_xyz(s: &str, what: &str) -> Result<Point> {
     let v: Vec<f64> = s
         .split(',')
         .map(|p| p.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .with_context(|| format!("--{what} {s:?}: expected X,Y,Z in metres"))?;
     match v.as_slice() {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Point::new(*x, *y, *z)),
         _ => bail!("--{what} {s:?}: expected three finite numbers X,Y,Z"),
     }
 }

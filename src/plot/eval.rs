@@ -9,6 +9,7 @@ use crate::io::write_atomic_with;
 use anyhow::{Context, Result};
 use dupac_actor::env::Outcome;
 use dupac_actor::eval::{FlightMetrics, MeanCi};
+use dupac_common::geometry::Point;
 use dupac_run::eval::records::RecordsFile;
 use dupac_run::eval::report::MethodData;
 use plotters::prelude::*;
@@ -347,7 +348,7 @@ pub fn draw_examples(
                 .push(f64::from(r.steps[0].serving_rsrp_dbm));
             t.class.push(r.steps[0].class);
             for s in &r.steps {
-                t.points_m.push(s.position_m.map(f64::from));
+                t.points_m.push(Point::from(s.position_m.map(f64::from)));
                 t.serving_rsrp_dbm.push(f64::from(s.serving_rsrp_dbm));
                 t.class.push(s.class);
             }

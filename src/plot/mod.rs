@@ -10,6 +10,7 @@ pub mod eval;
 pub mod plan;
 
 use anyhow::{Context, Result, anyhow, bail};
+use dupac_common::geometry::Bounds2;
 use dupac_radio::city::Building;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::coverage::CoverageSlice;
@@ -198,13 +199,13 @@ pub(crate) fn fmt_num(v: f64) -> String {
 }
 
 /// Clips a polygon ring (open) to the rectangle `[x0, x1] × [y0, y1]` (Sutherland–Hodgman).
-pub(crate) fn clip_ring(ring: &[[f64; 2]], r: [f64; 4]) -> Vec<[f64; 2]> {
+pub(crate) fn clip_ring(ring: &[[f64; 2]], r: Bounds2) -> Vec<[f64; 2]> {
     // Each edge: (axis, bound, keep if coordinate ≥ bound when `lower`).
     let edges = [
-        (0usize, r[0], true),
-        (0, r[2], false),
-        (1, r[1], true),
-        (1, r[3], false),
+        (0usize, r.min_m.x, true),
+        (0, r.max_m.x, false),
+        (1, r.min_m.y, true),
+        (1, r.max_m.y, false),
     ];
     let mut poly: Vec<[f64; 2]> = ring.to_vec();
     for (axis, bound, lower) in edges {
@@ -255,15 +256,15 @@ pub fn render_coverage_png(
     slice: &CoverageSlice,
     buildings: &[Building],
     sites: &[Site],
-    area_m: [f64; 4],
+    area_m: Bounds2,
     thresholds: &RsrpThresholds,
     title: &str,
     path: &Path,
 ) -> Result<()> {
-    let [x_min, y_min, x_max, y_max] = area_m;
-    if !(area_m.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
+    let [x_min, y_min, x_max, y_max] = area_m.to_array();
+    if !(area_m.to_array().iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
         bail!(
-            "cannot plot {}: flight area {area_m:?} is empty or not finite",
+            "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
         );
     }
@@ -308,12 +309,12 @@ fn draw(
     slice: &CoverageSlice,
     buildings: &[Building],
     sites: &[Site],
-    area_m: [f64; 4],
+    area_m: Bounds2,
     thresholds: &RsrpThresholds,
     title: &str,
     file: &Path,
 ) -> Result<()> {
-    let [x_min, y_min, x_max, y_max] = area_m;
+    let [x_min, y_min, x_max, y_max] = area_m.to_array();
     // Layout first (pure arithmetic): a plot area of equal aspect, as large as fits next to the
     // side column in WIDTH × HEIGHT; the canvas is then cut to the map's height (≥ MIN_HEIGHT).
     let body_w = WIDTH as i32;
@@ -399,12 +400,12 @@ fn draw(
     root.draw(&bitmap).map_err(pe)?;
 
     // Buildings, clipped to the area.
-    let clip = [x_min, y_min, x_max, y_max];
+    let clip = Bounds2::new(x_min, y_min, x_max, y_max);
     let tall_style = TALL_FILL.mix(TALL_ALPHA).filled();
     let outline_style = OUTLINE.stroke_width(1);
     for b in buildings {
         let bb = b.bounds_m();
-        if bb[2] < x_min || bb[0] > x_max || bb[3] < y_min || bb[1] > y_max {
+        if bb.max_m.x < x_min || bb.min_m.x > x_max || bb.max_m.y < y_min || bb.min_m.y > y_max {
             continue;
         }
         let tall = b.z_min_m <= slice.altitude_m && slice.altitude_m < b.z_max_m;
@@ -692,7 +693,7 @@ mod tests {
     use dupac_common::SiteId;
     use dupac_radio::sites::Mount;
 
-    fn synthetic(n: usize, res: f64) -> (CoverageSlice, Vec<Building>, Vec<Site>, [f64; 4]) {
+    fn synthetic(n: usize, res: f64) -> (CoverageSlice, Vec<Building>, Vec<Site>, Bounds2) {
         let half = 0.5 * n as f64 * res;
         let bld = |id: &str, x: f64, y: f64, w: f64, h: f64, z: f64| Building {
             id: id.into(),
@@ -736,7 +737,7 @@ mod tests {
         let site = |i: u16, x: f64, y: f64, kind| Site {
             id: SiteId(i),
             name: format!("s{i}"),
-            position_m: [x, y, 30.0],
+            position_m: dupac_common::geometry::Point::new(x, y, 30.0),
             kind,
             boresights_deg: vec![30.0, 150.0, 270.0],
             electrical_tilt_deg: 10.0,
@@ -748,17 +749,22 @@ mod tests {
             site(1, -150.0, 100.0, SiteKind::Micro),
             site(12, 100.0, -120.0, SiteKind::Micro),
         ];
-        (slice, buildings, sites, [-half, -half, half, half])
+        (
+            slice,
+            buildings,
+            sites,
+            Bounds2::new(-half, -half, half, half),
+        )
     }
 
     #[test]
     fn clip_ring_keeps_inside_and_cuts_outside() {
         let sq = vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-        assert_eq!(clip_ring(&sq, [-2.0, -2.0, 2.0, 2.0]), sq);
-        let c = clip_ring(&sq, [0.0, 0.0, 5.0, 5.0]);
+        assert_eq!(clip_ring(&sq, Bounds2::new(-2.0, -2.0, 2.0, 2.0)), sq);
+        let c = clip_ring(&sq, Bounds2::new(0.0, 0.0, 5.0, 5.0));
         let a = dupac_radio::city::signed_area_m2(&c);
         assert!((a - 1.0).abs() < 1e-12, "{c:?}");
-        assert!(clip_ring(&sq, [3.0, 3.0, 5.0, 5.0]).is_empty());
+        assert!(clip_ring(&sq, Bounds2::new(3.0, 3.0, 5.0, 5.0)).is_empty());
     }
 
     #[test]
@@ -804,7 +810,7 @@ mod tests {
             &slice,
             &buildings,
             &sites,
-            [0.0, 0.0, 0.0, 1.0],
+            Bounds2::new(0.0, 0.0, 0.0, 1.0),
             &RsrpThresholds::default(),
             "t",
             &path,

@@ -4,6 +4,7 @@ use dupac_common::SiteId;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
 
+use dupac_common::geometry::Point;
 pub use dupac_common::msg::Outcome;
 
 /// One step's record (spec/env.md "Metrics").
@@ -12,7 +13,8 @@ pub struct StepInfo {
     /// Step index within the episode (1 for the first step).
     pub step: u32,
     /// UAV position after the move (m).
-    pub position_m: [f64; 3],
+    #[serde(with = "dupac_common::geometry::serde_point")]
+    pub position_m: Point,
     pub serving: SiteId,
     pub serving_rsrp_dbm: f64,
     /// The strongest site and its RSRP at this position.

@@ -15,12 +15,13 @@ mod reward;
 
 use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
-use dupac_common::geometry::distance_m as dist;
+use dupac_common::geometry::{distance_m as dist, norm};
 pub use info::{Outcome, StepInfo};
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig};
+use dupac_common::geometry::{Point, Vector};
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
@@ -39,7 +40,7 @@ pub enum EnvError {
     #[error("{which} {position:?}: {message}")]
     BadEndpoint {
         which: &'static str,
-        position: [f64; 3],
+        position: Point,
         message: String,
     },
     #[error("pair shortest_m = {0} must be a finite length > 0")]
@@ -54,15 +55,15 @@ pub enum EnvError {
 /// what the learner stores) and the chosen serving site (ignored unless `association = learned`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Action {
-    pub move_: [f64; 3],
+    pub move_: Vector,
     pub site: SiteId,
 }
 
 /// An episode's endpoints and its shortest flyable path length (for the time limit).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Episode {
-    pub source_m: [f64; 3],
-    pub destination_m: [f64; 3],
+    pub source_m: Point,
+    pub destination_m: Point,
     /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
     pub shortest_m: f64,
 }
@@ -104,7 +105,7 @@ pub struct Env {
     a3: A3Params,
     layout: ObsLayout,
     slots: Slots,
-    sensor_dirs: [[f64; 3]; 26],
+    sensor_dirs: [Vector; 26],
     /// `env.min_time_of_stay_s` in steps (0: off); learned association only.
     min_stay_steps: u32,
     /// A decision whose site choice has not yet been applied (the lock of the minimum time of
@@ -114,8 +115,8 @@ pub struct Env {
     route_penalty: [f64; 2],
     // Episode state.
     episode: Option<Episode>,
-    position_m: [f64; 3],
-    velocity_m: [f64; 3],
+    position_m: Point,
+    velocity_m: Vector,
     serving: SiteId,
     associator: Associator,
     rsrp_dbm: Vec<f64>,
@@ -168,11 +169,10 @@ impl Env {
             rsrp_serving: layout.range(field::RSRP_SERVING),
             site_features: layout.range(field::SITE_FEATURES),
         };
-        let mut sensor_dirs = [[0.0; 3]; 26];
+        let mut sensor_dirs = [Vector::zeros(); 26];
         for (d, s) in sensor_dirs.iter_mut().zip(SENSOR_DIRECTIONS) {
-            let v = [f64::from(s[0]), f64::from(s[1]), f64::from(s[2])];
-            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            *d = [v[0] / n, v[1] / n, v[2] / n];
+            let v = Vector::new(f64::from(s[0]), f64::from(s[1]), f64::from(s[2]));
+            *d = v / norm(v);
         }
         let dt = env.dt_s();
         let a3 = A3Params::from_config(&cfg.radio.a3, dt);
@@ -193,8 +193,8 @@ impl Env {
             choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
-            position_m: [0.0; 3],
-            velocity_m: [0.0; 3],
+            position_m: Point::origin(),
+            velocity_m: Vector::zeros(),
             serving: SiteId(0),
             associator: Associator::Learned,
             rsrp_dbm: vec![f64::NEG_INFINITY; m],
@@ -246,7 +246,7 @@ impl Env {
         &self.obs
     }
 
-    pub fn position_m(&self) -> [f64; 3] {
+    pub fn position_m(&self) -> Point {
         self.position_m
     }
 
@@ -282,7 +282,7 @@ impl Env {
     }
 
     /// Checks an endpoint: finite, in the area and band, not inside a building.
-    pub fn check_endpoint(&self, which: &'static str, p: [f64; 3]) -> Result<(), EnvError> {
+    pub fn check_endpoint(&self, which: &'static str, p: Point) -> Result<(), EnvError> {
         let bad = |message: String| EnvError::BadEndpoint {
             which,
             position: p,
@@ -293,10 +293,7 @@ impl Env {
         }
         let a = self.world.city.area_m;
         if !self.world.city.in_area(p[0], p[1]) {
-            return Err(bad(format!(
-                "outside the flight area x ∈ [{:.1}, {:.1}], y ∈ [{:.1}, {:.1}] m",
-                a[0], a[2], a[1], a[3]
-            )));
+            return Err(bad(format!("outside the flight area {a}")));
         }
         if p[2] < self.cfg.z_min_m || p[2] > self.cfg.z_max_m {
             return Err(bad(format!(
@@ -322,7 +319,7 @@ impl Env {
         self.seed = seed;
         self.episode = Some(episode);
         self.position_m = episode.source_m;
-        self.velocity_m = [0.0; 3];
+        self.velocity_m = Vector::zeros();
         self.step = 0;
         self.time_limit = (self.cfg.time_limit_factor * episode.shortest_m / self.cfg.max_step_m)
             .ceil()
@@ -399,7 +396,7 @@ impl Env {
         }
         let episode = self.episode.ok_or(EnvError::EpisodeOver)?;
         if action.move_.iter().any(|v| !v.is_finite()) {
-            return Err(EnvError::NonFiniteAction(action.move_));
+            return Err(EnvError::NonFiniteAction(action.move_.into()));
         }
         let m = self.world.num_sites();
         if self.cfg.association == Association::Learned && action.site.index() >= m {
@@ -411,10 +408,7 @@ impl Env {
         self.step += 1;
         let from = self.position_m;
         let a = bounded_move(action.move_, self.cfg.action_clip);
-        let mut to = [0.0; 3];
-        for k in 0..3 {
-            to[k] = from[k] + a[k] * self.cfg.max_step_m;
-        }
+        let mut to = from + a * self.cfg.max_step_m;
         // The altitude band is a clamp, not a failure (spec/env.md "UAV and motion").
         to[2] = to[2].clamp(self.cfg.z_min_m, self.cfg.z_max_m);
 
@@ -426,19 +420,13 @@ impl Env {
             .sphere_sweep(from, to, self.cfg.uav_radius_m)
         {
             // Stop at the contact point.
-            for k in 0..3 {
-                to[k] = from[k] + t * (to[k] - from[k]);
-            }
+            to = from + (to - from) * t;
             outcome = Some(Outcome::Collision);
         } else if !self.world.city.in_area(to[0], to[1]) {
             outcome = Some(Outcome::OutOfBounds);
         }
         let step_length_m = dist(from, to);
-        self.velocity_m = [
-            (to[0] - from[0]) / self.cfg.max_step_m,
-            (to[1] - from[1]) / self.cfg.max_step_m,
-            (to[2] - from[2]) / self.cfg.max_step_m,
-        ];
+        self.velocity_m = (to - from) / self.cfg.max_step_m;
         self.position_m = to;
         self.distance_flown_m += step_length_m;
         let d_prev = self.distance_to_goal_m;
@@ -556,12 +544,12 @@ impl Env {
 
 /// The move actually flown, in units of max_step_m: the action bounded per
 /// [`ActionClip`] (spec/env.md "UAV and motion" for `cube`).
-pub fn bounded_move(a: [f64; 3], clip: ActionClip) -> [f64; 3] {
+pub fn bounded_move(a: Vector, clip: ActionClip) -> Vector {
     match clip {
         ActionClip::Cube => a.map(|v| v.clamp(-1.0, 1.0)),
         ActionClip::Ball => {
-            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-            if n > 1.0 { a.map(|v| v / n) } else { a }
+            let n = norm(a);
+            if n > 1.0 { a / n } else { a }
         }
     }
 }

@@ -5,6 +5,7 @@
 use super::{Env, RSRP_FLOOR_DBM, argmax};
 use dupac_common::SiteId;
 use dupac_common::config::NearestObstacle;
+use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::obs::{site_feature, site_features_per_site};
 use std::ops::Range;
 
@@ -44,15 +45,17 @@ impl Env {
         let s = self.slots.clone();
         let o = &self.cfg.observation;
         let a = self.world.city.area_m;
-        let (cx, cy) = (0.5 * (a[0] + a[2]), 0.5 * (a[1] + a[3]));
-        let (hx, hy) = (0.5 * (a[2] - a[0]), 0.5 * (a[3] - a[1]));
+        let (cx, cy) = (0.5 * (a.min_m.x + a.max_m.x), 0.5 * (a.min_m.y + a.max_m.y));
+        let (hx, hy) = (0.5 * (a.max_m.x - a.min_m.x), 0.5 * (a.max_m.y - a.min_m.y));
         let zc = 0.5 * (self.cfg.z_min_m + self.cfg.z_max_m);
         let hz = 0.5 * (self.cfg.z_max_m - self.cfg.z_min_m);
         let p = self.position_m;
         let pos = [(p[0] - cx) / hx, (p[1] - cy) / hy, (p[2] - zc) / hz];
         let mut fan = [1.0f32; 26];
         let (mut c_t, nearest) = self.sense(&mut fan);
-        let mut dir = nearest.map(|i| self.sensor_dirs[i]).unwrap_or([0.0; 3]);
+        let mut dir = nearest
+            .map(|i| self.sensor_dirs[i])
+            .unwrap_or(Vector::zeros());
         if o.nearest_obstacle == NearestObstacle::Exact {
             let range = o.sensor_range_m;
             let mut nearest = self.world.city.mesh.nearest_surface_m(p, range);
@@ -64,7 +67,7 @@ impl Env {
             }
             (c_t, dir) = match nearest {
                 Some((d, u)) => (o.sensor_scale.scale(d, range) as f32, u),
-                None => (1.0, [0.0; 3]),
+                None => (1.0, Vector::zeros()),
             };
         }
         let rsrp_norm = |v: f64| {
@@ -182,10 +185,10 @@ impl Env {
 }
 
 /// Distance (m) from `p` along the unit direction `d` to the lateral edge of the flight area
-/// `area = [x_min, y_min, x_max, y_max]` (∞ for a vertical ray); 0 outside the area.
-fn area_exit_m(area: [f64; 4], p: [f64; 3], d: [f64; 3]) -> f64 {
+/// `area` (∞ for a vertical ray); 0 outside the area.
+fn area_exit_m(area: Bounds2, p: Point, d: Vector) -> f64 {
     let mut t = f64::INFINITY;
-    for (k, (lo, hi)) in [(area[0], area[2]), (area[1], area[3])]
+    for (k, (lo, hi)) in [(area.min_m.x, area.max_m.x), (area.min_m.y, area.max_m.y)]
         .into_iter()
         .enumerate()
     {
@@ -200,17 +203,16 @@ fn area_exit_m(area: [f64; 4], p: [f64; 3], d: [f64; 3]) -> f64 {
 
 /// The nearest point of the flight area's lateral edge: its distance (m, 0 outside) and the unit
 /// horizontal direction towards it.
-fn nearest_edge_m(area: [f64; 4], p: [f64; 3]) -> (f64, [f64; 3]) {
+fn nearest_edge_m(area: Bounds2, p: Point) -> (f64, Vector) {
     [
-        (p[0] - area[0], [-1.0, 0.0, 0.0]),
-        (area[2] - p[0], [1.0, 0.0, 0.0]),
-        (p[1] - area[1], [0.0, -1.0, 0.0]),
-        (area[3] - p[1], [0.0, 1.0, 0.0]),
+        (p[0] - area.min_m.x, -Vector::x()),
+        (area.max_m.x - p[0], Vector::x()),
+        (p[1] - area.min_m.y, -Vector::y()),
+        (area.max_m.y - p[1], Vector::y()),
     ]
     .into_iter()
     .map(|(d, u)| (d.max(0.0), u))
-    .fold(
-        (f64::INFINITY, [0.0; 3]),
-        |b, e| if e.0 < b.0 { e } else { b },
-    )
+    .fold((f64::INFINITY, Vector::zeros()), |b, e| {
+        if e.0 < b.0 { e } else { b }
+    })
 }

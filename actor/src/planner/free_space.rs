@@ -8,6 +8,7 @@
 //! 287 × 289 × 21 points, the band's two limits included.
 
 use dupac_common::config::{EnvConfig, PlannerConfig};
+use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::{City, to_vec3};
 use parry3d::query::PointQuery;
 use rayon::prelude::*;
@@ -57,7 +58,7 @@ const MAX_VOXELS: usize = (u32::MAX - 1) as usize;
 pub struct FreeSpace {
     city: City,
     /// Flight area `[x_min, y_min, x_max, y_max]` (m).
-    area_m: [f64; 4],
+    area_m: Bounds2,
     /// Altitude band `[z_min, z_max]` (m above ground), spec/env.md.
     band_m: [f64; 2],
     /// Lattice spacing (m).
@@ -65,7 +66,7 @@ pub struct FreeSpace {
     /// Clearance kept from every building surface (m).
     clearance_m: f64,
     /// Lattice point `(0, 0, 0)` (m).
-    origin_m: [f64; 3],
+    origin_m: Point,
     /// Points per axis `[nx, ny, nz]`.
     dims: [usize; 3],
     /// Distance (m) from each lattice point to the mesh, capped at max(√3·voxel + clearance + 0.5, 4·voxel); −1 inside a
@@ -133,12 +134,12 @@ impl FreeSpace {
         let area_m = city.area_m;
         let band_m = [env.z_min_m, env.z_max_m];
         let (dims, origin_m) = loop {
-            let (nx, x0) = axis(area_m[0], area_m[2], voxel_m);
-            let (ny, y0) = axis(area_m[1], area_m[3], voxel_m);
+            let (nx, x0) = axis(area_m.min_m.x, area_m.max_m.x, voxel_m);
+            let (ny, y0) = axis(area_m.min_m.y, area_m.max_m.y, voxel_m);
             let (nz, z0) = axis(band_m[0], band_m[1], voxel_m);
             let total = nx.checked_mul(ny).and_then(|v| v.checked_mul(nz));
             match total {
-                Some(t) if t <= MAX_VOXELS => break ([nx, ny, nz], [x0, y0, z0]),
+                Some(t) if t <= MAX_VOXELS => break ([nx, ny, nz], Point::new(x0, y0, z0)),
                 _ => {
                     tracing::warn!(
                         voxel_m,
@@ -211,7 +212,7 @@ impl FreeSpace {
     }
 
     /// Flight area `[x_min, y_min, x_max, y_max]` (m).
-    pub fn area_m(&self) -> [f64; 4] {
+    pub fn area_m(&self) -> Bounds2 {
         self.area_m
     }
 
@@ -236,7 +237,7 @@ impl FreeSpace {
     }
 
     /// Distance (m) from `p_m` to the building mesh, or `cap_m` when it is farther than that.
-    pub fn mesh_distance_capped_m(&self, p_m: [f64; 3], cap_m: f64) -> f64 {
+    pub fn mesh_distance_capped_m(&self, p_m: Point, cap_m: f64) -> f64 {
         match self.city.mesh.trimesh().project_local_point_with_max_dist(
             to_vec3(p_m),
             false,
@@ -249,7 +250,7 @@ impl FreeSpace {
 
     /// Whether `p_m` is finite, inside the flight area (inclusive) and inside the altitude band
     /// (inclusive).
-    pub fn in_bounds(&self, p_m: [f64; 3]) -> bool {
+    pub fn in_bounds(&self, p_m: Point) -> bool {
         p_m.iter().all(|v| v.is_finite())
             && self.city.in_area(p_m[0], p_m[1])
             && p_m[2] >= self.band_m[0]
@@ -258,7 +259,7 @@ impl FreeSpace {
 
     /// Exact free-point test: finite, in the area and the band, not inside a building, and at
     /// least `clearance_m` from the building mesh.
-    pub fn is_free_point(&self, p_m: [f64; 3]) -> bool {
+    pub fn is_free_point(&self, p_m: Point) -> bool {
         self.in_bounds(p_m)
             && !self.city.is_inside_building(p_m)
             && self.mesh_distance_capped_m(p_m, self.clearance_m) >= self.clearance_m
@@ -269,7 +270,7 @@ impl FreeSpace {
     /// every building, and a sphere of radius `clearance_m` swept from `a_m` to `b_m` never
     /// touches the building mesh (parry3d shape cast, the environment's collision test with a
     /// larger radius). A path whose segments all pass this cannot collide in the environment.
-    pub fn segment_clear(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+    pub fn segment_clear(&self, a_m: Point, b_m: Point) -> bool {
         self.in_bounds(a_m)
             && self.in_bounds(b_m)
             && !self.city.is_inside_building(a_m)
@@ -282,7 +283,7 @@ impl FreeSpace {
 
     /// [`FreeSpace::segment_clear`] with the clearance enlarged by [`SMOOTHING_MARGIN_M`]: used for
     /// every segment the smoothing creates.
-    pub(crate) fn segment_clear_smoothing(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+    pub(crate) fn segment_clear_smoothing(&self, a_m: Point, b_m: Point) -> bool {
         self.in_bounds(a_m)
             && self.in_bounds(b_m)
             && !self.city.is_inside_building(a_m)
@@ -295,12 +296,12 @@ impl FreeSpace {
 
     /// Lattice point of index triple `[ix, iy, iz]` (m).
     #[inline]
-    pub(crate) fn point_m(&self, i: [usize; 3]) -> [f64; 3] {
-        [
+    pub(crate) fn point_m(&self, i: [usize; 3]) -> Point {
+        Point::new(
             self.origin_m[0] + i[0] as f64 * self.voxel_m,
             self.origin_m[1] + i[1] as f64 * self.voxel_m,
             self.origin_m[2] + i[2] as f64 * self.voxel_m,
-        ]
+        )
     }
 
     /// Flat index of `[ix, iy, iz]`.
@@ -319,7 +320,7 @@ impl FreeSpace {
 
     /// Lattice point of a flat index (m).
     #[inline]
-    pub(crate) fn centre_m(&self, idx: u32) -> [f64; 3] {
+    pub(crate) fn centre_m(&self, idx: u32) -> Point {
         self.point_m(self.triple(idx))
     }
 
@@ -334,7 +335,7 @@ impl FreeSpace {
 
     /// Index triple of the lattice point nearest to `p_m` (clamped to the lattice), or `None` for
     /// a non-finite point or an empty lattice.
-    pub(crate) fn nearest_triple(&self, p_m: [f64; 3]) -> Option<[usize; 3]> {
+    pub(crate) fn nearest_triple(&self, p_m: Point) -> Option<[usize; 3]> {
         if self.dist_m.is_empty() || !p_m.iter().all(|v| v.is_finite()) {
             return None;
         }
@@ -397,7 +398,7 @@ impl FreeSpace {
     /// outside buildings (a ball of radius `d(c)` around an outside point holds no surface, so it
     /// is all outside). Negative when nothing is known.
     #[inline]
-    fn clearance_lower_bound_m(&self, p_m: [f64; 3]) -> f64 {
+    fn clearance_lower_bound_m(&self, p_m: Point) -> f64 {
         let mut lo = [0usize; 3];
         let mut hi = [0usize; 3];
         for k in 0..3 {
@@ -431,7 +432,7 @@ impl FreeSpace {
     /// mesh and outside buildings, as bounded by [`Self::clearance_lower_bound_m`]. It may answer
     /// `false` for a clear segment that runs within a few metres of a wall (the bound is loose
     /// there); it never answers `true` for a blocked one. Both ends must be in the area and band.
-    pub(crate) fn field_clear(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+    pub(crate) fn field_clear(&self, a_m: Point, b_m: Point) -> bool {
         if self.dist_m.is_empty() || !self.in_bounds(a_m) || !self.in_bounds(b_m) {
             return false;
         }
@@ -441,11 +442,11 @@ impl FreeSpace {
         let mut s = 0.0;
         loop {
             let f = if len > 0.0 { s / len } else { 0.0 };
-            let p = [
+            let p = Point::new(
                 a_m[0] + f * (b_m[0] - a_m[0]),
                 a_m[1] + f * (b_m[1] - a_m[1]),
                 a_m[2] + f * (b_m[2] - a_m[2]),
-            ];
+            );
             let free = self.clearance_lower_bound_m(p) - need;
             if free < 0.0 {
                 return false;

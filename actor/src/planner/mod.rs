@@ -32,6 +32,7 @@ pub use free_space::{FreeSpace, SMOOTHING_MARGIN_M};
 
 use dupac_common::config::{EnvConfig, PlannerConfig};
 pub(crate) use dupac_common::geometry::distance_m as dist;
+use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::City;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
@@ -44,14 +45,14 @@ use std::sync::Mutex;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Path {
     /// Waypoints, the source first and the destination last, both exactly as requested.
-    pub waypoints_m: Vec<[f64; 3]>,
+    pub waypoints_m: Vec<Point>,
     /// Sum of the segment lengths (m).
     pub length_m: f64,
 }
 
 impl Path {
     /// Builds a path and computes its length (m) as the sum of its segment lengths.
-    pub fn from_waypoints(waypoints_m: Vec<[f64; 3]>) -> Path {
+    pub fn from_waypoints(waypoints_m: Vec<Point>) -> Path {
         let length_m = waypoints_m.windows(2).map(|w| dist(w[0], w[1])).sum();
         Path {
             waypoints_m,
@@ -81,52 +82,43 @@ impl std::fmt::Display for Endpoint {
 pub enum PlanError {
     /// A coordinate is NaN or infinite.
     #[error("{which} {position_m:?} is not a finite point")]
-    NotFinite {
-        which: Endpoint,
-        position_m: [f64; 3],
-    },
+    NotFinite { which: Endpoint, position_m: Point },
     /// Outside the flight area `[x_min, y_min, x_max, y_max]` (m).
-    #[error("{which} {position_m:?} is outside the flight area {area_m:?}")]
+    #[error("{which} {position_m:?} is outside the flight area {area_m}")]
     OutsideArea {
         which: Endpoint,
-        position_m: [f64; 3],
-        area_m: [f64; 4],
+        position_m: Point,
+        area_m: Bounds2,
     },
     /// Outside the altitude band (m), spec/env.md.
     #[error("{which} {position_m:?} is outside the altitude band [{z_min_m}, {z_max_m}] m")]
     OutsideBand {
         which: Endpoint,
-        position_m: [f64; 3],
+        position_m: Point,
         z_min_m: f64,
         z_max_m: f64,
     },
     /// Inside a building.
     #[error("{which} {position_m:?} is inside a building")]
-    InsideBuilding {
-        which: Endpoint,
-        position_m: [f64; 3],
-    },
+    InsideBuilding { which: Endpoint, position_m: Point },
     /// Closer to a building surface than the planner's clearance.
     #[error(
         "{which} {position_m:?} is {distance_m:.2} m from a building, less than the clearance {clearance_m} m"
     )]
     TooCloseToBuilding {
         which: Endpoint,
-        position_m: [f64; 3],
+        position_m: Point,
         distance_m: f64,
         clearance_m: f64,
     },
     /// No free lattice point near the endpoint can be reached by a clear straight move.
     #[error("{which} {position_m:?} cannot be connected to the free-space lattice (walled in)")]
-    NotConnected {
-        which: Endpoint,
-        position_m: [f64; 3],
-    },
+    NotConnected { which: Endpoint, position_m: Point },
     /// The free airspace does not connect the two endpoints.
     #[error("no flyable path from source {source_m:?} to destination {destination_m:?}")]
     NoPath {
-        source_m: [f64; 3],
-        destination_m: [f64; 3],
+        source_m: Point,
+        destination_m: Point,
     },
     /// [`Planner::coverage_aware`] before [`Planner::with_coverage`].
     #[error("coverage-aware planning needs the per-voxel RSRP classes: call with_coverage first")]
@@ -194,7 +186,7 @@ impl<'a> Planner<'a> {
 
     /// Checks one endpoint: finite, in the area and the band, not inside a building, at least the
     /// planner clearance from the mesh. The error names the endpoint and the reason.
-    pub fn check_point(&self, which: Endpoint, p_m: [f64; 3]) -> Result<(), PlanError> {
+    pub fn check_point(&self, which: Endpoint, p_m: Point) -> Result<(), PlanError> {
         let fs = &self.free;
         if !p_m.iter().all(|v| v.is_finite()) {
             return Err(PlanError::NotFinite {
@@ -241,7 +233,7 @@ impl<'a> Planner<'a> {
     /// (spec/env.md "Episodes": the 3D shortest flyable path; compare with the straight line).
     /// Both endpoints must be free points ([`FreeSpace::is_free_point`]). Every segment of the
     /// result passes [`FreeSpace::segment_clear`].
-    pub fn shortest(&self, source_m: [f64; 3], destination_m: [f64; 3]) -> Result<Path, PlanError> {
+    pub fn shortest(&self, source_m: Point, destination_m: Point) -> Result<Path, PlanError> {
         self.plan(source_m, destination_m, None)
     }
 
@@ -293,8 +285,8 @@ impl<'a> Planner<'a> {
     /// [`Planner::with_coverage`].
     pub fn coverage_aware(
         &self,
-        source_m: [f64; 3],
-        destination_m: [f64; 3],
+        source_m: Point,
+        destination_m: Point,
         lambda: f64,
     ) -> Result<Path, PlanError> {
         if !(lambda.is_finite() && lambda >= 0.0) {
@@ -311,8 +303,8 @@ impl<'a> Planner<'a> {
     /// Common planner: `coverage` = per-voxel classes and the cost multiplier per class.
     fn plan(
         &self,
-        s: [f64; 3],
-        t: [f64; 3],
+        s: Point,
+        t: Point,
         coverage: Option<(&[u8], [f64; 3])>,
     ) -> Result<Path, PlanError> {
         self.check_point(Endpoint::Source, s)?;
@@ -415,7 +407,7 @@ impl<'a> Planner<'a> {
     }
 
     /// Source, lattice vertices, destination → smoothed path.
-    fn finish(&self, field: &CostField, s: [f64; 3], vertices: &[u32], t: [f64; 3]) -> Path {
+    fn finish(&self, field: &CostField, s: Point, vertices: &[u32], t: Point) -> Path {
         let fs = &self.free;
         let mut raw = Vec::with_capacity(vertices.len() + 2);
         raw.push(s);

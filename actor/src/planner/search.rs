@@ -9,6 +9,7 @@
 use super::dist;
 use super::free_space::{FreeSpace, step_len};
 use super::smooth::CostField;
+use dupac_common::geometry::Point;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -111,7 +112,7 @@ impl Ord for Entry {
 /// Lattice points joined to the endpoint `p_m` by a clear straight move, with the cost of that
 /// move: within Chebyshev radius 1 of the nearest lattice point, else 2, else 3; `None` when none.
 /// Sorted by index.
-pub(crate) fn connect(fs: &FreeSpace, p_m: [f64; 3]) -> Option<Vec<(u32, f64)>> {
+pub(crate) fn connect(fs: &FreeSpace, p_m: Point) -> Option<Vec<(u32, f64)>> {
     let centre = fs.nearest_triple(p_m)?;
     let dims = fs.dims();
     let mut done_r = None::<usize>;
@@ -158,7 +159,7 @@ pub(crate) struct SearchSpec<'s> {
     pub fs: &'s FreeSpace,
     pub field: &'s CostField<'s>,
     /// The destination (m): the heuristic aims at it.
-    pub target_m: [f64; 3],
+    pub target_m: Point,
     /// Start lattice points and the length (m) of the move from the source to each.
     pub starts: &'s [(u32, f64)],
     /// Goal lattice points (sorted by index) and the length (m) of the move to the destination.
@@ -169,7 +170,7 @@ pub(crate) struct SearchSpec<'s> {
 /// on the lattice; for any difference, the norm `max + (√2 − 1)·mid + (√3 − √2)·min` of the
 /// sorted absolute components (an ordered weighted ℓ1 norm, ≥ the Euclidean distance).
 #[inline]
-pub(crate) fn lattice_norm(a: [f64; 3], b: [f64; 3]) -> f64 {
+pub(crate) fn lattice_norm(a: Point, b: Point) -> f64 {
     let mut d = [
         (a[0] - b[0]).abs(),
         (a[1] - b[1]).abs(),
@@ -286,11 +287,7 @@ pub(crate) fn astar(spec: &SearchSpec, scratch: &mut Scratch) -> Option<Vec<u32>
 /// weighted by [`THETA_HEURISTIC_WEIGHT`] (a bounded-suboptimal search; Theta* itself is not
 /// exactly optimal either, the smoothing makes up most of the difference).
 /// Returns the path's vertices (lattice points, the source excluded).
-pub(crate) fn theta(
-    spec: &SearchSpec,
-    source_m: [f64; 3],
-    scratch: &mut Scratch,
-) -> Option<Vec<u32>> {
+pub(crate) fn theta(spec: &SearchSpec, source_m: Point, scratch: &mut Scratch) -> Option<Vec<u32>> {
     let fs = spec.fs;
     let t = spec.target_m;
     let voxel_m = fs.voxel_m();

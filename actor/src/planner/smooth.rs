@@ -22,6 +22,7 @@ use super::dist;
 use super::free_space::FreeSpace;
 #[cfg(doc)]
 use super::free_space::SMOOTHING_MARGIN_M;
+use dupac_common::geometry::Point;
 
 /// Relative slack when comparing costs (rounding of sums of lengths).
 const COST_EPS: f64 = 1e-9;
@@ -67,7 +68,7 @@ impl<'a> CostField<'a> {
 
     /// Class code at a point: that of the nearest lattice point.
     #[inline]
-    fn point_class(&self, p_m: [f64; 3]) -> u8 {
+    fn point_class(&self, p_m: Point) -> u8 {
         if self.coverage.is_none() {
             return 0;
         }
@@ -79,7 +80,7 @@ impl<'a> CostField<'a> {
 
     /// Cost multiplier at a point (that of the nearest lattice point).
     #[inline]
-    pub(crate) fn point_mult(&self, p_m: [f64; 3]) -> f64 {
+    pub(crate) fn point_mult(&self, p_m: Point) -> f64 {
         match self.coverage {
             None => 1.0,
             Some((_, mult)) => mult[usize::from(self.point_class(p_m))],
@@ -89,7 +90,7 @@ impl<'a> CostField<'a> {
     /// `(cost, worst class code)` of the straight segment `a_m → b_m`: the segment is cut into
     /// `ceil(length / voxel_m)` equal pieces, each charged its length times the multiplier at its
     /// midpoint. Without coverage: `(length, 0)`.
-    pub(crate) fn segment(&self, a_m: [f64; 3], b_m: [f64; 3]) -> (f64, u8) {
+    pub(crate) fn segment(&self, a_m: Point, b_m: Point) -> (f64, u8) {
         let len = dist(a_m, b_m);
         let Some((_, mult)) = self.coverage else {
             return (len, 0);
@@ -100,11 +101,11 @@ impl<'a> CostField<'a> {
         let mut worst = 0u8;
         for k in 0..n {
             let f = (k as f64 + 0.5) / n as f64;
-            let p = [
+            let p = Point::new(
                 a_m[0] + f * (b_m[0] - a_m[0]),
                 a_m[1] + f * (b_m[1] - a_m[1]),
                 a_m[2] + f * (b_m[2] - a_m[2]),
-            ];
+            );
             let c = self.point_class(p);
             worst = worst.max(c);
             cost += piece * mult[usize::from(c)];
@@ -126,13 +127,13 @@ fn join(a: (f64, u8), b: (f64, u8)) -> (f64, u8) {
 
 /// Smooths a flyable polyline (every segment clear) into an any-angle path with the same ends;
 /// the result's segments are all clear and its cost is not higher.
-pub(crate) fn smooth(fs: &FreeSpace, field: &CostField, pts: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+pub(crate) fn smooth(fs: &FreeSpace, field: &CostField, pts: Vec<Point>) -> Vec<Point> {
     let pulled = pull(fs, field, pts);
     relax(fs, field, pulled)
 }
 
 /// Greedy string pulling (stage 1).
-fn pull(fs: &FreeSpace, field: &CostField, pts: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+fn pull(fs: &FreeSpace, field: &CostField, pts: Vec<Point>) -> Vec<Point> {
     let n = pts.len();
     if n <= 2 {
         return pts;
@@ -162,7 +163,7 @@ fn pull(fs: &FreeSpace, field: &CostField, pts: Vec<[f64; 3]>) -> Vec<[f64; 3]> 
 }
 
 /// Nearest point of segment `a → b` to `w`.
-fn nearest_on_segment(a: [f64; 3], b: [f64; 3], w: [f64; 3]) -> [f64; 3] {
+fn nearest_on_segment(a: Point, b: Point, w: Point) -> Point {
     let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
     if l2 <= 0.0 {
@@ -170,11 +171,11 @@ fn nearest_on_segment(a: [f64; 3], b: [f64; 3], w: [f64; 3]) -> [f64; 3] {
     }
     let t = (((w[0] - a[0]) * ab[0] + (w[1] - a[1]) * ab[1] + (w[2] - a[2]) * ab[2]) / l2)
         .clamp(0.0, 1.0);
-    [a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]]
+    Point::new(a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2])
 }
 
 /// Waypoint relaxation (stage 2).
-fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>) -> Vec<Point> {
     let max_points = 4 * pts.len() + 64;
     for _ in 0..RELAX_MAX_PASSES {
         let mut gained_m = 0.0;
@@ -254,10 +255,10 @@ fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<[f64; 3]>) -> Vec<[f64;
 
 /// `a + f (b − a)`.
 #[inline]
-fn lerp(a: [f64; 3], b: [f64; 3], f: f64) -> [f64; 3] {
-    [
+fn lerp(a: Point, b: Point, f: f64) -> Point {
+    Point::new(
         a[0] + f * (b[0] - a[0]),
         a[1] + f * (b[1] - a[1]),
         a[2] + f * (b[2] - a[2]),
-    ]
+    )
 }

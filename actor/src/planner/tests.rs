@@ -16,8 +16,13 @@ pub(crate) fn boxb(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, z0: f64, z1: f6
 
 /// A 200 m × 200 m city (area centred on the origin) with the given buildings.
 pub(crate) fn city(buildings: Vec<Building>) -> City {
-    City::from_buildings("test", [-100.0, -100.0, 100.0, 100.0], buildings, None)
-        .expect("test city")
+    City::from_buildings(
+        "test",
+        Bounds2::new(-100.0, -100.0, 100.0, 100.0),
+        buildings,
+        None,
+    )
+    .expect("test city")
 }
 
 /// A small building in a corner, out of the way (the mesh must not be empty).
@@ -42,7 +47,7 @@ pub(crate) fn procedural(size_m: f64) -> City {
 }
 
 /// Checks the invariants every planned path must satisfy and returns it.
-fn check_path(p: &Planner, path: &Path, s: [f64; 3], t: [f64; 3]) {
+fn check_path(p: &Planner, path: &Path, s: Point, t: Point) {
     let fs = p.free_space();
     assert_eq!(path.waypoints_m.first(), Some(&s));
     assert_eq!(path.waypoints_m.last(), Some(&t));
@@ -77,7 +82,7 @@ fn fly_like_env(city: &City, path: &Path) {
         let mut prev = w[0];
         for k in 1..=n {
             let f = k as f64 / n as f64;
-            let p = [0, 1, 2].map(|i| w[0][i] + f * (w[1][i] - w[0][i]));
+            let p = w[0] + (w[1] - w[0]) * f;
             assert!(
                 city.mesh.sphere_sweep(prev, p, radius).is_none(),
                 "collision between {prev:?} and {p:?}"
@@ -95,20 +100,32 @@ fn lattice_matches_area_and_band() {
     assert_eq!(fs.dims(), [41, 41, 21]);
     let f = fs.free_voxel_fraction();
     assert!(f > 0.95 && f < 1.0, "free fraction {f}");
-    assert!(fs.is_free_point([0.0, 0.0, 50.0]));
-    assert!(!fs.is_free_point([85.0, 85.0, 25.0]), "inside the building");
-    assert!(!fs.is_free_point([85.0, 91.0, 25.0]), "1 m from a wall");
-    assert!(fs.is_free_point([85.0, 85.0, 32.0]), "2 m above the roof");
-    assert!(!fs.is_free_point([0.0, 0.0, 10.0]), "below the band");
-    assert!(!fs.is_free_point([0.0, 0.0, f64::NAN]));
+    assert!(fs.is_free_point(Point::new(0.0, 0.0, 50.0)));
+    assert!(
+        !fs.is_free_point(Point::new(85.0, 85.0, 25.0)),
+        "inside the building"
+    );
+    assert!(
+        !fs.is_free_point(Point::new(85.0, 91.0, 25.0)),
+        "1 m from a wall"
+    );
+    assert!(
+        fs.is_free_point(Point::new(85.0, 85.0, 32.0)),
+        "2 m above the roof"
+    );
+    assert!(
+        !fs.is_free_point(Point::new(0.0, 0.0, 10.0)),
+        "below the band"
+    );
+    assert!(!fs.is_free_point(Point::new(0.0, 0.0, f64::NAN)));
 }
 
 #[test]
 fn straight_free_line_is_one_segment() {
     let c = city(vec![corner()]);
     let p = planner(&c);
-    let s = [-50.0, -50.0, 50.0];
-    let t = [50.0, 40.0, 60.0];
+    let s = Point::new(-50.0, -50.0, 50.0);
+    let t = Point::new(50.0, 40.0, 60.0);
     let path = p.shortest(s, t).expect("path");
     assert_eq!(path.waypoints_m, vec![s, t]);
     assert_eq!(path.length_m, dist(s, t));
@@ -119,8 +136,8 @@ fn low_wall_goes_over() {
     // A 70 m wall across the straight line; flying over (≈ 102.7 m) beats going around (≈ 149 m).
     let c = city(vec![boxb("wall", -2.0, -60.0, 2.0, 60.0, 0.0, 70.0)]);
     let p = planner(&c);
-    let s = [-40.0, 0.0, 40.0];
-    let t = [40.0, 0.0, 40.0];
+    let s = Point::new(-40.0, 0.0, 40.0);
+    let t = Point::new(40.0, 0.0, 40.0);
     assert!(!p.free_space().segment_clear(s, t));
     let path = p.shortest(s, t).expect("path");
     check_path(&p, &path, s, t);
@@ -140,8 +157,8 @@ fn full_height_wall_goes_through_the_gap() {
     // A wall above the band from the south edge to y = 60; the only way is the gap 60 < y ≤ 100.
     let c = city(vec![boxb("wall", -2.0, -120.0, 2.0, 60.0, 0.0, 200.0)]);
     let p = planner(&c);
-    let s = [-40.0, 0.0, 50.0];
-    let t = [40.0, 0.0, 50.0];
+    let s = Point::new(-40.0, 0.0, 50.0);
+    let t = Point::new(40.0, 0.0, 50.0);
     let path = p.shortest(s, t).expect("path");
     check_path(&p, &path, s, t);
     fly_like_env(&c, &path);
@@ -166,9 +183,11 @@ fn enclosed_destination_is_an_error() {
     ]];
     let c = city(vec![tower]);
     let p = planner(&c);
-    let t = [0.0, 0.0, 60.0];
+    let t = Point::new(0.0, 0.0, 60.0);
     assert!(p.free_space().is_free_point(t));
-    let err = p.shortest([-60.0, -60.0, 60.0], t).expect_err("enclosed");
+    let err = p
+        .shortest(Point::new(-60.0, -60.0, 60.0), t)
+        .expect_err("enclosed");
     assert!(matches!(err, PlanError::NoPath { .. }), "{err}");
     assert!(err.to_string().contains("destination"));
 }
@@ -177,14 +196,26 @@ fn enclosed_destination_is_an_error() {
 fn bad_endpoints_are_named() {
     let c = city(vec![boxb("b", -10.0, -10.0, 10.0, 10.0, 0.0, 80.0)]);
     let p = planner(&c);
-    let ok = [-60.0, -60.0, 50.0];
-    let cases: [([f64; 3], bool, &str); 6] = [
-        ([0.0, 0.0, 50.0], true, "inside a building"),
-        ([f64::NAN, 0.0, 50.0], false, "not a finite point"),
-        ([150.0, 0.0, 50.0], true, "outside the flight area"),
-        ([-60.0, 0.0, 5.0], false, "outside the altitude band"),
-        ([11.0, 0.0, 50.0], true, "from a building"),
-        ([0.0, f64::INFINITY, 50.0], true, "not a finite point"),
+    let ok = Point::new(-60.0, -60.0, 50.0);
+    let cases: [(Point, bool, &str); 6] = [
+        (Point::new(0.0, 0.0, 50.0), true, "inside a building"),
+        (Point::new(f64::NAN, 0.0, 50.0), false, "not a finite point"),
+        (
+            Point::new(150.0, 0.0, 50.0),
+            true,
+            "outside the flight area",
+        ),
+        (
+            Point::new(-60.0, 0.0, 5.0),
+            false,
+            "outside the altitude band",
+        ),
+        (Point::new(11.0, 0.0, 50.0), true, "from a building"),
+        (
+            Point::new(0.0, f64::INFINITY, 50.0),
+            true,
+            "not a finite point",
+        ),
     ];
     for (bad, as_source, reason) in cases {
         let (s, t, which) = if as_source {
@@ -203,7 +234,7 @@ fn bad_endpoints_are_named() {
 struct PoorPatch;
 
 impl PoorPatch {
-    fn poor(p: [f64; 3]) -> bool {
+    fn poor(p: Point) -> bool {
         p[0].abs() < 20.0 && p[1] < 30.0
     }
 }
@@ -212,7 +243,7 @@ impl RsrpSource for PoorPatch {
     fn num_sites(&self) -> usize {
         2
     }
-    fn rsrp_all_dbm(&self, p_m: [f64; 3], out: &mut [f64]) {
+    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
         let v = if Self::poor(p_m) { -110.0 } else { -70.0 };
         out[0] = v;
         out[1] = v - 5.0;
@@ -223,8 +254,8 @@ impl RsrpSource for PoorPatch {
 fn coverage_aware_avoids_poor_region() {
     let c = city(vec![corner()]);
     let mut p = planner(&c);
-    let s = [-80.0, 0.0, 50.0];
-    let t = [80.0, 0.0, 50.0];
+    let s = Point::new(-80.0, 0.0, 50.0);
+    let t = Point::new(80.0, 0.0, 50.0);
     assert_eq!(
         p.coverage_aware(s, t, 1.0).expect_err("no coverage yet"),
         PlanError::NoCoverage
@@ -262,8 +293,8 @@ fn coverage_aware_lambda_zero_equals_shortest_around_obstacles() {
     let c = city(vec![boxb("wall", -2.0, -60.0, 2.0, 60.0, 0.0, 70.0)]);
     let mut p = planner(&c);
     p.with_coverage(&PoorPatch, RsrpThresholds::default());
-    let s = [-40.0, 0.0, 40.0];
-    let t = [40.0, 10.0, 45.0];
+    let s = Point::new(-40.0, 0.0, 40.0);
+    let t = Point::new(40.0, 10.0, 45.0);
     assert_eq!(
         p.coverage_aware(s, t, 0.0).expect("λ = 0"),
         p.shortest(s, t).expect("shortest")
@@ -280,7 +311,7 @@ fn coverage_aware_never_costs_more_than_shortest() {
     ]);
     let mut p = planner(&c);
     p.with_coverage(&PoorPatch, RsrpThresholds::default());
-    let (s, t) = ([-80.0, -5.0, 40.0], [80.0, 5.0, 45.0]);
+    let (s, t) = (Point::new(-80.0, -5.0, 40.0), Point::new(80.0, 5.0, 45.0));
     let shortest = p.shortest(s, t).expect("shortest");
     for lambda in [0.1, 1.0, 5.0] {
         let aware = p.coverage_aware(s, t, lambda).expect("coverage-aware");
@@ -315,11 +346,11 @@ fn procedural_city_paths_are_flyable() {
     let a = c.area_m;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let mut free = || loop {
-        let q = [
-            rng.random_range(a[0]..a[2]),
-            rng.random_range(a[1]..a[3]),
+        let q = Point::new(
+            rng.random_range(a.min_m.x..a.max_m.x),
+            rng.random_range(a.min_m.y..a.max_m.y),
             rng.random_range(20.0..120.0),
-        ];
+        );
         if fs.is_free_point(q) {
             return q;
         }
@@ -386,17 +417,17 @@ fn midtown_timing() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
     let mut pairs = Vec::new();
     while pairs.len() < 10 {
-        let s = [
-            rng.random_range(a[0]..a[2]),
-            rng.random_range(a[1]..a[3]),
+        let s = Point::new(
+            rng.random_range(a.min_m.x..a.max_m.x),
+            rng.random_range(a.min_m.y..a.max_m.y),
             rng.random_range(20.0..120.0),
-        ];
+        );
         let ang: f64 = rng.random_range(0.0..std::f64::consts::TAU);
-        let t = [
+        let t = Point::new(
             s[0] + 790.0 * ang.cos(),
             s[1] + 790.0 * ang.sin(),
             rng.random_range(20.0..120.0),
-        ];
+        );
         if p.free_space().is_free_point(s) && p.free_space().is_free_point(t) {
             pairs.push((s, t));
         }

@@ -1,5 +1,7 @@
 //! A building (or building part) as plain data: a 2D footprint extruded vertically.
 
+use dupac_common::geometry::Bounds2;
+
 /// A vertical prism: footprint polygon (outer ring plus holes) extruded from `z_min_m` to
 /// `z_max_m`. Coordinates are local ENU metres. Rings are open (the last vertex is not a repeat
 /// of the first), have ≥ 3 distinct vertices, and the outer ring is counter-clockwise.
@@ -18,21 +20,11 @@ pub struct Building {
 }
 
 impl Building {
-    /// Axis-aligned 2D bounds `[x_min, y_min, x_max, y_max]` of the outer ring (m).
-    pub fn bounds_m(&self) -> [f64; 4] {
-        let mut b = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for p in &self.outer_m {
-            b[0] = b[0].min(p[0]);
-            b[1] = b[1].min(p[1]);
-            b[2] = b[2].max(p[0]);
-            b[3] = b[3].max(p[1]);
-        }
-        b
+    /// Axis-aligned 2D bounds of the outer ring (m).
+    pub fn bounds_m(&self) -> Bounds2 {
+        self.outer_m
+            .iter()
+            .fold(Bounds2::empty(), |b, p| b.including(p[0], p[1]))
     }
 
     /// Signed area of the outer ring minus the holes (m²), positive for CCW outer rings.

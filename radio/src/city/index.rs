@@ -22,8 +22,8 @@ impl FootprintIndex {
         let mut hi = [f64::NEG_INFINITY; 2];
         for b in buildings {
             let bb = b.bounds_m();
-            lo = [lo[0].min(bb[0]), lo[1].min(bb[1])];
-            hi = [hi[0].max(bb[2]), hi[1].max(bb[3])];
+            lo = [lo[0].min(bb.min_m.x), lo[1].min(bb.min_m.y)];
+            hi = [hi[0].max(bb.max_m.x), hi[1].max(bb.max_m.y)];
         }
         if buildings.is_empty() {
             lo = [0.0; 2];
@@ -40,8 +40,8 @@ impl FootprintIndex {
         };
         for (i, b) in buildings.iter().enumerate() {
             let bb = b.bounds_m();
-            let (ix0, iy0) = idx.cell(bb[0], bb[1]);
-            let (ix1, iy1) = idx.cell(bb[2], bb[3]);
+            let (ix0, iy0) = idx.cell(bb.min_m.x, bb.min_m.y);
+            let (ix1, iy1) = idx.cell(bb.max_m.x, bb.max_m.y);
             for iy in iy0..=iy1 {
                 for ix in ix0..=ix1 {
                     idx.buckets[iy * nx + ix].push(i as u32);

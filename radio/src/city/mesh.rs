@@ -7,6 +7,7 @@
 
 use super::building::Building;
 use crate::error::RadioError;
+use dupac_common::geometry::{Point, Vector};
 use parry3d::math::Vec3;
 use parry3d::partitioning::TraversalAction;
 use parry3d::query::Ray;
@@ -66,7 +67,7 @@ impl CityMesh {
 
     /// Whether the open segment `a_m → b_m` crosses any building surface (any-hit query over the
     /// BVH, exits at the first hit). `true` means NLoS (spec/radio.md D9).
-    pub fn segment_blocked(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+    pub fn segment_blocked(&self, a_m: Point, b_m: Point) -> bool {
         let origin = to_vec3(a_m);
         let dir = to_vec3(b_m) - origin;
         let ray = Ray::new(origin, dir);
@@ -94,7 +95,7 @@ impl CityMesh {
     /// Distance (m) along the direction `dir` (any length) from `origin_m` to the first building
     /// surface within `max_m`, or `None` when the ray is free for `max_m` metres. Closest-hit
     /// traversal of the BVH that prunes nodes farther than the best hit so far.
-    pub fn ray_distance_m(&self, origin_m: [f64; 3], dir: [f64; 3], max_m: f64) -> Option<f64> {
+    pub fn ray_distance_m(&self, origin_m: Point, dir: Vector, max_m: f64) -> Option<f64> {
         let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
         if n.is_nan() || n <= 0.0 || max_m.is_nan() || max_m <= 0.0 {
             return None;
@@ -132,7 +133,7 @@ impl CityMesh {
     /// direction from `p_m` towards it, or `None` when no surface is that close. The exact
     /// "distance c_t and direction θ_t to the nearest obstacle" of the paper's state (a BVH
     /// best-first projection onto the mesh; a point inside a building projects onto its surface).
-    pub fn nearest_surface_m(&self, p_m: [f64; 3], max_m: f64) -> Option<(f64, [f64; 3])> {
+    pub fn nearest_surface_m(&self, p_m: Point, max_m: f64) -> Option<(f64, Vector)> {
         use parry3d::query::PointQuery;
         if max_m.is_nan() || max_m <= 0.0 || p_m.iter().any(|v| !v.is_finite()) {
             return None;
@@ -147,9 +148,9 @@ impl CityMesh {
             return None;
         }
         let dir = if n > 0.0 {
-            [f64::from(d.x / n), f64::from(d.y / n), f64::from(d.z / n)]
+            Vector::new(f64::from(d.x / n), f64::from(d.y / n), f64::from(d.z / n))
         } else {
-            [0.0; 3]
+            Vector::zeros()
         };
         Some((f64::from(n), dir))
     }
@@ -157,7 +158,7 @@ impl CityMesh {
     /// Swept-sphere collision: the fraction `t ∈ [0, 1]` of the move `a_m → b_m` at which a
     /// sphere of `radius_m` first touches a building surface, or `None` if the whole move is
     /// free. A broad phase on the BVH (the move's swept box) skips the exact cast in open air.
-    pub fn sphere_sweep(&self, a_m: [f64; 3], b_m: [f64; 3], radius_m: f64) -> Option<f64> {
+    pub fn sphere_sweep(&self, a_m: Point, b_m: Point, radius_m: f64) -> Option<f64> {
         let (a, b) = (to_vec3(a_m), to_vec3(b_m));
         let r = radius_m as f32;
         let swept = parry3d::bounding_volume::Aabb::new(
@@ -189,9 +190,9 @@ impl CityMesh {
     }
 }
 
-/// `[f64; 3]` metres → glam `Vec3` (the geometry boundary).
+/// `Point` metres → glam `Vec3` (the geometry boundary).
 #[inline]
-pub fn to_vec3(p: [f64; 3]) -> Vec3 {
+pub fn to_vec3(p: Point) -> Vec3 {
     Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
 }
 
@@ -327,32 +328,32 @@ mod tests {
     fn segment_through_the_l_is_blocked_but_the_notch_is_free() {
         let m = scene();
         // Through the solid arm at 10 m height.
-        assert!(m.segment_blocked([-10.0, 5.0, 10.0], [30.0, 5.0, 10.0]));
+        assert!(m.segment_blocked(Point::new(-10.0, 5.0, 10.0), Point::new(30.0, 5.0, 10.0)));
         // Through the notch of the L (x, y ∈ (10, 20)): free.
-        assert!(!m.segment_blocked([15.0, 25.0, 10.0], [25.0, 15.0, 10.0]));
+        assert!(!m.segment_blocked(Point::new(15.0, 25.0, 10.0), Point::new(25.0, 15.0, 10.0)));
         // Above the roof: free; grazing below it: blocked.
-        assert!(!m.segment_blocked([-10.0, 5.0, 31.0], [30.0, 5.0, 31.0]));
-        assert!(m.segment_blocked([-10.0, 5.0, 29.0], [30.0, 5.0, 29.0]));
+        assert!(!m.segment_blocked(Point::new(-10.0, 5.0, 31.0), Point::new(30.0, 5.0, 31.0)));
+        assert!(m.segment_blocked(Point::new(-10.0, 5.0, 29.0), Point::new(30.0, 5.0, 29.0)));
         // Diagonal from a roof-level antenna to a low UAV behind the building.
-        assert!(m.segment_blocked([-5.0, 5.0, 40.0], [40.0, 5.0, 1.0]));
+        assert!(m.segment_blocked(Point::new(-5.0, 5.0, 40.0), Point::new(40.0, 5.0, 1.0)));
     }
 
     #[test]
     fn segment_stopping_short_of_a_wall_is_free() {
         let m = scene();
-        assert!(!m.segment_blocked([-10.0, 5.0, 10.0], [-0.5, 5.0, 10.0]));
+        assert!(!m.segment_blocked(Point::new(-10.0, 5.0, 10.0), Point::new(-0.5, 5.0, 10.0)));
     }
 
     #[test]
     fn floating_part_blocks_only_its_own_height_band() {
         let m = scene();
-        assert!(m.segment_blocked([90.0, 5.0, 55.0], [120.0, 5.0, 55.0]));
+        assert!(m.segment_blocked(Point::new(90.0, 5.0, 55.0), Point::new(120.0, 5.0, 55.0)));
         assert!(
-            !m.segment_blocked([90.0, 5.0, 40.0], [120.0, 5.0, 40.0]),
+            !m.segment_blocked(Point::new(90.0, 5.0, 40.0), Point::new(120.0, 5.0, 40.0)),
             "under the slab"
         );
         assert!(
-            m.segment_blocked([105.0, 5.0, 40.0], [105.0, 5.0, 70.0]),
+            m.segment_blocked(Point::new(105.0, 5.0, 40.0), Point::new(105.0, 5.0, 70.0)),
             "vertical through its floor"
         );
     }
@@ -360,8 +361,8 @@ mod tests {
     #[test]
     fn courtyard_hole_is_open_from_above() {
         let m = scene();
-        assert!(!m.segment_blocked([220.0, 20.0, 100.0], [220.0, 20.0, 5.0]));
-        assert!(m.segment_blocked([205.0, 20.0, 100.0], [205.0, 20.0, 5.0]));
+        assert!(!m.segment_blocked(Point::new(220.0, 20.0, 100.0), Point::new(220.0, 20.0, 5.0)));
+        assert!(m.segment_blocked(Point::new(205.0, 20.0, 100.0), Point::new(205.0, 20.0, 5.0)));
     }
 
     #[test]
@@ -369,28 +370,44 @@ mod tests {
         let m = scene();
         // Towards the L's west wall (x = 0) from x = −2: the 0.5 m sphere touches at x = −0.5.
         let t = m
-            .sphere_sweep([-2.0, 5.0, 10.0], [-0.0, 5.0, 10.0], 0.5)
+            .sphere_sweep(
+                Point::new(-2.0, 5.0, 10.0),
+                Point::new(-0.0, 5.0, 10.0),
+                0.5,
+            )
             .expect("wall");
         assert!((t - 0.75).abs() < 1e-3, "{t}");
         // Parallel to the wall at 0.6 m: free.
         assert!(
-            m.sphere_sweep([-0.6, 1.0, 10.0], [-0.6, 9.0, 10.0], 0.5)
-                .is_none()
+            m.sphere_sweep(
+                Point::new(-0.6, 1.0, 10.0),
+                Point::new(-0.6, 9.0, 10.0),
+                0.5
+            )
+            .is_none()
         );
         // Down onto the roof (30 m): touches when the centre is at 30.5 m.
         let t = m
-            .sphere_sweep([5.0, 5.0, 31.0], [5.0, 5.0, 30.0], 0.5)
+            .sphere_sweep(Point::new(5.0, 5.0, 31.0), Point::new(5.0, 5.0, 30.0), 0.5)
             .expect("roof");
         assert!((t - 0.5).abs() < 1e-3, "{t}");
         // Up into the floating slab's floor (50 m) from below.
         assert!(
-            m.sphere_sweep([105.0, 5.0, 48.0], [105.0, 5.0, 49.8], 0.5)
-                .is_some()
+            m.sphere_sweep(
+                Point::new(105.0, 5.0, 48.0),
+                Point::new(105.0, 5.0, 49.8),
+                0.5
+            )
+            .is_some()
         );
         // Far away in open air: free (broad phase).
         assert!(
-            m.sphere_sweep([500.0, 500.0, 50.0], [501.0, 501.0, 51.0], 0.5)
-                .is_none()
+            m.sphere_sweep(
+                Point::new(500.0, 500.0, 50.0),
+                Point::new(501.0, 501.0, 51.0),
+                0.5
+            )
+            .is_none()
         );
     }
 
@@ -399,7 +416,7 @@ mod tests {
         let m = scene();
         // Beside the L's outer corner (20, 10): the exact nearest point is the corner edge,
         // √(3² + 2²) m away; the closest of the 26 grid rays only hits the wall at 3√2 m.
-        let p = [23.0, 12.0, 10.0];
+        let p = Point::new(23.0, 12.0, 10.0);
         let (d, dir) = m.nearest_surface_m(p, 50.0).expect("a surface");
         assert!((d - 13f64.sqrt()).abs() < 1e-3, "{d}");
         assert!(
@@ -410,21 +427,32 @@ mod tests {
         let fan_min = crate_fan_min(&m, p);
         assert!(fan_min > d + 0.5, "fan {fan_min} vs exact {d}");
         // Over the roof: straight down.
-        let (d, dir) = m.nearest_surface_m([5.0, 5.0, 34.0], 50.0).expect("roof");
+        let (d, dir) = m
+            .nearest_surface_m(Point::new(5.0, 5.0, 34.0), 50.0)
+            .expect("roof");
         assert!((d - 4.0).abs() < 1e-3 && (dir[2] + 1.0).abs() < 1e-6);
         // Nothing within the range.
-        assert!(m.nearest_surface_m([500.0, 500.0, 10.0], 50.0).is_none());
-        assert!(m.nearest_surface_m([f64::NAN, 0.0, 0.0], 50.0).is_none());
+        assert!(
+            m.nearest_surface_m(Point::new(500.0, 500.0, 10.0), 50.0)
+                .is_none()
+        );
+        assert!(
+            m.nearest_surface_m(Point::new(f64::NAN, 0.0, 0.0), 50.0)
+                .is_none()
+        );
     }
 
-    fn crate_fan_min(m: &CityMesh, p: [f64; 3]) -> f64 {
+    fn crate_fan_min(m: &CityMesh, p: Point) -> f64 {
         let mut best = f64::INFINITY;
         for x in -1..=1 {
             for y in -1..=1 {
                 for z in -1..=1 {
                     if (x, y, z) != (0, 0, 0)
-                        && let Some(t) =
-                            m.ray_distance_m(p, [f64::from(x), f64::from(y), f64::from(z)], 50.0)
+                        && let Some(t) = m.ray_distance_m(
+                            p,
+                            Vector::new(f64::from(x), f64::from(y), f64::from(z)),
+                            50.0,
+                        )
                     {
                         best = best.min(t);
                     }
@@ -438,15 +466,27 @@ mod tests {
     fn ray_distance_finds_the_nearest_wall() {
         let m = scene();
         let d = m
-            .ray_distance_m([-10.0, 5.0, 10.0], [1.0, 0.0, 0.0], 50.0)
+            .ray_distance_m(
+                Point::new(-10.0, 5.0, 10.0),
+                Vector::new(1.0, 0.0, 0.0),
+                50.0,
+            )
             .expect("hit");
         assert!((d - 10.0).abs() < 1e-3, "{d}");
         assert!(
-            m.ray_distance_m([-10.0, 5.0, 10.0], [-1.0, 0.0, 0.0], 50.0)
-                .is_none()
+            m.ray_distance_m(
+                Point::new(-10.0, 5.0, 10.0),
+                Vector::new(-1.0, 0.0, 0.0),
+                50.0
+            )
+            .is_none()
         );
         let down = m
-            .ray_distance_m([5.0, 5.0, 100.0], [0.0, 0.0, -1.0], 200.0)
+            .ray_distance_m(
+                Point::new(5.0, 5.0, 100.0),
+                Vector::new(0.0, 0.0, -1.0),
+                200.0,
+            )
             .expect("roof");
         assert!((down - 70.0).abs() < 1e-3, "{down}");
     }

@@ -15,6 +15,7 @@ pub use mesh::{CityMesh, to_vec3};
 use crate::error::RadioError;
 use crate::geo::LocalProjection;
 use dupac_common::config::{CityKind, ScenarioConfig};
+use dupac_common::geometry::{Bounds2, Point};
 
 /// Buildings farther than this outside the flight area are dropped at load time (m). They can
 /// still block links between a site and a UAV inside the area only if they lie between the two,
@@ -27,7 +28,7 @@ pub struct City {
     /// Scenario name (`midtown`, `procedural`, …).
     pub name: String,
     /// Flight area `[x_min, y_min, x_max, y_max]` (m, local frame).
-    pub area_m: [f64; 4],
+    pub area_m: Bounds2,
     pub buildings: Vec<Building>,
     pub mesh: CityMesh,
     pub index: FootprintIndex,
@@ -40,7 +41,7 @@ impl City {
     /// geometry).
     pub fn from_buildings(
         name: impl Into<String>,
-        area_m: [f64; 4],
+        area_m: Bounds2,
         buildings: Vec<Building>,
         projection: Option<LocalProjection>,
     ) -> Result<City, RadioError> {
@@ -62,12 +63,7 @@ impl City {
             CityKind::Osm => {
                 let projection = LocalProjection::centred_on(&cfg.area);
                 let area_m = projection.box_m(&cfg.area);
-                let keep = [
-                    area_m[0] - BUILDING_MARGIN_M,
-                    area_m[1] - BUILDING_MARGIN_M,
-                    area_m[2] + BUILDING_MARGIN_M,
-                    area_m[3] + BUILDING_MARGIN_M,
-                ];
+                let keep = area_m.expanded(BUILDING_MARGIN_M);
                 let buildings =
                     osm::load_buildings(&cfg.buildings_file, &projection, cfg.detail, keep)?;
                 tracing::info!(
@@ -80,19 +76,23 @@ impl City {
             CityKind::Procedural => {
                 let generated = procedural::generate(&cfg.procedural);
                 let h = 0.5 * cfg.procedural.size_m;
-                City::from_buildings(cfg.name.clone(), [-h, -h, h, h], generated.buildings, None)
+                City::from_buildings(
+                    cfg.name.clone(),
+                    Bounds2::new(-h, -h, h, h),
+                    generated.buildings,
+                    None,
+                )
             }
         }
     }
 
     /// Whether `(x, y)` lies inside the flight area.
     pub fn in_area(&self, x_m: f64, y_m: f64) -> bool {
-        let a = self.area_m;
-        x_m >= a[0] && x_m <= a[2] && y_m >= a[1] && y_m <= a[3]
+        self.area_m.contains(x_m, y_m)
     }
 
     /// Whether the point is inside a building (between its floor and roof).
-    pub fn is_inside_building(&self, p_m: [f64; 3]) -> bool {
+    pub fn is_inside_building(&self, p_m: Point) -> bool {
         self.index
             .containing(&self.buildings, p_m[0], p_m[1])
             .any(|b| p_m[2] >= b.z_min_m && p_m[2] <= b.z_max_m)
@@ -108,7 +108,7 @@ impl City {
 
     /// Whether the segment between two points crosses a building (NLoS, spec/radio.md D9).
     #[inline]
-    pub fn segment_blocked(&self, a_m: [f64; 3], b_m: [f64; 3]) -> bool {
+    pub fn segment_blocked(&self, a_m: Point, b_m: Point) -> bool {
         self.mesh.segment_blocked(a_m, b_m)
     }
 
@@ -116,7 +116,7 @@ impl City {
     pub fn fingerprint(&self) -> u64 {
         let mut h = dupac_common::fingerprint::Fnv64::new();
         h.write_str(&self.name);
-        for v in self.area_m {
+        for v in self.area_m.to_array() {
             h.write_f64(v);
         }
         for b in &self.buildings {

@@ -11,6 +11,7 @@ use super::building::{Building, signed_area_m2};
 use crate::error::RadioError;
 use crate::geo::LocalProjection;
 use dupac_common::config::BuildingDetail;
+use dupac_common::geometry::Bounds2;
 use geojson::{FeatureCollection, GeometryValue, JsonObject, PolygonType};
 use std::path::Path;
 
@@ -28,7 +29,7 @@ pub fn load_buildings(
     path: &Path,
     projection: &LocalProjection,
     detail: BuildingDetail,
-    keep_box_m: [f64; 4],
+    keep_box_m: Bounds2,
 ) -> Result<Vec<Building>, RadioError> {
     let text = std::fs::read_to_string(path).map_err(|e| RadioError::io(path, e))?;
     parse_buildings(&text, path, projection, detail, keep_box_m)
@@ -40,7 +41,7 @@ pub fn parse_buildings(
     path: &Path,
     projection: &LocalProjection,
     detail: BuildingDetail,
-    keep_box_m: [f64; 4],
+    keep_box_m: Bounds2,
 ) -> Result<Vec<Building>, RadioError> {
     if text.trim().is_empty() {
         return Err(RadioError::GeoJson {
@@ -145,10 +146,10 @@ pub fn parse_buildings(
                     })
                 })?;
             let b = building.bounds_m();
-            if b[2] >= keep_box_m[0]
-                && b[0] <= keep_box_m[2]
-                && b[3] >= keep_box_m[1]
-                && b[1] <= keep_box_m[3]
+            if b.max_m.x >= keep_box_m.min_m.x
+                && b.min_m.x <= keep_box_m.max_m.x
+                && b.max_m.y >= keep_box_m.min_m.y
+                && b.min_m.y <= keep_box_m.max_m.y
             {
                 out.push(building);
             }
@@ -221,7 +222,7 @@ fn polygon_to_building(
             ));
         }
         let b = ring_bounds(&pts);
-        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        let (w, h) = (b.max_m.x - b.min_m.x, b.max_m.y - b.min_m.y);
         if w > MAX_RING_SPAN_M || h > MAX_RING_SPAN_M {
             return Err(format!(
                 "{what} spans {w:.0} m × {h:.0} m, more than the {MAX_RING_SPAN_M} m of any building"
@@ -246,10 +247,10 @@ fn polygon_to_building(
     for (k, hole) in holes_m.iter().enumerate() {
         let b = ring_bounds(hole);
         let tol = DUPLICATE_VERTEX_M;
-        if b[0] < outer_box[0] - tol
-            || b[1] < outer_box[1] - tol
-            || b[2] > outer_box[2] + tol
-            || b[3] > outer_box[3] + tol
+        if b.min_m.x < outer_box.min_m.x - tol
+            || b.min_m.y < outer_box.min_m.y - tol
+            || b.max_m.x > outer_box.max_m.x + tol
+            || b.max_m.y > outer_box.max_m.y + tol
         {
             return Err(format!("hole {} is not inside the outer ring", k + 1));
         }
@@ -269,24 +270,10 @@ fn polygon_to_building(
     })
 }
 
-/// `[x_min, y_min, x_max, y_max]` of a ring (m).
-fn ring_bounds(ring: &[[f64; 2]]) -> [f64; 4] {
-    ring.iter().fold(
-        [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ],
-        |b, p| {
-            [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ]
-        },
-    )
+/// The bounds of a ring (m).
+fn ring_bounds(ring: &[[f64; 2]]) -> Bounds2 {
+    ring.iter()
+        .fold(Bounds2::empty(), |b, p| b.including(p[0], p[1]))
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -301,7 +288,7 @@ mod tests {
         LocalProjection::new(-73.985, 40.75)
     }
 
-    const BIG: [f64; 4] = [-1e6, -1e6, 1e6, 1e6];
+    const BIG: Bounds2 = Bounds2::new(-1e6, -1e6, 1e6, 1e6);
 
     fn parse(text: &str) -> Result<Vec<Building>, RadioError> {
         parse_buildings(

@@ -524,7 +524,8 @@ mod tests {
         for b in &city.buildings {
             let bb = b.bounds_m();
             for p in &samples {
-                if p[0] < bb[0] || p[0] > bb[2] || p[1] < bb[1] || p[1] > bb[3] {
+                if p[0] < bb.min_m.x || p[0] > bb.max_m.x || p[1] < bb.min_m.y || p[1] > bb.max_m.y
+                {
                     continue;
                 }
                 assert!(

@@ -16,6 +16,7 @@ use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, Config};
+use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
@@ -59,7 +60,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .collect();
     // The shortest paths once, shared by the A3 and oracle flights.
     let need_shortest = methods.iter().any(|m| matches!(m.kind, Kind::Shortest(_)));
-    let shortest: Vec<Option<Vec<[f64; 3]>>> = if need_shortest {
+    let shortest: Vec<Option<Vec<Point>>> = if need_shortest {
         let pb = progress_bar(pairs.len() as u64, "shortest paths", quiet);
         let v = pairs
             .par_iter()
@@ -199,10 +200,10 @@ fn replay_associations(
                 .par_iter()
                 .zip(flights)
                 .map(|(p, f)| {
-                    let w: Vec<[f64; 3]> = f
+                    let w: Vec<Point> = f
                         .steps
                         .iter()
-                        .map(|s| s.position_m.map(f64::from))
+                        .map(|s| Point::from(s.position_m.map(f64::from)))
                         .collect();
                     fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))
                 })
@@ -221,7 +222,7 @@ fn fly_one(
     method: &Method,
     p: &Pair,
     // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
-    waypoints_m: Option<&[[f64; 3]]>,
+    waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
     let episode = Episode {

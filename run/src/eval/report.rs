@@ -10,6 +10,7 @@ use dupac_actor::eval::{
     FlightMetrics, MeanCi, NOISE_PER_RE_DBM, Rate, flight_metrics, mean_ci95, wilson95,
 };
 use dupac_common::fsio::write_atomic_with;
+use dupac_common::geometry::{Point, norm};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -245,23 +246,18 @@ fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<(), RunError> {
                 continue;
             }
             let n = f.steps.len();
-            let at = |i: usize| -> [f64; 3] {
+            let at = |i: usize| -> Point {
                 if i == 0 {
                     f.source_m
                 } else {
-                    f.steps[i - 1].position_m.map(f64::from)
+                    Point::from(f.steps[i - 1].position_m.map(f64::from))
                 }
             };
             let end = at(n);
             let prev = at(n.saturating_sub(1));
-            let mv = [end[0] - prev[0], end[1] - prev[1], end[2] - prev[2]];
-            let to_goal = [
-                f.destination_m[0] - prev[0],
-                f.destination_m[1] - prev[1],
-                f.destination_m[2] - prev[2],
-            ];
-            let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            let dot = mv[0] * to_goal[0] + mv[1] * to_goal[1] + mv[2] * to_goal[2];
+            let mv = end - prev;
+            let to_goal = f.destination_m - prev;
+            let dot = mv.dot(&to_goal);
             let angle = (dot / (norm(mv) * norm(to_goal)).max(1e-12))
                 .clamp(-1.0, 1.0)
                 .acos()

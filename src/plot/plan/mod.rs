@@ -9,6 +9,7 @@
 
 use crate::plot::{FONT, class_colour, ensure_font, pe, trace_colour};
 use anyhow::{Context, Result, bail};
+use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::Building;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::class::RsrpThresholds;
@@ -31,7 +32,7 @@ pub struct FlightTrace {
     pub label: String,
     /// Positions along the path `[x_m, y_m, z_m]`; the first is the source, the last the
     /// destination.
-    pub points_m: Vec<[f64; 3]>,
+    pub points_m: Vec<Point>,
     /// Serving-cell RSRP at each position (dBm); same length as `points_m`.
     pub serving_rsrp_dbm: Vec<f64>,
     /// RSRP class at each position; same length as `points_m`.
@@ -130,11 +131,11 @@ fn derive(t: &FlightTrace) -> Derived {
 }
 
 /// Checks the inputs; the error names the output path and, where one is at fault, the trace.
-fn validate(area_m: [f64; 4], traces: &[FlightTrace], path: &Path) -> Result<()> {
-    let [x_min, y_min, x_max, y_max] = area_m;
-    if !(area_m.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
+fn validate(area_m: Bounds2, traces: &[FlightTrace], path: &Path) -> Result<()> {
+    let [x_min, y_min, x_max, y_max] = area_m.to_array();
+    if !(area_m.to_array().iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
         bail!(
-            "cannot plot {}: flight area {area_m:?} is empty or not finite",
+            "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
         );
     }
@@ -194,7 +195,7 @@ fn validate(area_m: [f64; 4], traces: &[FlightTrace], path: &Path) -> Result<()>
 pub fn render_plan_png(
     buildings: &[Building],
     sites: &[Site],
-    area_m: [f64; 4],
+    area_m: Bounds2,
     traces: &[FlightTrace],
     thresholds: &RsrpThresholds,
     title: &str,
@@ -235,7 +236,7 @@ type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 fn draw(
     buildings: &[Building],
     sites: &[Site],
-    area_m: [f64; 4],
+    area_m: Bounds2,
     traces: &[FlightTrace],
     thresholds: &RsrpThresholds,
     title: &str,
@@ -271,35 +272,26 @@ fn draw(
     Ok(())
 }
 
-/// Top view bounds `[x0, y0, x1, y1]` (m): the traces' bounding box plus the margin, at least
+/// Top view bounds (m): the traces' bounding box plus the margin, at least
 /// [`MIN_VIEW_M`] wide and high, widened to the panel aspect `aspect` (width / height) and kept
 /// inside the flight area where possible.
-fn view_bounds(traces: &[FlightTrace], area: [f64; 4], aspect: f64) -> [f64; 4] {
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for p in traces.iter().flat_map(|t| &t.points_m) {
-        b = [
-            b[0].min(p[0]),
-            b[1].min(p[1]),
-            b[2].max(p[0]),
-            b[3].max(p[1]),
-        ];
-    }
+fn view_bounds(traces: &[FlightTrace], area: Bounds2, aspect: f64) -> Bounds2 {
+    let b = traces
+        .iter()
+        .flat_map(|t| &t.points_m)
+        .fold(Bounds2::empty(), |b, p| b.including(p.x, p.y))
+        .to_array();
     let m = VIEW_MARGIN_M;
     let padded = [b[0] - m, b[1] - m, b[2] + m, b[3] + m];
     let clipped = [
-        padded[0].max(area[0]),
-        padded[1].max(area[1]),
-        padded[2].min(area[2]),
-        padded[3].min(area[3]),
+        padded[0].max(area.min_m.x),
+        padded[1].max(area.min_m.y),
+        padded[2].min(area.max_m.x),
+        padded[3].min(area.max_m.y),
     ];
     // Traces entirely outside the area: show them anyway rather than an empty map.
     let (mut v, bound) = if clipped[2] > clipped[0] && clipped[3] > clipped[1] {
-        (clipped, area)
+        (clipped, area.to_array())
     } else {
         (padded, padded)
     };
@@ -343,12 +335,12 @@ fn view_bounds(traces: &[FlightTrace], area: [f64; 4], aspect: f64) -> [f64; 4] 
             bound[3].max(v[3]),
         );
     }
-    v
+    Bounds2::new(v[0], v[1], v[2], v[3])
 }
 
-/// Clips a polyline to the rectangle `r = [x0, y0, x1, y1]` (Liang–Barsky per segment); the
+/// Clips a polyline to the rectangle `r` (Liang–Barsky per segment); the
 /// visible pieces, each with two or more points.
-fn clip_polyline(pts: &[(f64, f64)], r: [f64; 4]) -> Vec<Vec<(f64, f64)>> {
+fn clip_polyline(pts: &[(f64, f64)], r: Bounds2) -> Vec<Vec<(f64, f64)>> {
     let mut pieces: Vec<Vec<(f64, f64)>> = Vec::new();
     let mut cur: Vec<(f64, f64)> = Vec::new();
     for w in pts.windows(2) {
@@ -357,10 +349,10 @@ fn clip_polyline(pts: &[(f64, f64)], r: [f64; 4]) -> Vec<Vec<(f64, f64)>> {
         let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
         let mut visible = true;
         for (pk, qk) in [
-            (-dx, p.0 - r[0]),
-            (dx, r[2] - p.0),
-            (-dy, p.1 - r[1]),
-            (dy, r[3] - p.1),
+            (-dx, p.0 - r.min_m.x),
+            (dx, r.max_m.x - p.0),
+            (-dy, p.1 - r.min_m.y),
+            (dy, r.max_m.y - p.1),
         ] {
             if pk == 0.0 {
                 if qk < 0.0 {
@@ -487,7 +479,7 @@ fn class_runs(t: &FlightTrace) -> Vec<(RsrpClass, Vec<(f64, f64)>)> {
 /// serving RSRP and class.
 pub fn trace_of(
     label: String,
-    source_m: [f64; 3],
+    source_m: Point,
     source_rsrp_dbm: f64,
     thresholds: RsrpThresholds,
     steps: &[dupac_actor::env::StepInfo],
@@ -530,7 +522,7 @@ mod tests {
     }
 
     /// A trace through `waypoints` (x, y, z), sampled every ~5 m, with a synthetic RSRP field.
-    fn trace(label: &str, waypoints: &[[f64; 3]]) -> FlightTrace {
+    fn trace(label: &str, waypoints: &[Point]) -> FlightTrace {
         let mut points_m = vec![waypoints[0]];
         for w in waypoints.windows(2) {
             let (a, b) = (w[0], w[1]);
@@ -538,11 +530,11 @@ mod tests {
             let n = ((l / 5.0).ceil() as usize).max(1);
             for k in 1..=n {
                 let f = k as f64 / n as f64;
-                points_m.push([
+                points_m.push(Point::new(
                     a[0] + f * (b[0] - a[0]),
                     a[1] + f * (b[1] - a[1]),
                     a[2] + f * (b[2] - a[2]),
-                ]);
+                ));
             }
         }
         let serving_rsrp_dbm: Vec<f64> = points_m
@@ -562,7 +554,7 @@ mod tests {
         }
     }
 
-    fn scene() -> (Vec<Building>, Vec<Site>, [f64; 4], Vec<FlightTrace>) {
+    fn scene() -> (Vec<Building>, Vec<Site>, Bounds2, Vec<FlightTrace>) {
         let mut buildings = Vec::new();
         let mut k = 0;
         for ix in -4_i32..6 {
@@ -594,7 +586,7 @@ mod tests {
         let site = |i: u16, x: f64, y: f64, kind| Site {
             id: SiteId(i),
             name: format!("s{i}"),
-            position_m: [x, y, 30.0],
+            position_m: Point::new(x, y, 30.0),
             kind,
             boresights_deg: vec![30.0, 150.0, 270.0],
             electrical_tilt_deg: 10.0,
@@ -610,29 +602,29 @@ mod tests {
         let shortest = trace(
             "shortest (A3)",
             &[
-                [-230.0, -150.0, 0.0],
-                [-230.0, -150.0, 60.0],
-                [400.0, 290.0, 60.0],
-                [400.0, 290.0, 0.0],
+                Point::new(-230.0, -150.0, 0.0),
+                Point::new(-230.0, -150.0, 60.0),
+                Point::new(400.0, 290.0, 60.0),
+                Point::new(400.0, 290.0, 0.0),
             ],
         );
         let aware = trace(
             "coverage-aware λ=1 (A3)",
             &[
-                [-230.0, -150.0, 0.0],
-                [-230.0, -150.0, 90.0],
-                [-0.0, -150.0, 90.0],
-                [160.0, 75.0, 120.0],
-                [240.0, 75.0, 120.0],
-                [400.0, 220.0, 90.0],
-                [400.0, 290.0, 90.0],
-                [400.0, 290.0, 0.0],
+                Point::new(-230.0, -150.0, 0.0),
+                Point::new(-230.0, -150.0, 90.0),
+                Point::new(-0.0, -150.0, 90.0),
+                Point::new(160.0, 75.0, 120.0),
+                Point::new(240.0, 75.0, 120.0),
+                Point::new(400.0, 220.0, 90.0),
+                Point::new(400.0, 290.0, 90.0),
+                Point::new(400.0, 290.0, 0.0),
             ],
         );
         (
             buildings,
             sites,
-            [-600.0, -500.0, 900.0, 700.0],
+            Bounds2::new(-600.0, -500.0, 900.0, 700.0),
             vec![shortest, aware],
         )
     }
@@ -786,7 +778,7 @@ mod tests {
 
     #[test]
     fn clip_polyline_cuts_and_rejoins() {
-        let r = [0.0, 0.0, 10.0, 10.0];
+        let r = Bounds2::new(0.0, 0.0, 10.0, 10.0);
         let inside = vec![(1.0, 1.0), (5.0, 5.0), (9.0, 1.0)];
         assert_eq!(clip_polyline(&inside, r), vec![inside.clone()]);
         // Out and back in: two pieces, cut at the border.
@@ -803,7 +795,11 @@ mod tests {
     fn class_runs_split_segments_at_midpoints() {
         let t = FlightTrace {
             label: "t".into(),
-            points_m: vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]],
+            points_m: vec![
+                Point::new(0.0, 0.0, 0.0),
+                Point::new(10.0, 0.0, 0.0),
+                Point::new(20.0, 0.0, 0.0),
+            ],
             serving_rsrp_dbm: vec![-70.0, -90.0, -90.0],
             class: vec![
                 RsrpClass::Excellent,
@@ -834,10 +830,17 @@ mod tests {
     fn view_contains_traces_and_stays_in_area() {
         let (_, _, area, traces) = scene();
         let v = view_bounds(&traces, area, 1.2);
-        assert!(v[0] <= -230.0 - VIEW_MARGIN_M + 1e-9 && v[2] >= 400.0 + VIEW_MARGIN_M - 1e-9);
-        assert!(v[0] >= area[0] && v[2] <= area[2] && v[1] >= area[1] && v[3] <= area[3]);
         assert!(
-            (((v[2] - v[0]) / (v[3] - v[1])) - 1.2).abs() < 1e-9,
+            v.min_m.x <= -230.0 - VIEW_MARGIN_M + 1e-9 && v.max_m.x >= 400.0 + VIEW_MARGIN_M - 1e-9
+        );
+        assert!(
+            v.min_m.x >= area.min_m.x
+                && v.max_m.x <= area.max_m.x
+                && v.min_m.y >= area.min_m.y
+                && v.max_m.y <= area.max_m.y
+        );
+        assert!(
+            (((v.max_m.x - v.min_m.x) / (v.max_m.y - v.min_m.y)) - 1.2).abs() < 1e-9,
             "{v:?}"
         );
     }

@@ -4,6 +4,7 @@
 use super::*;
 use crate::plot::{FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, fmt_num, pe};
 use anyhow::Result;
+use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::Building;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::class::RsrpThresholds;
@@ -154,7 +155,7 @@ pub(super) fn draw_top_view(
     root: &Area,
     buildings: &[Building],
     sites: &[Site],
-    area_m: [f64; 4],
+    area_m: Bounds2,
     traces: &[FlightTrace],
     derived: &[Derived],
     thresholds: &RsrpThresholds,
@@ -208,7 +209,7 @@ pub(super) fn draw_top_view(
     let pw_max = LEFT_W - MAP_Y_LABEL - 2 * MARGIN - 14;
     let ph_max = region_h - MAP_X_LABEL - 2 * MARGIN;
     let view = view_bounds(traces, area_m, f64::from(pw_max) / f64::from(ph_max));
-    let [vx0, vy0, vx1, vy1] = view;
+    let [vx0, vy0, vx1, vy1] = view.to_array();
     let aspect = (vx1 - vx0) / (vy1 - vy0);
     let (pw, ph) = if f64::from(pw_max) / f64::from(ph_max) > aspect {
         (((f64::from(ph_max) * aspect).round() as i32).max(1), ph_max)
@@ -252,7 +253,7 @@ pub(super) fn draw_top_view(
         .iter()
         .filter(|b| {
             let bb = b.bounds_m();
-            !(bb[2] < vx0 || bb[0] > vx1 || bb[3] < vy0 || bb[1] > vy1)
+            !(bb.max_m.x < vx0 || bb.min_m.x > vx1 || bb.max_m.y < vy0 || bb.min_m.y > vy1)
         })
         .collect();
     visible.sort_by(|a, b| a.z_max_m.total_cmp(&b.z_max_m));
@@ -346,7 +347,7 @@ pub(super) fn draw_top_view(
     }
 
     // Sources and destinations, each place once.
-    let inside = |p: &[f64; 3]| p[0] >= vx0 && p[0] <= vx1 && p[1] >= vy0 && p[1] <= vy1;
+    let inside = |p: &Point| p[0] >= vx0 && p[0] <= vx1 && p[1] >= vy0 && p[1] <= vy1;
     let mut drawn: Vec<(i32, i32)> = Vec::new();
     let near = |drawn: &[(i32, i32)], c: (i32, i32)| {
         drawn
