@@ -121,10 +121,8 @@ pub fn check_endpoint(planner: &Planner, p_m: Point, clearance_m: f64) -> Result
         return Err(format!("{p_m:?} is not a finite point"));
     }
     if !city.in_area(p_m[0], p_m[1]) {
-        return Err(format!(
-            "{p_m:?} is outside the flight area {}",
-            city.area_m
-        ));
+        let area = city.area_m;
+        return Err(format!("{p_m:?} is outside the flight area {area}"));
     }
     let [z0, z1] = fs.band_m();
     if !(p_m[2] >= z0 && p_m[2] <= z1) {

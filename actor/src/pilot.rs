@@ -4,8 +4,7 @@
 
 use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
 use dupac_common::SiteId;
-use dupac_common::geometry::distance_m as dist;
-use dupac_common::geometry::{Point, Vector};
+use dupac_common::geometry::{Point, Vector, distance_m as dist};
 
 /// A flown episode.
 #[derive(Debug, Clone)]

@@ -50,7 +50,7 @@ pub enum Server {
     Site(SiteId),
 }
 
-/// Computes the slice at `altitude_m` over `area_m` (`[x_min, y_min, x_max, y_max]`) with square
+/// Computes the slice at `altitude_m` over the flight area `area_m` with square
 /// cells of `resolution_m`, rows in parallel (rayon). `progress(rows_done)` is called once per
 /// finished row.
 pub fn compute_slice(

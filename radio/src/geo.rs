@@ -56,7 +56,7 @@ impl LocalProjection {
         )
     }
 
-    /// The box `[x_min, y_min, x_max, y_max]` (m) of a lon/lat box in this projection.
+    /// The rectangle (m) of a lon/lat box in this projection.
     pub fn box_m(&self, area: &LonLatBox) -> Bounds2 {
         let sw = self.to_local_m(area.lon_min_deg, area.lat_min_deg);
         let ne = self.to_local_m(area.lon_max_deg, area.lat_max_deg);

@@ -180,8 +180,7 @@ fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String,
                 if !c.in_area(p[0], p[1]) {
                     let a = c.area_m;
                     return Err(format!(
-                        "field `{name}`: {p:?} is outside the map (x in [{:.1}, {:.1}], y in [{:.1}, {:.1}] m); give `los` explicitly for points off the map",
-                        a.min_m.x, a.max_m.x, a.min_m.y, a.max_m.y
+                        "field `{name}`: {p:?} is outside the map ({a}); give `los` explicitly for points off the map"
                     ));
                 }
             }

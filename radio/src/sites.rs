@@ -30,7 +30,7 @@ pub struct Site {
     pub id: SiteId,
     /// Human-readable origin, e.g. `enb:12345` or a user-given name.
     pub name: String,
-    /// Antenna position `[x_m, y_m, z_m]`, z = antenna height above ground.
+    /// Antenna position (m; stored as `[x, y, z]`), z = antenna height above ground.
     #[serde(with = "dupac_common::geometry::serde_point")]
     pub position_m: Point,
     pub kind: SiteKind,

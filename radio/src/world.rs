@@ -81,10 +81,7 @@ impl RadioWorld {
             return Err(RadioError::Position {
                 what: "uav_xyz",
                 value: uav_m,
-                message: format!(
-                    "outside the map: x must be in [{:.1}, {:.1}] and y in [{:.1}, {:.1}] m",
-                    a.min_m.x, a.max_m.x, a.min_m.y, a.max_m.y
-                ),
+                message: format!("outside the map ({a})"),
             });
         }
         Ok(())

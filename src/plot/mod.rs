@@ -249,7 +249,7 @@ pub(crate) fn clip_ring(ring: &[[f64; 2]], r: Bounds2) -> Vec<[f64; 2]> {
 /// * `buildings` — footprints drawn as thin outlines; those that occupy the slice altitude
 ///   (`z_min_m ≤ altitude < z_max_m`) are also filled semi-transparent grey.
 /// * `sites` — triangles for macro sites, circles for micro sites, labelled with the site index.
-/// * `area_m` — `[x_min, y_min, x_max, y_max]` of the flight area (m): the axis ranges; the map
+/// * `area_m` — the flight area (m): the axis ranges; the map
 ///   has an equal aspect ratio (1 m in x is as long as 1 m in y).
 /// * `title` — drawn above the map.
 pub fn render_coverage_png(
@@ -261,8 +261,9 @@ pub fn render_coverage_png(
     title: &str,
     path: &Path,
 ) -> Result<()> {
-    let [x_min, y_min, x_max, y_max] = area_m.to_array();
-    if !(area_m.to_array().iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
+    let corners = area_m.to_array();
+    let [x_min, y_min, x_max, y_max] = corners;
+    if !(corners.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
         bail!(
             "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
@@ -400,7 +401,7 @@ fn draw(
     root.draw(&bitmap).map_err(pe)?;
 
     // Buildings, clipped to the area.
-    let clip = Bounds2::new(x_min, y_min, x_max, y_max);
+    let clip = area_m;
     let tall_style = TALL_FILL.mix(TALL_ALPHA).filled();
     let outline_style = OUTLINE.stroke_width(1);
     for b in buildings {
@@ -691,6 +692,7 @@ fn draw_side(
 mod tests {
     use super::*;
     use dupac_common::SiteId;
+    use dupac_common::geometry::Point;
     use dupac_radio::sites::Mount;
 
     fn synthetic(n: usize, res: f64) -> (CoverageSlice, Vec<Building>, Vec<Site>, Bounds2) {
@@ -737,7 +739,7 @@ mod tests {
         let site = |i: u16, x: f64, y: f64, kind| Site {
             id: SiteId(i),
             name: format!("s{i}"),
-            position_m: dupac_common::geometry::Point::new(x, y, 30.0),
+            position_m: Point::new(x, y, 30.0),
             kind,
             boresights_deg: vec![30.0, 150.0, 270.0],
             electrical_tilt_deg: 10.0,

@@ -1,12 +1,14 @@
 //! The one integration-test binary of the `dupac` command (ripgrep's layout): end-to-end tests of
 //! real processes, the real Midtown data and real files, one module per area, all built on
-//! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `distributed::`,
-//! `faults::`, `netns::`, `security::`, `soak::`).
+//! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
+//! `distributed::`, `faults::`, `netns::`, `security::`, `soak::`).
 
 mod cli;
 mod distributed;
+mod eval;
 mod faults;
 mod netns;
 mod security;
 mod soak;
 mod support;
+mod train;

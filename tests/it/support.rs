@@ -1,5 +1,6 @@
 //! Helpers of the end-to-end tests: the one command builder ([`dupac_cmd`], as ripgrep's
-//! `TestCommand`), a small procedural run config, child processes killed when a test ends, and
+//! `TestCommand`), the small procedural scenario and run ([`small_world_args`],
+//! [`small_run_args`], a policy trained once per binary: [`trained_run`]), a small procedural run config, child processes killed when a test ends, and
 //! the test's own Zenoh client (stats watcher and rogue publisher).
 
 use dupac_common::ActorId;
@@ -32,6 +33,128 @@ pub fn prerequisite(what: &str, met: bool) -> bool {
     }
     eprintln!("SKIPPED: prerequisite missing: {what}");
     false
+}
+
+/// A small procedural scenario with a coarse cache (`--set` arguments), so the planner commands
+/// run in seconds; the cache lives in `dir`.
+pub fn small_world_args(dir: &Path) -> Vec<String> {
+    [
+        "--set",
+        "scenario.city=procedural",
+        "--set",
+        "scenario.procedural.size_m=500",
+        "--set",
+        "scenario.procedural.n_sites=8",
+        "--set",
+        "scenario.n_sites=8",
+        "--set",
+        "cache.horizontal_m=10",
+        "--set",
+        "cache.vertical_m=10",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .chain([
+        "--set".to_string(),
+        format!("cache.path=\"{}\"", dir.join("rsrp.bin").display()),
+    ])
+    .collect()
+}
+
+/// [`small_world_args`] plus short held-out pairs (two bins of 4) and a tiny PPO run (4 × 64
+/// samples per update, a [32, 32] network, evaluation and checkpoint every 2 updates): what the
+/// `train` and `eval` tests train and fly. The held-out pairs file lives in `dir`.
+pub fn small_run_args(dir: &Path) -> Vec<String> {
+    let mut args = small_world_args(dir);
+    for kv in [
+        "pairs.min_m=40".to_string(),
+        "pairs.max_m=70".into(),
+        "pairs.eval_bins_m=[50, 60]".into(),
+        "pairs.eval_per_bin=4".into(),
+        "pairs.bin_tolerance=0.1".into(),
+        format!("pairs.eval_file=\"{}\"", dir.join("eval.jsonl").display()),
+        "train.num_envs=4".into(),
+        "train.num_steps=64".into(),
+        "train.pool_size=50".into(),
+        "train.checkpoint_every=2".into(),
+        "train.eval_every=2".into(),
+        "train.eval_pairs=8".into(),
+        "ppo.num_minibatches=2".into(),
+        "ppo.hidden=[32, 32]".into(),
+    ] {
+        args.push("--set".into());
+        args.push(kv);
+    }
+    args
+}
+
+/// Runs `dupac COMMAND… SCENARIO…` (no stdin) and returns its output. The scenario's `--set`s
+/// come after the command's own: clap keeps only the occurrences of a global option on one side
+/// of the subcommand.
+pub fn dupac_output(scenario: &[String], command: &[String]) -> std::process::Output {
+    dupac_cmd()
+        .args(command)
+        .args(scenario)
+        .stdin(Stdio::null())
+        .output()
+        .expect("run dupac")
+}
+
+/// A policy trained once per test binary on [`small_run_args`] (`train --single-process`, 1 024
+/// decisions), shared by the tests that fly or evaluate one: its directory (held-out pairs, cache,
+/// `run/policy.bin`) and the arguments that select its scenario. It lives under cargo's
+/// `CARGO_TARGET_TMPDIR`, in a folder named after this process; folders of processes that have
+/// ended are removed when the next one starts.
+pub struct TrainedRun {
+    pub dir: PathBuf,
+    pub args: Vec<String>,
+}
+
+impl TrainedRun {
+    pub fn policy(&self) -> PathBuf {
+        self.dir.join("run").join("policy.bin")
+    }
+}
+
+pub fn trained_run() -> &'static TrainedRun {
+    static RUN: std::sync::OnceLock<TrainedRun> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        let root = Path::new(env!("CARGO_TARGET_TMPDIR"));
+        let prefix = "it-trained-run-";
+        if let Ok(entries) = std::fs::read_dir(root) {
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if let Some(pid) = name.strip_prefix(prefix)
+                    && !Path::new("/proc").join(pid).exists()
+                {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        let dir = root.join(format!("{prefix}{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let args = small_run_args(&dir);
+        let run = dir.join("run").display().to_string();
+        let out = dupac_output(
+            &args,
+            &[
+                "train".into(),
+                "-q".into(),
+                "--single-process".into(),
+                "--out".into(),
+                run,
+                "--set".into(),
+                "train.total_timesteps=1024".into(),
+            ],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        TrainedRun { dir, args }
+    })
 }
 
 /// A small procedural city with short pairs: a run of many updates per second.

@@ -1,10 +1,10 @@
 //! What every step reports besides the observation: the record evaluation is built from.
 
 use dupac_common::SiteId;
+use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
 
-use dupac_common::geometry::Point;
 pub use dupac_common::msg::Outcome;
 
 /// One step's record (spec/env.md "Metrics").

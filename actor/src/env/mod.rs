@@ -15,13 +15,12 @@ mod reward;
 
 use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
-use dupac_common::geometry::{distance_m as dist, norm};
 pub use info::{Outcome, StepInfo};
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig};
-use dupac_common::geometry::{Point, Vector};
+use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
@@ -33,6 +32,7 @@ use std::sync::Arc;
 /// Errors of `reset` and `step`: bad input never panics and never silently runs a wrong episode.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EnvError {
+    /// The move as given, kept as an array so that the message reads `[x, y, z]`.
     #[error("action move {0:?} is not finite")]
     NonFiniteAction([f64; 3]),
     #[error("action site {site} is out of range: the scenario has {n_sites} sites")]
@@ -55,6 +55,8 @@ pub enum EnvError {
 /// what the learner stores) and the chosen serving site (ignored unless `association = learned`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Action {
+    /// The move in units of `env.max_step_m` per step, bounded to [−1, 1]³ or the unit ball per
+    /// `env.action_clip` when flown.
     pub move_: Vector,
     pub site: SiteId,
 }
@@ -116,7 +118,9 @@ pub struct Env {
     // Episode state.
     episode: Option<Episode>,
     position_m: Point,
-    velocity_m: Vector,
+    /// The last step's displacement in units of `max_step_m` (unitless; the velocity of the
+    /// observation).
+    velocity_steps: Vector,
     serving: SiteId,
     associator: Associator,
     rsrp_dbm: Vec<f64>,
@@ -194,7 +198,7 @@ impl Env {
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
             position_m: Point::origin(),
-            velocity_m: Vector::zeros(),
+            velocity_steps: Vector::zeros(),
             serving: SiteId(0),
             associator: Associator::Learned,
             rsrp_dbm: vec![f64::NEG_INFINITY; m],
@@ -319,7 +323,7 @@ impl Env {
         self.seed = seed;
         self.episode = Some(episode);
         self.position_m = episode.source_m;
-        self.velocity_m = Vector::zeros();
+        self.velocity_steps = Vector::zeros();
         self.step = 0;
         self.time_limit = (self.cfg.time_limit_factor * episode.shortest_m / self.cfg.max_step_m)
             .ceil()
@@ -426,7 +430,7 @@ impl Env {
             outcome = Some(Outcome::OutOfBounds);
         }
         let step_length_m = dist(from, to);
-        self.velocity_m = (to - from) / self.cfg.max_step_m;
+        self.velocity_steps = (to - from) / self.cfg.max_step_m;
         self.position_m = to;
         self.distance_flown_m += step_length_m;
         let d_prev = self.distance_to_goal_m;

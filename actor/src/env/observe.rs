@@ -80,7 +80,7 @@ impl Env {
             obs[s.position.start + k] = *v as f32;
         }
         for k in 0..3 {
-            obs[s.velocity.start + k] = self.velocity_m[k] as f32;
+            obs[s.velocity.start + k] = self.velocity_steps[k] as f32;
         }
         if let (Some(gv), Some(gd), Some(ep)) = (&s.goal_vector, &s.goal_distance, &self.episode) {
             for k in 0..3 {
@@ -140,7 +140,7 @@ impl Env {
         let goal = self
             .episode
             .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
-        let heading = unit2(self.velocity_m[0], self.velocity_m[1])
+        let heading = unit2(self.velocity_steps[0], self.velocity_steps[1])
             .or(goal)
             .unwrap_or([1.0, 0.0]);
         let goal = goal.unwrap_or(heading);
@@ -205,10 +205,12 @@ fn area_exit_m(area: Bounds2, p: Point, d: Vector) -> f64 {
 /// horizontal direction towards it.
 fn nearest_edge_m(area: Bounds2, p: Point) -> (f64, Vector) {
     [
-        (p[0] - area.min_m.x, -Vector::x()),
-        (area.max_m.x - p[0], Vector::x()),
-        (p[1] - area.min_m.y, -Vector::y()),
-        (area.max_m.y - p[1], Vector::y()),
+        // Written out (not `-Vector::x()`): a negated unit vector has −0.0 components, and the
+        // observation keeps the +0.0 it always had.
+        (p[0] - area.min_m.x, Vector::new(-1.0, 0.0, 0.0)),
+        (area.max_m.x - p[0], Vector::new(1.0, 0.0, 0.0)),
+        (p[1] - area.min_m.y, Vector::new(0.0, -1.0, 0.0)),
+        (area.max_m.y - p[1], Vector::new(0.0, 1.0, 0.0)),
     ]
     .into_iter()
     .map(|(d, u)| (d.max(0.0), u))

@@ -57,7 +57,7 @@ const MAX_VOXELS: usize = (u32::MAX - 1) as usize;
 /// flyable. Owns a copy of the city geometry so that it can answer exact queries on its own.
 pub struct FreeSpace {
     city: City,
-    /// Flight area `[x_min, y_min, x_max, y_max]` (m).
+    /// The flight area (m).
     area_m: Bounds2,
     /// Altitude band `[z_min, z_max]` (m above ground), spec/env.md.
     band_m: [f64; 2],
@@ -211,7 +211,7 @@ impl FreeSpace {
         self.band_m
     }
 
-    /// Flight area `[x_min, y_min, x_max, y_max]` (m).
+    /// The flight area (m).
     pub fn area_m(&self) -> Bounds2 {
         self.area_m
     }

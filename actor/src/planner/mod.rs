@@ -83,7 +83,7 @@ pub enum PlanError {
     /// A coordinate is NaN or infinite.
     #[error("{which} {position_m:?} is not a finite point")]
     NotFinite { which: Endpoint, position_m: Point },
-    /// Outside the flight area `[x_min, y_min, x_max, y_max]` (m).
+    /// Outside the flight area (m).
     #[error("{which} {position_m:?} is outside the flight area {area_m}")]
     OutsideArea {
         which: Endpoint,

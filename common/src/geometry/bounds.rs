@@ -24,7 +24,7 @@ impl Bounds2 {
     }
 
     /// The empty rectangle (min +∞, max −∞): the start of a fold with [`Bounds2::including`].
-    pub fn empty() -> Self {
+    pub const fn empty() -> Self {
         Bounds2::new(
             f64::INFINITY,
             f64::INFINITY,
@@ -72,7 +72,8 @@ impl Bounds2 {
         x_m >= self.min_m.x && x_m <= self.max_m.x && y_m >= self.min_m.y && y_m <= self.max_m.y
     }
 
-    /// The corners as `[x0, y0, x1, y1]` (m), for messages and text.
+    /// The corners as `[x0, y0, x1, y1]` (m): the order of [`Bounds2::new`], for fingerprints
+    /// and array maths.
     pub fn to_array(&self) -> [f64; 4] {
         [self.min_m.x, self.min_m.y, self.max_m.x, self.max_m.y]
     }

@@ -30,7 +30,8 @@ pub fn distance_m(a: Point, b: Point) -> f64 {
     ((a.x - b.x).powi(2) + (a.y - b.y).powi(2) + (a.z - b.z).powi(2)).sqrt()
 }
 
-/// Euclidean norm of a vector, in the same order of operations as [`distance_m`].
+/// Euclidean norm of a vector (in its unit): `√(x·x + y·y + z·z)`, the operations of the code it
+/// replaced.
 #[inline]
 pub fn norm(v: Vector) -> f64 {
     (v.x * v.x + v.y * v.y + v.z * v.z).sqrt()

@@ -7,7 +7,7 @@
 
 use super::building::Building;
 use crate::error::RadioError;
-use dupac_common::geometry::{Point, Vector};
+use dupac_common::geometry::{Point, Vector, norm};
 use parry3d::math::Vec3;
 use parry3d::partitioning::TraversalAction;
 use parry3d::query::Ray;
@@ -96,7 +96,7 @@ impl CityMesh {
     /// surface within `max_m`, or `None` when the ray is free for `max_m` metres. Closest-hit
     /// traversal of the BVH that prunes nodes farther than the best hit so far.
     pub fn ray_distance_m(&self, origin_m: Point, dir: Vector, max_m: f64) -> Option<f64> {
-        let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        let n = norm(dir);
         if n.is_nan() || n <= 0.0 || max_m.is_nan() || max_m <= 0.0 {
             return None;
         }

@@ -27,7 +27,7 @@ pub const BUILDING_MARGIN_M: f64 = 300.0;
 pub struct City {
     /// Scenario name (`midtown`, `procedural`, …).
     pub name: String,
-    /// Flight area `[x_min, y_min, x_max, y_max]` (m, local frame).
+    /// The flight area (m, local frame).
     pub area_m: Bounds2,
     pub buildings: Vec<Building>,
     pub mesh: CityMesh,

@@ -24,7 +24,7 @@ const MIN_FOOTPRINT_M2: f64 = 0.01;
 const MAX_RING_SPAN_M: f64 = 5_000.0;
 
 /// Reads `path` and returns the buildings whose footprint bounds intersect `keep_box_m`
-/// (`[x_min, y_min, x_max, y_max]`, local metres).
+/// (local metres).
 pub fn load_buildings(
     path: &Path,
     projection: &LocalProjection,

@@ -30,7 +30,7 @@ use top_view::draw_top_view;
 pub struct FlightTrace {
     /// Legend label, e.g. `"shortest (A3)"`, `"coverage-aware λ=1 (A3)"`.
     pub label: String,
-    /// Positions along the path `[x_m, y_m, z_m]`; the first is the source, the last the
+    /// Positions along the path (m); the first is the source, the last the
     /// destination.
     pub points_m: Vec<Point>,
     /// Serving-cell RSRP at each position (dBm); same length as `points_m`.
@@ -132,8 +132,9 @@ fn derive(t: &FlightTrace) -> Derived {
 
 /// Checks the inputs; the error names the output path and, where one is at fault, the trace.
 fn validate(area_m: Bounds2, traces: &[FlightTrace], path: &Path) -> Result<()> {
-    let [x_min, y_min, x_max, y_max] = area_m.to_array();
-    if !(area_m.to_array().iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
+    let corners = area_m.to_array();
+    let [x_min, y_min, x_max, y_max] = corners;
+    if !(corners.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
         bail!(
             "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
@@ -187,7 +188,7 @@ fn validate(area_m: Bounds2, traces: &[FlightTrace], path: &Path) -> Result<()> 
 ///
 /// * `buildings` — footprints in the top view, filled grey, darker for taller ones.
 /// * `sites` — those inside the view, as in the coverage maps (triangle macro, circle micro).
-/// * `area_m` — `[x_min, y_min, x_max, y_max]` of the flight area (m); the top view is the
+/// * `area_m` — the flight area (m); the top view is the
 ///   traces' bounding box plus [`VIEW_MARGIN_M`], widened to fill the panel, within this area.
 /// * `traces` — at least one with two or more points; each vector of a trace has one entry per
 ///   point and every value is finite.
@@ -276,13 +277,12 @@ fn draw(
 /// [`MIN_VIEW_M`] wide and high, widened to the panel aspect `aspect` (width / height) and kept
 /// inside the flight area where possible.
 fn view_bounds(traces: &[FlightTrace], area: Bounds2, aspect: f64) -> Bounds2 {
-    let b = traces
+    let padded = traces
         .iter()
         .flat_map(|t| &t.points_m)
         .fold(Bounds2::empty(), |b, p| b.including(p.x, p.y))
+        .expanded(VIEW_MARGIN_M)
         .to_array();
-    let m = VIEW_MARGIN_M;
-    let padded = [b[0] - m, b[1] - m, b[2] + m, b[3] + m];
     let clipped = [
         padded[0].max(area.min_m.x),
         padded[1].max(area.min_m.y),

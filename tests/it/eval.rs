@@ -1,0 +1,248 @@
+//! `dupac fly` and `dupac eval` end to end with a policy trained once per test binary on the
+//! small procedural run ([`trained_run`]): the methods an evaluation flies and replays, its
+//! tables and figures, `failures.csv`, a refused `--hindsight` value, and a report that is a
+//! function of the saved records alone.
+
+use crate::support::{TrainedRun, dupac_output, trained_run};
+use std::path::{Path, PathBuf};
+
+/// The tables `dupac eval` writes from its records.
+const TABLES: [&str; 5] = [
+    "report.md",
+    "summary.csv",
+    "fig3_fig4_bins.csv",
+    "pareto.csv",
+    "failures.csv",
+];
+
+/// One evaluation per test binary: the trained policy twice (two "seeds": the same file) and the
+/// planners over the held-out pairs, with the hindsight association at no cost and at a cost of
+/// 1 000 with the minimum stay.
+fn evaluated() -> &'static Path {
+    static EVAL: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    EVAL.get_or_init(|| {
+        let run = trained_run();
+        let ev = run.dir.join("eval");
+        let policy = format!("dupac={}", run.policy().display());
+        let e = dupac_output(
+            &run.args,
+            &[
+                "eval".into(),
+                "-q".into(),
+                "--policy".into(),
+                policy.clone(),
+                "--policy".into(),
+                policy,
+                "--lambda".into(),
+                "1".into(),
+                "--hindsight".into(),
+                "0".into(),
+                "--hindsight".into(),
+                "1000:mts".into(),
+                "--out".into(),
+                ev.display().to_string(),
+            ],
+        );
+        assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+        ev
+    })
+}
+
+fn column(summary: &str, label: &str, name: &str) -> f64 {
+    let header: Vec<&str> = summary.lines().next().expect("header").split(',').collect();
+    let k = header.iter().position(|h| *h == name).expect("column");
+    let row = summary
+        .lines()
+        .find(|l| l.starts_with(&format!("{label},")))
+        .expect("row");
+    row.split(',')
+        .nth(k)
+        .expect("value")
+        .parse()
+        .expect("number")
+}
+
+#[test]
+fn fly_flies_a_held_out_pair_beside_the_shortest_path() {
+    let run: &TrainedRun = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    let fly_out = dir.path().join("fly");
+    let fly = dupac_output(
+        &run.args,
+        &[
+            "fly".into(),
+            "-q".into(),
+            "--policy".into(),
+            run.policy().display().to_string(),
+            "--pair".into(),
+            "1".into(),
+            "--out".into(),
+            fly_out.display().to_string(),
+        ],
+    );
+    assert!(
+        fly.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fly.stderr)
+    );
+    for f in ["fly.png", "steps.csv", "summary.md"] {
+        assert!(fly_out.join(f).exists(), "{f} missing");
+    }
+    assert!(String::from_utf8_lossy(&fly.stdout).contains("shortest path (A3)"));
+}
+
+/// Every method, the replays of the learned-site policy's moves (issue 15: route against
+/// association), the hindsight references, the tables, the figures and `failures.csv`.
+#[test]
+fn eval_flies_every_method_and_replays_the_association() {
+    let ev = evaluated();
+    let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
+    let methods: Vec<&str> = summary
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(
+        methods,
+        [
+            "dupac",
+            "dupac+a3",
+            "dupac+hindsight_0",
+            "dupac+hindsight_1000_mts",
+            "dupac+oracle",
+            "coverage_l1",
+            "shortest_a3",
+            "shortest_oracle"
+        ],
+        "{summary}"
+    );
+    let col = |label: &str, name: &str| column(&summary, label, name);
+    assert_eq!(col("dupac+oracle", "site_regret_db"), 0.0, "{summary}");
+    // The hindsight association: at no handover cost the best site every step (the oracle's
+    // regret, to the replay's f32 positions); with the minimum stay, no ping-pong and no more
+    // handovers than the oracle.
+    assert!(
+        col("dupac+hindsight_0", "site_regret_db") < 1e-3,
+        "{summary}"
+    );
+    assert_eq!(
+        col("dupac+hindsight_1000_mts", "ping_pongs_per_km"),
+        0.0,
+        "{summary}"
+    );
+    assert!(
+        col("dupac+hindsight_1000_mts", "handovers_per_km")
+            <= col("dupac+oracle", "handovers_per_km"),
+        "{summary}"
+    );
+    assert_eq!(col("dupac+oracle", "pct_class_regret"), 0.0, "{summary}");
+    assert_eq!(
+        col("dupac+a3", "success"),
+        col("dupac", "success"),
+        "{summary}"
+    );
+    let dupac_row: Vec<&str> = summary.lines().nth(1).expect("row").split(',').collect();
+    assert_eq!(
+        &dupac_row[1..3],
+        &["2", "16"],
+        "2 seeds × 8 held-out pairs: {summary}"
+    );
+    let shortest_row = summary
+        .lines()
+        .find(|l| l.starts_with("shortest_a3,"))
+        .expect("row");
+    assert!(
+        shortest_row.split(',').nth(3) == Some("1"),
+        "the planned shortest path always arrives: {shortest_row}"
+    );
+    for f in [
+        "report.md",
+        "fig3.png",
+        "fig4.png",
+        "pareto.png",
+        "fig3_fig4_bins.csv",
+        "pareto.csv",
+    ] {
+        assert!(ev.join(f).exists(), "{f} missing");
+    }
+    // failures.csv: one row per flight that missed its goal, none for the planned shortest path.
+    let failures = std::fs::read_to_string(ev.join("failures.csv")).expect("failures.csv");
+    let success: f64 = dupac_row[3].parse().expect("success rate");
+    let failed = failures
+        .lines()
+        .skip(1)
+        .filter(|l| l.starts_with("dupac,"))
+        .count();
+    assert_eq!(
+        failed,
+        ((1.0 - success) * 16.0).round() as usize,
+        "{failures}"
+    );
+    assert!(!failures.lines().any(|l| l.starts_with("shortest_a3,")));
+}
+
+/// `--report-only` in a fresh directory holding nothing but a copy of the records writes the same
+/// tables as the evaluation that flew them.
+#[test]
+fn eval_report_is_a_function_of_the_saved_records() {
+    let run = trained_run();
+    let ev = evaluated();
+    let dir = tempfile::tempdir().expect("tmp");
+    let again = dir.path().join("eval");
+    std::fs::create_dir_all(again.join("records")).expect("mkdir");
+    for e in std::fs::read_dir(ev.join("records")).expect("records") {
+        let e = e.expect("entry");
+        std::fs::copy(e.path(), again.join("records").join(e.file_name())).expect("copy");
+    }
+    let out = dupac_output(
+        &run.args,
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--report-only".into(),
+            "--out".into(),
+            again.display().to_string(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in TABLES {
+        assert_eq!(
+            std::fs::read_to_string(ev.join(f)).expect("read"),
+            std::fs::read_to_string(again.join(f)).expect("regenerated"),
+            "{f}: the report is a function of the saved records"
+        );
+    }
+    assert!(again.join("fig3.png").exists());
+}
+
+/// A bad `--hindsight` value is refused before anything is flown, naming it.
+#[test]
+fn eval_refuses_a_bad_hindsight_value_before_flying() {
+    let run = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    for (bad, says) in [
+        ("abc", "--hindsight abc"),
+        ("3:later", "--hindsight 3:later"),
+        ("-1", "--hindsight -1"),
+    ] {
+        let e = dupac_output(
+            &run.args,
+            &[
+                "eval".into(),
+                "-q".into(),
+                "--policy".into(),
+                format!("dupac={}", run.policy().display()),
+                format!("--hindsight={bad}"),
+                "--out".into(),
+                dir.path().join("eval_bad").display().to_string(),
+            ],
+        );
+        let err = String::from_utf8_lossy(&e.stderr);
+        assert!(!e.status.success() && err.contains(says), "{err}");
+    }
+    assert!(!dir.path().join("eval_bad").join("records").exists());
+}
