@@ -37,6 +37,43 @@ pub struct GlobalArgs {
 }
 
 impl GlobalArgs {
+    /// Refuses what clap would drop silently: a global option given on both sides of the
+    /// subcommand keeps only the occurrences after it (`dupac --set a=1 train --set b=2` loses
+    /// `a=1`), so the occurrences on the command line (`argv`, program name first; nothing after
+    /// a literal `--`) must all have reached `self`. The error says how to write it instead.
+    fn check_nothing_dropped<I: IntoIterator<Item = std::ffi::OsString>>(
+        &self,
+        argv: I,
+    ) -> std::result::Result<(), String> {
+        let (mut sets, mut configs) = (0usize, 0usize);
+        for a in argv.into_iter().skip(1) {
+            let a = a.to_string_lossy();
+            if a == "--" {
+                break;
+            }
+            if a == "--set" || a.starts_with("--set=") {
+                sets += 1;
+            } else if a == "--config" || a.starts_with("--config=") {
+                configs += 1;
+            }
+        }
+        if sets != self.set.len() {
+            return Err(format!(
+                "--set was given {sets} times but {} reached the command: give every --set after \
+                 the command's name (e.g. `dupac train --set a.b=1 --set c.d=2`), not on both \
+                 sides of it",
+                self.set.len()
+            ));
+        }
+        if configs > 1 {
+            return Err(format!(
+                "--config was given {configs} times: give one configuration file (every other \
+                 change as --set)"
+            ));
+        }
+        Ok(())
+    }
+
     /// The resolved, validated configuration.
     pub fn config(&self) -> Result<dupac_common::Config> {
         Ok(dupac_common::Config::load(
@@ -82,6 +119,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = cli.global.check_nothing_dropped(std::env::args_os()) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     init_tracing(cli.global.verbose);
     let result = match &cli.command {
         Command::Map(a) => commands::map::run(&cli.global, a),

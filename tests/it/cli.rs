@@ -270,6 +270,57 @@ fn config_errors_name_the_key() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("fc_ghz = 3.5"));
 }
 
+/// A global option given on both sides of the command would lose the occurrences before it
+/// (clap keeps one side); `dupac` refuses that instead of running with a configuration the user
+/// did not write, and either side alone works.
+#[test]
+fn a_set_on_both_sides_of_the_command_is_refused_not_dropped() {
+    let out = dupac(
+        &[
+            "--set",
+            "train.seed=5",
+            "config",
+            "--set",
+            "train.num_envs=3",
+        ],
+        None,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--set was given 2 times but 1 reached the command"),
+        "{err}"
+    );
+    let out = dupac(
+        &["--config", "a.toml", "config", "--config", "b.toml"],
+        None,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--config was given 2 times"));
+    for args in [
+        &[
+            "--set",
+            "train.seed=5",
+            "--set",
+            "train.num_envs=3",
+            "config",
+        ][..],
+        &["config", "--set", "train.seed=5", "--set=train.num_envs=3"][..],
+    ] {
+        let out = dupac(args, None);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            text.contains("seed = 5") && text.contains("num_envs = 3"),
+            "{args:?}: {text}"
+        );
+    }
+}
+
 #[test]
 fn broken_city_file_is_a_clear_error() {
     let dir = tempfile::tempdir().expect("tmp");
