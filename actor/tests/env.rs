@@ -821,6 +821,60 @@ fn site_rewards_follow_the_minimum_time_of_stay() {
     site_rewards_match_their_counterfactuals(&cfg);
 }
 
+/// Issue 15: `env.handover_margin_db` refuses a choice of a site that does not lead the serving
+/// one by the margin, and every site's reward follows the refusals (the counterfactual replay).
+#[test]
+fn site_rewards_follow_the_handover_margin() {
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    cfg.env.handover_margin_db = 5.0;
+    site_rewards_match_their_counterfactuals(&cfg);
+}
+
+/// Flying north through `CROSSING` (site 1 − site 0 = y − 35 dB) choosing site 1 every step: with
+/// a 5 dB margin the handover waits until site 1 leads by 5 dB (y = 40 m), then a choice of
+/// site 0 is refused while it trails; without a margin the first choice hands over at once.
+#[test]
+fn the_handover_margin_holds_the_serving_site_until_the_choice_leads_by_it() {
+    let run = |margin_db: f64, choose: fn(u32) -> u16| {
+        let mut cfg = Config::default();
+        cfg.env.association = Association::Learned;
+        cfg.env.handover_margin_db = margin_db;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+        e.reset(
+            1,
+            ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0)),
+        )
+        .expect("reset");
+        let mut serving = Vec::new();
+        for t in 0..60u32 {
+            let st = e.step(&mv(0.0, 1.0, 0.0, choose(t))).expect("step");
+            serving.push((st.info.position_m[1], st.info.serving.0, st.info.handover));
+        }
+        serving
+    };
+    let free = run(0.0, |_| 1);
+    assert_eq!(free[0].1, 1, "no margin: the first choice serves");
+    let held = run(5.0, |_| 1);
+    let first = held.iter().position(|s| s.1 == 1).expect("a handover");
+    assert!(
+        (held[first].0 - 40.0).abs() < 1e-9 && held[first].2,
+        "hands over where site 1 leads by 5 dB: {:?}",
+        held[first]
+    );
+    assert!(held[..first].iter().all(|s| s.1 == 0 && !s.2));
+    // From y = 40 on, a choice of site 0 (trailing by ≥ 5 dB) is refused every time.
+    let back = run(5.0, |t| if t < 45 { 1 } else { 0 });
+    assert!(
+        back[45..].iter().all(|s| s.1 == 1 && !s.2),
+        "{:?}",
+        &back[44..50]
+    );
+    // A margin of 0 is the paper's free choice: the same choice back hands over at once.
+    let free_back = run(0.0, |t| if t < 45 { 1 } else { 0 });
+    assert_eq!(free_back[45].1, 0);
+}
+
 fn site_rewards_match_their_counterfactuals(cfg: &Config) {
     assert!(cfg.env.reward.handover_reward < 0.0 && cfg.env.reward.site_regret_weight > 0.0);
     assert!(cfg.env.reward.route_connectivity_weight > 0.0);

@@ -269,6 +269,8 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         ("distributed", "max_message_mib", "1e308"),
         ("env", "min_time_of_stay_s", "-1.0"),
         ("env", "min_time_of_stay_s", "1e9"),
+        ("env", "handover_margin_db", "-0.5"),
+        ("env", "handover_margin_db", "100.0"),
     ];
     for (section, leaf, value) in cases {
         let key = format!("{section}.{leaf}");

@@ -110,6 +110,14 @@ pub struct Env {
     sensor_dirs: [Vector; 26],
     /// `env.min_time_of_stay_s` in steps (0: off); learned association only.
     min_stay_steps: u32,
+    /// `env.handover_margin_db` (learned association only; 0 = off).
+    margin_db: f64,
+    /// The serving site when this decision's choice was applied, and whether the choice was
+    /// refused by the handover margin (the origin then serves the whole decision).
+    decision_origin: SiteId,
+    choice_gated: bool,
+    /// Per site: whether choosing it at this decision would have been refused by the margin.
+    gated: Vec<bool>,
     /// A decision whose site choice has not yet been applied (the lock of the minimum time of
     /// stay may defer it past the decision's first step).
     choice_pending: bool,
@@ -194,6 +202,14 @@ impl Env {
             slots,
             sensor_dirs,
             min_stay_steps,
+            margin_db: if env.association == Association::Learned {
+                env.handover_margin_db
+            } else {
+                0.0
+            },
+            decision_origin: SiteId(0),
+            choice_gated: false,
+            gated: vec![false; m],
             choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
@@ -442,6 +458,7 @@ impl Env {
         let before = self.serving;
         if first {
             self.choice_pending = true;
+            self.choice_gated = false;
         }
         // The minimum time of stay: no handover within `min_stay_steps` of the last one.
         let locked = self.min_stay_steps > 0
@@ -449,11 +466,23 @@ impl Env {
                 .handovers
                 .last()
                 .is_some_and(|(_, at)| self.step - at <= self.min_stay_steps);
-        let chosen = if locked { before } else { action.site };
+        let mut chosen = if locked { before } else { action.site };
         // The step at which this decision's choice takes effect (a handover only here).
         let choice_step = self.choice_pending && !locked;
         if choice_step {
             self.choice_pending = false;
+            if self.margin_db > 0.0 {
+                // The handover margin: another site only if it leads the serving one by it.
+                self.decision_origin = before;
+                let floor_dbm = self.rsrp_dbm[before.index()] + self.margin_db;
+                for (k, g) in self.gated.iter_mut().enumerate() {
+                    *g = k != before.index() && self.rsrp_dbm[k] < floor_dbm;
+                }
+                self.choice_gated = self.gated[chosen.index()];
+            }
+        }
+        if self.choice_gated {
+            chosen = self.decision_origin;
         }
         self.serving = self.associator.next(chosen, &self.rsrp_dbm);
         let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
@@ -499,12 +528,17 @@ impl Env {
             // The counterfactual of site k serves k from the step at which this decision's
             // choice takes effect (its first step, or the end of the minimum stay) on; before
             // that every choice gives the serving site's reward.
+            // A choice the handover margin refuses serves the decision's origin, without a
+            // handover.
             let applied = !self.choice_pending;
+            let margin_on = self.margin_db > 0.0;
             for (k, acc) in self.site_rewards.iter_mut().enumerate() {
-                *acc += if applied {
-                    common + term(self.rsrp_dbm[k], choice_step && k != before.index())
-                } else {
+                *acc += if !applied {
                     reward
+                } else if margin_on && self.gated[k] {
+                    common + term(self.rsrp_dbm[self.decision_origin.index()], false)
+                } else {
+                    common + term(self.rsrp_dbm[k], choice_step && k != before.index())
                 };
             }
         }

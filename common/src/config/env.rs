@@ -244,6 +244,14 @@ pub struct EnvConfig {
     /// do heuristically. 0 = off (the paper: a free choice every decision). Learned association
     /// only (issue 15; docs/env.md, docs/results.md "What any association can do").
     pub min_time_of_stay_s: f64,
+    /// Handover margin of the learned association (dB): a decision's choice of another site
+    /// takes effect only if that site's RSRP exceeds the serving one's by at least this much at
+    /// the step the choice is applied; otherwise the serving site stays for the decision, and
+    /// every site's reward says so (a gated site's entry is the serving one's, without a
+    /// handover). The hysteresis of A3's entering condition (TS 36.331 §5.5.4.4, Off + Hys)
+    /// on the policy's own choice, without a time-to-trigger. 0 = off (the paper). Learned
+    /// association only (issue 15; docs/results.md "The A3 rule's margin").
+    pub handover_margin_db: f64,
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
     /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
     pub site_regret_threshold_db: f64,
@@ -268,6 +276,7 @@ impl Default for EnvConfig {
             radio_mode: RadioMode::Cache,
             ping_pong_window_s: 1.0,
             min_time_of_stay_s: 0.0,
+            handover_margin_db: 0.0,
             site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
             observation: ObservationConfig::default(),
@@ -366,6 +375,9 @@ impl EnvConfig {
         positive("env.site_regret_threshold_db", e.site_regret_threshold_db)?;
         if !(e.min_time_of_stay_s.is_finite() && (0.0..=60.0).contains(&e.min_time_of_stay_s)) {
             return Err(bad("env.min_time_of_stay_s", "must be in [0, 60] s"));
+        }
+        if !(e.handover_margin_db.is_finite() && (0.0..=30.0).contains(&e.handover_margin_db)) {
+            return Err(bad("env.handover_margin_db", "must be in [0, 30] dB"));
         }
         let rw = &e.reward;
         for (k, v) in [
