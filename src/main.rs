@@ -120,8 +120,10 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Err(e) = cli.global.check_nothing_dropped(std::env::args_os()) {
-        eprintln!("error: {e}");
-        return ExitCode::from(2);
+        // A usage error like clap's own: the message, the usage line, exit status 2.
+        <Cli as clap::CommandFactory>::command()
+            .error(clap::error::ErrorKind::ArgumentConflict, e)
+            .exit();
     }
     init_tracing(cli.global.verbose);
     let result = match &cli.command {

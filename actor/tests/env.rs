@@ -829,6 +829,9 @@ fn site_rewards_follow_the_handover_margin() {
     cfg.env.association = Association::Learned;
     cfg.env.handover_margin_db = 5.0;
     site_rewards_match_their_counterfactuals(&cfg);
+    // With a minimum stay as well: a deferred choice meets the margin when it is applied.
+    cfg.env.min_time_of_stay_s = 0.3;
+    site_rewards_match_their_counterfactuals(&cfg);
 }
 
 /// Flying north through `CROSSING` (site 1 − site 0 = y − 35 dB) choosing site 1 every step: with

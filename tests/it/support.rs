@@ -103,11 +103,14 @@ pub fn dupac_output(scenario: &[String], command: &[String]) -> std::process::Ou
 /// A policy trained once per test binary on [`small_run_args`] (`train --single-process`, 1 024
 /// decisions), shared by the tests that fly or evaluate one: its directory (held-out pairs, cache,
 /// `run/policy.bin`) and the arguments that select its scenario. It lives under cargo's
-/// `CARGO_TARGET_TMPDIR`, in a folder named after this process; folders of processes that have
-/// ended are removed when the next one starts.
+/// `CARGO_TARGET_TMPDIR`, in a folder of its own that this process holds locked (`flock` on
+/// `.lock`) while it runs; a folder whose lock can be taken belongs to a binary that has ended
+/// and is removed when the next one starts. A failed training fails every test that needs it
+/// with the same message, without training again.
 pub struct TrainedRun {
     pub dir: PathBuf,
     pub args: Vec<String>,
+    _lock: std::fs::File,
 }
 
 impl TrainedRun {
@@ -117,43 +120,71 @@ impl TrainedRun {
 }
 
 pub fn trained_run() -> &'static TrainedRun {
-    static RUN: std::sync::OnceLock<TrainedRun> = std::sync::OnceLock::new();
-    RUN.get_or_init(|| {
-        let root = Path::new(env!("CARGO_TARGET_TMPDIR"));
-        let prefix = "it-trained-run-";
-        if let Ok(entries) = std::fs::read_dir(root) {
-            for e in entries.flatten() {
-                let name = e.file_name().to_string_lossy().into_owned();
-                if let Some(pid) = name.strip_prefix(prefix)
-                    && !Path::new("/proc").join(pid).exists()
-                {
-                    let _ = std::fs::remove_dir_all(e.path());
-                }
+    static RUN: std::sync::OnceLock<Result<TrainedRun, String>> = std::sync::OnceLock::new();
+    match RUN.get_or_init(train_once) {
+        Ok(run) => run,
+        Err(e) => panic!("the shared trained run failed: {e}"),
+    }
+}
+
+/// An exclusive advisory lock on an existing `path`, taken without waiting: held while the
+/// returned file lives.
+fn try_lock(path: &Path, create: bool) -> Option<std::fs::File> {
+    use std::os::fd::AsRawFd;
+    let f = std::fs::OpenOptions::new()
+        .create(create)
+        .truncate(false)
+        .write(true)
+        .open(path)
+        .ok()?;
+    // SAFETY: flock(2) on a descriptor this function owns.
+    (unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0).then_some(f)
+}
+
+fn train_once() -> Result<TrainedRun, String> {
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let prefix = "it-trained-run-";
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let dir = root.join(format!("{prefix}{}-{nanos}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let lock = try_lock(&dir.join(".lock"), true)
+        .ok_or_else(|| format!("cannot lock {}", dir.display()))?;
+    // Folders of binaries that have ended (their lock is free). One without a lock file is
+    // being created, or was left by a crash before it: kept.
+    if let Ok(entries) = std::fs::read_dir(root) {
+        for e in entries.flatten() {
+            let other = e.path();
+            if other != dir
+                && e.file_name().to_string_lossy().starts_with(prefix)
+                && try_lock(&other.join(".lock"), false).is_some()
+            {
+                let _ = std::fs::remove_dir_all(&other);
             }
         }
-        let dir = root.join(format!("{prefix}{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
-        let args = small_run_args(&dir);
-        let run = dir.join("run").display().to_string();
-        let out = dupac_output(
-            &args,
-            &[
-                "train".into(),
-                "-q".into(),
-                "--single-process".into(),
-                "--out".into(),
-                run,
-                "--set".into(),
-                "train.total_timesteps=1024".into(),
-            ],
-        );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        TrainedRun { dir, args }
+    }
+    let args = small_run_args(&dir);
+    let run = dir.join("run").display().to_string();
+    let out = dupac_output(
+        &args,
+        &[
+            "train".into(),
+            "-q".into(),
+            "--single-process".into(),
+            "--out".into(),
+            run,
+            "--set".into(),
+            "train.total_timesteps=1024".into(),
+        ],
+    );
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    Ok(TrainedRun {
+        dir,
+        args,
+        _lock: lock,
     })
 }
 

@@ -115,9 +115,9 @@ pub struct Env {
     /// The serving site when this decision's choice was applied, and whether the choice was
     /// refused by the handover margin (the origin then serves the whole decision).
     decision_origin: SiteId,
-    choice_gated: bool,
+    choice_refused: bool,
     /// Per site: whether choosing it at this decision would have been refused by the margin.
-    gated: Vec<bool>,
+    refused: Vec<bool>,
     /// A decision whose site choice has not yet been applied (the lock of the minimum time of
     /// stay may defer it past the decision's first step).
     choice_pending: bool,
@@ -128,7 +128,7 @@ pub struct Env {
     position_m: Point,
     /// The last step's displacement in units of `max_step_m` (unitless; the velocity of the
     /// observation).
-    velocity_steps: Vector,
+    velocity_per_max_step: Vector,
     serving: SiteId,
     associator: Associator,
     rsrp_dbm: Vec<f64>,
@@ -208,13 +208,13 @@ impl Env {
                 0.0
             },
             decision_origin: SiteId(0),
-            choice_gated: false,
-            gated: vec![false; m],
+            choice_refused: false,
+            refused: vec![false; m],
             choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
             position_m: Point::origin(),
-            velocity_steps: Vector::zeros(),
+            velocity_per_max_step: Vector::zeros(),
             serving: SiteId(0),
             associator: Associator::Learned,
             rsrp_dbm: vec![f64::NEG_INFINITY; m],
@@ -339,7 +339,7 @@ impl Env {
         self.seed = seed;
         self.episode = Some(episode);
         self.position_m = episode.source_m;
-        self.velocity_steps = Vector::zeros();
+        self.velocity_per_max_step = Vector::zeros();
         self.step = 0;
         self.time_limit = (self.cfg.time_limit_factor * episode.shortest_m / self.cfg.max_step_m)
             .ceil()
@@ -348,6 +348,8 @@ impl Env {
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
         self.handovers.reset();
         self.choice_pending = false;
+        self.choice_refused = false;
+        self.refused.fill(false);
         self.rsrp_at_last_obs_dbm.fill(f64::NAN);
         self.substeps.clear();
         self.done = false;
@@ -401,8 +403,9 @@ impl Env {
     /// Every site's reward of the last [`Env::act`] (or [`Env::step`]): entry k is the reward
     /// the decision would have had with site k chosen, the flight being the same (the site does
     /// not move the UAV): the same Eq. (8), terminal and route terms, the site's own RSRP class
-    /// and regret, and the handover cost if k is not the site serving before the decision. The
-    /// chosen site's entry equals the reward returned. Empty unless `env.association =
+    /// and regret, and the handover cost if k is not the site serving before the decision; with
+    /// `env.handover_margin_db`, a site the margin would refuse gets the serving site's reward
+    /// without a handover. The chosen site's entry equals the reward returned. Empty unless `env.association =
     /// "learned"` (issue 15: the site head learns from all of them).
     pub fn site_rewards(&self) -> &[f64] {
         &self.site_rewards
@@ -446,7 +449,7 @@ impl Env {
             outcome = Some(Outcome::OutOfBounds);
         }
         let step_length_m = dist(from, to);
-        self.velocity_steps = (to - from) / self.cfg.max_step_m;
+        self.velocity_per_max_step = (to - from) / self.cfg.max_step_m;
         self.position_m = to;
         self.distance_flown_m += step_length_m;
         let d_prev = self.distance_to_goal_m;
@@ -458,7 +461,7 @@ impl Env {
         let before = self.serving;
         if first {
             self.choice_pending = true;
-            self.choice_gated = false;
+            self.choice_refused = false;
         }
         // The minimum time of stay: no handover within `min_stay_steps` of the last one.
         let locked = self.min_stay_steps > 0
@@ -475,13 +478,13 @@ impl Env {
                 // The handover margin: another site only if it leads the serving one by it.
                 self.decision_origin = before;
                 let floor_dbm = self.rsrp_dbm[before.index()] + self.margin_db;
-                for (k, g) in self.gated.iter_mut().enumerate() {
+                for (k, g) in self.refused.iter_mut().enumerate() {
                     *g = k != before.index() && self.rsrp_dbm[k] < floor_dbm;
                 }
-                self.choice_gated = self.gated[chosen.index()];
+                self.choice_refused = self.refused[chosen.index()];
             }
         }
-        if self.choice_gated {
+        if self.choice_refused {
             chosen = self.decision_origin;
         }
         self.serving = self.associator.next(chosen, &self.rsrp_dbm);
@@ -535,7 +538,7 @@ impl Env {
             for (k, acc) in self.site_rewards.iter_mut().enumerate() {
                 *acc += if !applied {
                     reward
-                } else if margin_on && self.gated[k] {
+                } else if margin_on && self.refused[k] {
                     common + term(self.rsrp_dbm[self.decision_origin.index()], false)
                 } else {
                     common + term(self.rsrp_dbm[k], choice_step && k != before.index())

@@ -80,7 +80,7 @@ impl Env {
             obs[s.position.start + k] = *v as f32;
         }
         for k in 0..3 {
-            obs[s.velocity.start + k] = self.velocity_steps[k] as f32;
+            obs[s.velocity.start + k] = self.velocity_per_max_step[k] as f32;
         }
         if let (Some(gv), Some(gd), Some(ep)) = (&s.goal_vector, &s.goal_distance, &self.episode) {
             for k in 0..3 {
@@ -140,7 +140,7 @@ impl Env {
         let goal = self
             .episode
             .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
-        let heading = unit2(self.velocity_steps[0], self.velocity_steps[1])
+        let heading = unit2(self.velocity_per_max_step[0], self.velocity_per_max_step[1])
             .or(goal)
             .unwrap_or([1.0, 0.0]);
         let goal = goal.unwrap_or(heading);

@@ -248,9 +248,10 @@ pub struct EnvConfig {
     /// takes effect only if that site's RSRP exceeds the serving one's by at least this much at
     /// the step the choice is applied; otherwise the serving site stays for the decision, and
     /// every site's reward says so (a gated site's entry is the serving one's, without a
-    /// handover). The hysteresis of A3's entering condition (TS 36.331 §5.5.4.4, Off + Hys)
-    /// on the policy's own choice, without a time-to-trigger. 0 = off (the paper). Learned
-    /// association only (issue 15; docs/results.md "The A3 rule's margin").
+    /// handover). A3's entering margin (TS 36.331 §5.5.4.4: Off + Hys; A3 asks for strictly more,
+    /// this for at least the margin) on the policy's own choice, without a time-to-trigger.
+    /// 0 = off (the paper). Learned association only (issue 15; docs/results.md "A handover
+    /// margin on the learned choice").
     pub handover_margin_db: f64,
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
     /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).

@@ -188,8 +188,10 @@ fn replay_associations(
                 Kind::Replay(a) => a,
                 _ => Association::Learned,
             };
-            // The hindsight programme keeps its own minimum stay.
+            // The hindsight programme keeps its own minimum stay, and its sites are applied as
+            // they are (no margin).
             rcfg.env.min_time_of_stay_s = 0.0;
+            rcfg.env.handover_margin_db = 0.0;
             let label = format!("{}+{suffix}", method.label);
             let replay = Method {
                 label: label.clone(),
