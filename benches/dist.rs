@@ -34,6 +34,9 @@ fn chunk() -> TrajectoryChunk {
             logprobs: f(STEPS),
             site_logprobs: f(STEPS),
             site_rewards: f(STEPS * SITES),
+            decision_steps: vec![],
+            step_site_features: vec![],
+            step_site_rewards: vec![],
             values: f(STEPS),
             rewards: f(STEPS),
             terminated: vec![false; STEPS],
@@ -60,6 +63,7 @@ fn benches(c: &mut Criterion) {
         n_sites: SITES,
         max_envs: ENVS,
         max_steps: STEPS,
+        site_steps: None,
     };
     let mut g = c.benchmark_group("chunk_4x128");
     g.throughput(Throughput::Bytes(bytes.len() as u64));

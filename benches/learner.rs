@@ -94,6 +94,7 @@ fn benches(c: &mut Criterion) {
         advantages: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         returns: (0..n).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
         is_weights: Vec::new(),
+        ..Batch::default()
     };
     let cfg = dupac_common::config::PpoConfig {
         update_epochs: 1,

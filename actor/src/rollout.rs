@@ -4,13 +4,15 @@
 //! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
 //! Episode summaries come from [`crate::metrics::EpisodeAccumulator`].
 
-use crate::env::{Action, Env, EnvError, Episode, Outcome, StepInfo};
+use crate::env::{Action, Env, EnvError, Episode, Outcome, Step, StepInfo};
 pub use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
 use dupac_common::SiteId;
 use dupac_common::geometry::Vector;
 pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
-use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
+use dupac_common::policy::{
+    ActionSample, MOVE_DIM, PolicyWeights, Scratch, argmax, sample_categorical,
+};
 pub use dupac_common::seed::stream_seed;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -27,6 +29,55 @@ pub enum RolloutError {
     ObsMismatch { policy: usize, env: usize },
     #[error("the policy has {policy} site logits, the scenario {env} sites")]
     SiteMismatch { policy: usize, env: usize },
+    #[error(
+        "env.site_every_step needs a policy with the equivariant site head (ppo.site_head = \"equivariant\")"
+    )]
+    SiteEveryStepNeedsHead,
+}
+
+/// How the site of each later step of a decision is picked from the site head's scores
+/// (`env.site_every_step`).
+pub enum SitePick<'a> {
+    /// The highest score (flying and evaluating).
+    Argmax,
+    /// A draw from the softmax with one uniform number in [0, 1) from the closure (rollouts).
+    Sample(&'a mut dyn FnMut() -> f64),
+}
+
+/// One decision of `policy` on `env`: the action `a` (just acted on `s` by the policy) applied
+/// for `env.action_repeat` steps ([`Env::act`]). With `env.site_every_step`, the move is held
+/// and the site of every later step of the decision is picked (`pick`) from the site head's
+/// scores of that step's features with the decision's state embedding
+/// ([`PolicyWeights::step_site_logits`]; [`Env::act_site_every_step`]).
+pub fn decide(
+    env: &mut Env,
+    policy: &PolicyWeights,
+    a: &ActionSample,
+    s: &mut Scratch,
+    mut pick: SitePick<'_>,
+) -> Result<Step, RolloutError> {
+    let move_ = Vector::from(a.move_raw.map(f64::from));
+    if !env.site_every_step() {
+        return Ok(env.act(&Action {
+            move_,
+            site: SiteId(a.site as u16),
+        })?);
+    }
+    if policy.site_head.is_none() {
+        return Err(RolloutError::SiteEveryStepNeedsHead);
+    }
+    let first = SiteId(a.site as u16);
+    Ok(env.act_site_every_step(move_, |k, feats| {
+        if k == 0 {
+            return first;
+        }
+        let logits = policy.step_site_logits(feats, s);
+        let k = match &mut pick {
+            SitePick::Argmax => argmax(logits),
+            SitePick::Sample(u) => sample_categorical(logits, u()),
+        };
+        SiteId(k as u16)
+    })?)
 }
 
 /// An environment with its own RNG and the episode in progress.
@@ -136,12 +187,15 @@ impl Worker {
             tr.obs.extend_from_slice(&self.obs);
             let rng = &mut self.rng;
             let a = policy.act_sample(&self.obs, &mut self.scratch, || rng.random::<f64>());
-            let action = Action {
-                move_: Vector::from(a.move_raw.map(f64::from)),
-                site: SiteId(a.site as u16),
-            };
             // One decision: `env.action_repeat` steps of the environment.
-            let step = self.env.act(&action)?;
+            let mut u = || rng.random::<f64>();
+            let step = decide(
+                &mut self.env,
+                policy,
+                &a,
+                &mut self.scratch,
+                SitePick::Sample(&mut u),
+            )?;
             for info in self.env.substeps() {
                 self.acc.push(info);
             }
@@ -149,8 +203,15 @@ impl Worker {
             tr.sites.push(a.site);
             tr.logprobs.push(a.logprob);
             tr.site_logprobs.push(a.site_logprob);
-            // Every site's reward, for the all-sites site gradient (learned association only).
-            if policy.n_sites != 0 {
+            // Every site's reward, for the all-sites site gradient (learned association only):
+            // of the decision, or of each of its steps when the site is chosen every step.
+            if self.env.site_every_step() {
+                tr.decision_steps.push(self.env.substeps().len() as u8);
+                tr.step_site_features
+                    .extend_from_slice(self.env.step_site_features());
+                tr.step_site_rewards
+                    .extend(self.env.step_site_rewards().iter().map(|&r| r as f32));
+            } else if policy.n_sites != 0 {
                 tr.site_rewards
                     .extend(self.env.site_rewards().iter().map(|&r| r as f32));
             }
@@ -207,10 +268,7 @@ pub fn fly_policy(
     let mut steps = Vec::new();
     loop {
         let a = policy.act_deterministic(&obs, &mut scratch);
-        let step = env.act(&Action {
-            move_: Vector::from(a.move_raw.map(f64::from)),
-            site: SiteId(a.site as u16),
-        })?;
+        let step = decide(env, policy, &a, &mut scratch, SitePick::Argmax)?;
         for info in env.substeps() {
             acc.push(info);
             steps.push(*info);

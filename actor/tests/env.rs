@@ -1018,3 +1018,123 @@ fn the_environment_flags_and_the_evaluation_recount_agree() {
         (handovers, ping_pongs)
     );
 }
+
+/// Issue 15, `env.site_every_step`: a decision holds its move for `action_repeat` steps while a
+/// site is chosen at every step. Each step's site features are the observation's site features
+/// at that state, and each step's every-site reward is what that step would have returned with
+/// that site chosen at it: replaying the same steps one at a time with [`Env::step`] (a decision
+/// every step) and site j at step t gives exactly the recorded entry; the chosen site's entry
+/// is the step's reward.
+fn step_site_rewards_match_their_counterfactuals(cfg: &Config, min_handovers: usize) {
+    let make = || Env::new(cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
+    let seq = |t: usize| SiteId([0u16, 1, 1, 0, 1, 0, 0, 1, 1, 1, 0][t % 11]);
+    let mut main = make();
+    main.reset(1, episode).expect("reset");
+    assert!(main.site_every_step());
+    let tail = main
+        .layout()
+        .range(field::SITE_FEATURES)
+        .expect("site features");
+    let (mut t0, mut switches) = (0usize, 0);
+    for d in 0..10 {
+        let obs_tail = main.observation()[tail.clone()].to_vec();
+        let mut asked = Vec::new();
+        let s = main
+            .act_site_every_step(Vector::new(0.0, 1.0, 0.0), |k, feats| {
+                asked.push((k, feats.to_vec()));
+                seq(t0 + k)
+            })
+            .expect("act");
+        let steps = main.substeps().to_vec();
+        assert_eq!(asked.len(), steps.len());
+        assert_eq!(
+            asked[0].1, obs_tail,
+            "decision {d}: step 0 reads the observation"
+        );
+        let feats = main.step_site_features().to_vec();
+        let rewards = main.step_site_rewards().to_vec();
+        assert_eq!(feats.len(), steps.len() * tail.len());
+        assert_eq!(rewards.len(), steps.len() * 2);
+        let total: f64 = steps.iter().map(|i| i.reward).sum();
+        assert!((total - s.reward).abs() < 1e-9);
+        for (k, info) in steps.iter().enumerate() {
+            assert_eq!(asked[k].1, feats[k * tail.len()..(k + 1) * tail.len()]);
+            let chosen = seq(t0 + k).index();
+            assert!(
+                (rewards[k * 2 + chosen] - info.reward).abs() < 1e-9,
+                "step {}: chosen site's entry {} vs reward {}",
+                t0 + k,
+                rewards[k * 2 + chosen],
+                info.reward
+            );
+            switches += usize::from(info.handover);
+            for j in 0..2 {
+                let mut alt = make();
+                alt.reset(1, episode).expect("reset");
+                for u in 0..t0 + k {
+                    alt.step(&Action {
+                        move_: Vector::new(0.0, 1.0, 0.0),
+                        site: seq(u),
+                    })
+                    .expect("replay");
+                }
+                assert_eq!(
+                    alt.observation()[tail.clone()],
+                    feats[k * tail.len()..(k + 1) * tail.len()],
+                    "step {}: the features of the state it was chosen in",
+                    t0 + k
+                );
+                let got = alt.step(&mv(0.0, 1.0, 0.0, j as u16)).expect("alt").reward;
+                let want = rewards[k * 2 + j];
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "step {} site {j}: counterfactual {got} vs recorded {want}",
+                    t0 + k
+                );
+            }
+        }
+        t0 += steps.len();
+        if s.terminated || s.truncated {
+            break;
+        }
+    }
+    assert!(
+        switches >= min_handovers,
+        "the flight changed sites inside decisions: {switches}"
+    );
+}
+
+#[test]
+fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
+    let mut cfg = Config::default();
+    cfg.env.association = Association::Learned;
+    cfg.env.site_every_step = true;
+    step_site_rewards_match_their_counterfactuals(&cfg, 10);
+    // The margin and the minimum stay apply per step (site 1 leads by 2 dB from y = 37 m on:
+    // one handover, every later choice of site 0 refused).
+    cfg.env.handover_margin_db = 2.0;
+    step_site_rewards_match_their_counterfactuals(&cfg, 1);
+    cfg.env.handover_margin_db = 0.0;
+    cfg.env.min_time_of_stay_s = 0.1;
+    step_site_rewards_match_their_counterfactuals(&cfg, 3);
+}
+
+/// Without `env.site_every_step` (or without the learned association) a per-step decision is
+/// refused rather than run with a held site.
+#[test]
+fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
+    for (every, assoc) in [(false, Association::Learned), (true, Association::A3)] {
+        let mut cfg = Config::default();
+        cfg.env.association = assoc;
+        cfg.env.site_every_step = every;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+        e.reset(1, episode).expect("reset");
+        assert!(!e.site_every_step());
+        assert_eq!(
+            e.act_site_every_step(Vector::new(0.0, 1.0, 0.0), |_, _| SiteId(0)),
+            Err(EnvError::SiteEveryStepUnavailable)
+        );
+    }
+}

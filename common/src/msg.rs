@@ -11,14 +11,15 @@ use crate::codec::{self, CodecError};
 use crate::ids::ActorId;
 use crate::policy::PolicyWeights;
 pub use crate::validate::{
-    ChunkExpect, DropReason, HEADER_BUDGET_BYTES, Rejection, check_header, validate_chunk,
-    validate_weights,
+    ChunkExpect, DropReason, HEADER_BUDGET_BYTES, Rejection, SiteSteps, check_header,
+    validate_chunk, validate_weights,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Version of every message layout below; bump on any change.
-pub const SCHEMA_VERSION: u32 = 3;
+/// 4: the per-step site fields of [`EnvTrajectory`] (`env.site_every_step`).
+pub const SCHEMA_VERSION: u32 = 4;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -125,6 +126,17 @@ pub struct EnvTrajectory {
     /// when the site is not learned (issue 15, `Env::site_rewards`).
     #[serde(deserialize_with = "crate::budget::vec")]
     pub site_rewards: Vec<f32>,
+    /// With `env.site_every_step` (issue 15; empty otherwise, `site_rewards` then empty too):
+    /// the steps each decision ran (1..=`env.action_repeat`) `[T]`; each of those steps' site
+    /// features `[R × n_sites·F]` and every site's reward of that step `[R × n_sites]`
+    /// (`Env::step_site_features`, `Env::step_site_rewards`), R = Σ `decision_steps`, decisions
+    /// in order.
+    #[serde(deserialize_with = "crate::budget::vec")]
+    pub decision_steps: Vec<u8>,
+    #[serde(deserialize_with = "crate::budget::vec")]
+    pub step_site_features: Vec<f32>,
+    #[serde(deserialize_with = "crate::budget::vec")]
+    pub step_site_rewards: Vec<f32>,
     /// V(s) of the behaviour policy's critic.
     #[serde(deserialize_with = "crate::budget::vec")]
     pub values: Vec<f32>,
@@ -160,6 +172,8 @@ impl EnvTrajectory {
             ("logprobs", &self.logprobs),
             ("site_logprobs", &self.site_logprobs),
             ("site_rewards", &self.site_rewards),
+            ("step_site_features", &self.step_site_features),
+            ("step_site_rewards", &self.step_site_rewards),
             ("values", &self.values),
             ("rewards", &self.rewards),
             ("next_values", &self.next_values),
@@ -437,6 +451,7 @@ impl MsgLimits {
             n_sites,
             max_envs: cfg.distributed.actor_envs.max(cfg.train.num_envs),
             max_steps: cfg.distributed.chunk_steps.max(cfg.train.num_steps),
+            site_steps: SiteSteps::of(cfg),
         };
         [
             MsgLimits::chunk(cfg, &x).bytes,
@@ -490,6 +505,7 @@ mod tests {
             n_sites: 3,
             max_envs: 4,
             max_steps: 8,
+            site_steps: None,
         }
     }
 
@@ -507,6 +523,9 @@ mod tests {
                 logprobs: vec![-1.0; 2],
                 site_logprobs: vec![0.0; 2],
                 site_rewards: vec![],
+                decision_steps: vec![],
+                step_site_features: vec![],
+                step_site_rewards: vec![],
                 values: vec![0.5; 2],
                 rewards: vec![1.0; 2],
                 terminated: vec![false, true],
@@ -632,6 +651,10 @@ mod tests {
         let mut h = Header::new(&"r".repeat(64), u64::MAX, ActorId(u32::MAX), u64::MAX);
         h.seq = u64::MAX;
         h.sender_incarnation = u64::MAX;
+        // Per-step site rows (every decision at its longest) or decision-level site rewards.
+        let (steps, rows, feats) = x.site_steps.map_or((0, 0, 0), |k| {
+            (k.per_decision, t * k.per_decision, k.features)
+        });
         TrajectoryChunk {
             header: h,
             trajectories: (0..x.max_envs)
@@ -643,7 +666,14 @@ mod tests {
                     sites: vec![x.n_sites as u32 - 1; t],
                     logprobs: vec![1.0; t],
                     site_logprobs: vec![1.0; t],
-                    site_rewards: vec![1.0; t * x.n_sites],
+                    site_rewards: if steps == 0 {
+                        vec![1.0; t * x.n_sites]
+                    } else {
+                        vec![]
+                    },
+                    decision_steps: vec![steps as u8; if steps == 0 { 0 } else { t }],
+                    step_site_features: vec![1.0; rows * x.n_sites * feats],
+                    step_site_rewards: vec![1.0; rows * x.n_sites],
                     values: vec![1.0; t],
                     rewards: vec![1.0; t],
                     terminated: vec![true; t],
@@ -664,6 +694,7 @@ mod tests {
             n_sites: 30,
             max_envs: 4,
             max_steps: 128,
+            site_steps: None,
             ..expect()
         };
         let c = maximal(&x);
@@ -678,6 +709,85 @@ mod tests {
         assert_eq!(d.samples(), 4 * 128);
         // The bound is not wildly loose either: within 2× of the real size.
         assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
+        // With a site chosen every step (5 steps per decision, 10 features per site).
+        let per_step = ChunkExpect {
+            site_steps: Some(SiteSteps {
+                per_decision: 5,
+                features: 10,
+            }),
+            ..x.clone()
+        };
+        let c = maximal(&per_step);
+        let bytes = encode_msg(&c).expect("encode");
+        let need = per_step.budget_bytes();
+        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
+        let d: TrajectoryChunk =
+            decode_msg(&bytes, MsgLimits::both(need), "k").expect("fits its budget");
+        assert_eq!(d, c);
+        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
+        // The per-step budget does not admit it without per-step fields expected.
+        assert!(x.budget_bytes() < bytes.len());
+    }
+
+    /// The per-step site fields (`env.site_every_step`) are checked against their shape: each
+    /// defect is refused with a message naming the field, and none is accepted when the run
+    /// does not choose the site every step.
+    #[test]
+    fn per_step_site_fields_are_checked_against_their_shape() {
+        let x = ChunkExpect {
+            site_steps: Some(SiteSteps {
+                per_decision: 2,
+                features: 4,
+            }),
+            ..expect()
+        };
+        let good = |c: &mut TrajectoryChunk| {
+            let tr = &mut c.trajectories[0];
+            tr.decision_steps = vec![2, 1];
+            tr.step_site_features = vec![0.5; 3 * 3 * 4];
+            tr.step_site_rewards = vec![-1.0; 3 * 3];
+        };
+        let mut c = chunk();
+        good(&mut c);
+        assert_eq!(validate_chunk(&c, &x), Ok(()));
+        let message = |f: &dyn Fn(&mut EnvTrajectory)| {
+            let mut c = chunk();
+            good(&mut c);
+            f(&mut c.trajectories[0]);
+            validate_chunk(&c, &x).map(|_| ()).map_err(|r| {
+                assert_eq!(r.reason, DropReason::Dimensions);
+                r.detail
+            })
+        };
+        let err = |f: &dyn Fn(&mut EnvTrajectory), want: &str| {
+            let e = message(f).expect_err(want);
+            assert!(e.contains(want), "{e:?} should name {want}");
+        };
+        err(
+            &|t| t.decision_steps = vec![2],
+            "decision_steps has 1 values",
+        );
+        err(&|t| t.decision_steps = vec![3, 0], "a decision of 3 steps");
+        err(&|t| t.decision_steps = vec![0, 2], "a decision of 0 steps");
+        err(
+            &|t| t.step_site_features.pop().map_or((), |_| ()),
+            "step_site_features",
+        );
+        err(&|t| t.step_site_rewards.push(0.0), "step_site_rewards");
+        err(
+            &|t| t.site_rewards = vec![0.0; 6],
+            "site_rewards with per-step",
+        );
+        let mut nan = chunk();
+        good(&mut nan);
+        nan.trajectories[0].step_site_rewards[4] = f32::NAN;
+        assert_eq!(
+            validate_chunk(&nan, &x).map_err(|r| r.reason),
+            Err(DropReason::NonFinite)
+        );
+        // A run without per-step sites refuses them.
+        let r = validate_chunk(&c, &expect()).expect_err("not expected");
+        assert!(r.detail.contains("env.site_every_step is off"), "{r:?}");
     }
 
     #[test]

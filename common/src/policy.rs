@@ -293,6 +293,7 @@ pub struct Scratch {
     layers: [Vec<f32>; 2],
     hidden: Vec<f32>,
     site: SiteScratch,
+    step_logits: Vec<f32>,
 }
 
 /// Upper bound (bytes) on what a [`PolicyWeights`] of this shape allocates decoded (and on its
@@ -476,18 +477,7 @@ impl PolicyWeights {
         let site = if logits.is_empty() {
             0
         } else {
-            let max = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-            let total: f64 = logits.iter().map(|&l| f64::from(l - max).exp()).sum();
-            let mut target = u() * total;
-            let mut pick = logits.len() - 1;
-            for (k, &l) in logits.iter().enumerate() {
-                target -= f64::from(l - max).exp();
-                if target < 0.0 {
-                    pick = k;
-                    break;
-                }
-            }
-            pick
+            sample_categorical(logits, u())
         };
         let (lp_move, lp_site) = self.logprob_of(head, &move_raw, site);
         ActionSample {
@@ -497,6 +487,26 @@ impl PolicyWeights {
             site_logprob: lp_site,
             value,
         }
+    }
+
+    /// The site logits at a later step of the decision last acted on with `s`
+    /// (`env.site_every_step`, issue 15): the site head over this step's `feats` (`n_sites ×
+    /// features`, the `site_features` layout) with the actor's hidden activation of the
+    /// decision's observation, which [`PolicyWeights::act_sample`] and
+    /// [`PolicyWeights::act_deterministic`] leave in `s` ([`PolicyWeights::value`] does not
+    /// touch it). Empty without an equivariant site head.
+    pub fn step_site_logits<'a>(&self, feats: &[f32], s: &'a mut Scratch) -> &'a [f32] {
+        let Some(h) = &self.site_head else {
+            return &[];
+        };
+        s.step_logits.resize(self.n_sites, 0.0);
+        if feats.len() != self.n_sites * h.features || s.hidden.len() != h.embed.n_in {
+            // Not the layout this head reads, or no decision acted on yet: no scores.
+            s.step_logits.fill(0.0);
+        } else {
+            h.logits(&s.hidden, feats, &mut s.step_logits, &mut s.site);
+        }
+        &s.step_logits
     }
 
     /// (log π(move), log π(site)) given the actor head.
@@ -556,7 +566,23 @@ impl PolicyWeights {
     }
 }
 
-fn argmax(v: &[f32]) -> usize {
+/// The index of a categorical draw from `logits` (not empty) with the uniform number `u` in
+/// [0, 1): inverse transform sampling over the softmax weights, in index order.
+pub fn sample_categorical(logits: &[f32], u: f64) -> usize {
+    let max = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+    let total: f64 = logits.iter().map(|&l| f64::from(l - max).exp()).sum();
+    let mut target = u * total;
+    for (k, &l) in logits.iter().enumerate() {
+        target -= f64::from(l - max).exp();
+        if target < 0.0 {
+            return k;
+        }
+    }
+    logits.len().saturating_sub(1)
+}
+
+/// The first index of the largest value (0 for an empty slice): the deterministic site.
+pub fn argmax(v: &[f32]) -> usize {
     let mut best = 0;
     for (k, &x) in v.iter().enumerate() {
         if x > v[best] {

@@ -112,6 +112,32 @@ pub struct ChunkExpect {
     /// Most environments and steps per environment in one chunk.
     pub max_envs: usize,
     pub max_steps: usize,
+    /// With `env.site_every_step`: steps per decision (`env.action_repeat`) and features per
+    /// site of the per-step site fields; `None`: those fields must be empty.
+    pub site_steps: Option<SiteSteps>,
+}
+
+/// The shape of a trajectory's per-step site fields (`env.site_every_step`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SiteSteps {
+    /// Most steps of one decision (`env.action_repeat`).
+    pub per_decision: usize,
+    /// Features per site ([`crate::obs::site_features_per_site`]).
+    pub features: usize,
+}
+
+impl SiteSteps {
+    /// The per-step site shape of a configuration (`None` unless `env.site_every_step` with the
+    /// learned association).
+    pub fn of(cfg: &crate::Config) -> Option<SiteSteps> {
+        let e = &cfg.env;
+        (e.site_every_step && e.association == crate::config::Association::Learned).then(|| {
+            SiteSteps {
+                per_decision: e.action_repeat as usize,
+                features: crate::obs::site_features_per_site(&e.observation),
+            }
+        })
+    }
 }
 
 impl ChunkExpect {
@@ -126,7 +152,10 @@ impl ChunkExpect {
             + size_of::<u32>()
             + 5 * f
             + 2 * size_of::<bool>()
-            + size_of::<EpisodeSummary>();
+            + size_of::<EpisodeSummary>()
+            + self.site_steps.map_or(0, |k| {
+                1 + f * k.per_decision * self.n_sites * (k.features + 1)
+            });
         let per_env =
             size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);
         self.max_envs
@@ -239,6 +268,7 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
                 t * x.n_sites
             ))));
         }
+        check_site_steps(tr, x).map_err(|w| dims(at(&w)))?;
         let max_site = x.n_sites.max(1) as u32;
         if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
             return Err(dims(at(&format!("site {s} outside 0..{max_site}"))));
@@ -252,6 +282,58 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
         if let Some(what) = tr.first_non_finite() {
             return Err(reject(DropReason::NonFinite, at(&what)));
         }
+    }
+    Ok(())
+}
+
+/// The per-step site fields of one trajectory against the expected shape.
+fn check_site_steps(tr: &EnvTrajectory, x: &ChunkExpect) -> Result<(), String> {
+    let Some(k) = x.site_steps else {
+        let n = tr.decision_steps.len() + tr.step_site_features.len() + tr.step_site_rewards.len();
+        return if n == 0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "{n} per-step site values, expected none (env.site_every_step is off)"
+            ))
+        };
+    };
+    if tr.decision_steps.len() != tr.len() {
+        return Err(format!(
+            "decision_steps has {} values, expected {}",
+            tr.decision_steps.len(),
+            tr.len()
+        ));
+    }
+    if let Some(s) = tr
+        .decision_steps
+        .iter()
+        .find(|&&s| s == 0 || usize::from(s) > k.per_decision)
+    {
+        return Err(format!(
+            "a decision of {s} steps (1..={} allowed)",
+            k.per_decision
+        ));
+    }
+    let rows: usize = tr.decision_steps.iter().map(|&s| usize::from(s)).sum();
+    for (name, got, want) in [
+        (
+            "step_site_features",
+            tr.step_site_features.len(),
+            rows * x.n_sites * k.features,
+        ),
+        (
+            "step_site_rewards",
+            tr.step_site_rewards.len(),
+            rows * x.n_sites,
+        ),
+    ] {
+        if got != want {
+            return Err(format!("{name} has {got} values, expected {want}"));
+        }
+    }
+    if !tr.site_rewards.is_empty() {
+        return Err("site_rewards with per-step site rewards".into());
     }
     Ok(())
 }

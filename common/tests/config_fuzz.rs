@@ -294,6 +294,32 @@ fn out_of_range_values_are_rejected_naming_the_key() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("env.observation.site_trend"), "{e}");
+    // A site chosen every step with what it cannot run with: each requirement named.
+    for (set, needs) in [
+        ("ppo.site_head=\"slots\"", "ppo.site_head = \"equivariant\""),
+        (
+            "ppo.site_gradient=\"sampled\"",
+            "ppo.site_gradient = \"all_sites\"",
+        ),
+        (
+            "ppo.site_horizon=\"route\"",
+            "ppo.site_horizon = \"decision\"",
+        ),
+        (
+            "env.observation.site_trend=true",
+            "env.observation.site_trend = false",
+        ),
+    ] {
+        let sets = ["env.site_every_step=true".to_string(), set.to_string()];
+        let e = Config::from_toml_str("", ORIGIN, &sets)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("env.site_every_step") && e.contains(needs),
+            "{e}"
+        );
+    }
+    assert!(Config::from_toml_str("", ORIGIN, &["env.site_every_step=true".into()]).is_ok());
     // Negative where an unsigned integer is expected: a type error at the line of the key.
     let msg = Config::from_toml_str("[ppo]\nnum_minibatches = -4\n", ORIGIN, &[])
         .unwrap_err()

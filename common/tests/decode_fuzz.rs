@@ -76,6 +76,9 @@ fn valid() -> Vec<u8> {
             logprobs: vec![-1.0; t],
             site_logprobs: vec![-0.5; t],
             site_rewards: vec![],
+            decision_steps: vec![],
+            step_site_features: vec![],
+            step_site_rewards: vec![],
             values: vec![0.5; t],
             rewards: vec![1.0; t],
             terminated: vec![false; t],
@@ -97,6 +100,7 @@ fn expect() -> ChunkExpect {
         n_sites: 3,
         max_envs: 4,
         max_steps: 16,
+        site_steps: None,
     }
 }
 

@@ -116,6 +116,7 @@ fn expect() -> ChunkExpect {
         n_sites: SITES,
         max_envs: 4,
         max_steps: 8,
+        site_steps: None,
     }
 }
 

@@ -16,8 +16,8 @@ use dupac_common::ActorId;
 use dupac_common::config::Config;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, MsgLimits, StatsMsg,
-    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
+    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, MsgLimits, SiteSteps,
+    StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_radio::cache::RsrpSource;
@@ -308,6 +308,7 @@ pub fn run_actor(
         n_sites,
         max_envs: d.actor_envs,
         max_steps: d.chunk_steps,
+        site_steps: SiteSteps::of(cfg),
     };
     let wiring = Wiring::new(session, cfg, opts.id)?;
     let threads = rayon::ThreadPoolBuilder::new()
@@ -544,6 +545,7 @@ impl Follower {
                 n_sites,
                 max_envs: d.actor_envs,
                 max_steps: d.chunk_steps,
+                site_steps: SiteSteps::of(cfg),
             },
             limit: MsgLimits::weights(cfg, obs_dim, n_sites),
             current: None,

@@ -3,10 +3,9 @@
 //! received, so a user watches a policy improve during training.
 
 use crate::actor::{ActorError, Follower};
-use dupac_actor::env::{Action, Env, Episode, Outcome, StepInfo};
+use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
 use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
-use dupac_common::SiteId;
-use dupac_common::geometry::Vector;
+use dupac_actor::rollout::{SitePick, decide};
 use dupac_common::policy::{PolicyWeights, Scratch};
 use std::time::Duration;
 
@@ -30,10 +29,7 @@ pub fn fly_following(
             policy = p;
         }
         let a = policy.act_deterministic(&obs, &mut scratch);
-        let step = env.act(&Action {
-            move_: Vector::from(a.move_raw.map(f64::from)),
-            site: SiteId(a.site as u16),
-        })?;
+        let step = decide(env, &policy, &a, &mut scratch, SitePick::Argmax)?;
         for info in env.substeps() {
             acc.push(info);
             steps.push(*info);

@@ -23,7 +23,7 @@ use dupac_common::dedup::MAX_TRACKED_SENDERS;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
     ActorRow, ActorState, ChunkExpect, Command, ControlMsg, DropReason, Header, LearnerStats,
-    MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
+    MsgLimits, SiteSteps, StatsMsg, TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
 use std::collections::BTreeMap;
@@ -200,6 +200,7 @@ impl LearnerNode {
             n_sites,
             max_envs: d.actor_envs.max(cfg.train.num_envs),
             max_steps: d.chunk_steps.max(cfg.train.num_steps),
+            site_steps: SiteSteps::of(cfg),
         };
         let limits = MsgLimits::chunk(cfg, &expect);
         let budget = InboxBudget::new(

@@ -521,11 +521,19 @@ impl Learner {
             self.reward_scaler.stats.update(&returns_seen);
         }
         // The all-sites gradient: the move's log-probs alone, every site's reward.
-        let all_sites = self.cfg.ppo.site_gradient == SiteGradient::AllSites
+        // With `env.site_every_step` every step's site rewards instead (one row per step).
+        let per_step = self.cfg.ppo.site_gradient == SiteGradient::AllSites
             && self.n_sites > 0
+            && !segments.is_empty()
             && segments
                 .iter()
-                .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites);
+                .all(|s| s.traj.decision_steps.len() == s.traj.len());
+        let all_sites = per_step
+            || self.cfg.ppo.site_gradient == SiteGradient::AllSites
+                && self.n_sites > 0
+                && segments
+                    .iter()
+                    .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites);
         // The route horizon reads the serving site before each decision from the observation.
         let serving_field = if all_sites && self.cfg.ppo.site_horizon == SiteHorizon::Route {
             ObsLayout::new(&self.cfg.env.observation, self.n_sites)
@@ -536,6 +544,7 @@ impl Learner {
         let mut batch = Batch {
             obs_dim: self.obs_dim,
             n_sites: if all_sites { self.n_sites } else { 0 },
+            step_offsets: if per_step { vec![0] } else { Vec::new() },
             ..Batch::default()
         };
         let mut norm = vec![0.0f32; self.obs_dim];
@@ -618,7 +627,21 @@ impl Learner {
             } else {
                 tr.logprobs.clone()
             };
-            if all_sites {
+            if per_step {
+                let mut end = batch.step_offsets.last().copied().unwrap_or(0);
+                for &k in &tr.decision_steps {
+                    end += usize::from(k);
+                    batch.step_offsets.push(end);
+                }
+                batch
+                    .step_site_features
+                    .extend_from_slice(&tr.step_site_features);
+                batch.step_site_rewards.extend(
+                    tr.step_site_rewards
+                        .iter()
+                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
+                );
+            } else if all_sites {
                 let raw: Vec<f64> = tr.site_rewards.iter().map(|&r| f64::from(r)).collect();
                 let rows = match &serving_field {
                     Some(range) => {
@@ -731,6 +754,9 @@ mod tests {
             logprobs,
             site_logprobs: vec![0.0; t],
             site_rewards: vec![],
+            decision_steps: vec![],
+            step_site_features: vec![],
+            step_site_rewards: vec![],
             values: vec![0.5, 0.25, 0.125],
             rewards: vec![1.0, -1.0, 2.0],
             terminated: vec![false; t],

@@ -112,10 +112,24 @@ pub struct SiteHeadModule {
 impl SiteHeadModule {
     /// Logits `[B, n_sites]` from the hidden activation `[B, H]` and features `[B, n_sites·F]`.
     pub fn logits(&self, hidden: Tensor<2>, feats: Tensor<2>, n_sites: usize) -> Tensor<2> {
-        let [b, _] = hidden.dims();
+        self.logits_of_embedding(self.embedding(hidden), feats, n_sites)
+    }
+
+    /// The state embedding `tanh(E·h)` `[B, E]` of hidden activations `[B, H]`.
+    pub fn embedding(&self, hidden: Tensor<2>) -> Tensor<2> {
+        fast_tanh(self.embed.forward(hidden))
+    }
+
+    /// Logits `[B, n_sites]` from state embeddings `[B, E]` ([`SiteHeadModule::embedding`]) and
+    /// features `[B, n_sites·F]`.
+    pub fn logits_of_embedding(
+        &self,
+        emb: Tensor<2>,
+        feats: Tensor<2>,
+        n_sites: usize,
+    ) -> Tensor<2> {
+        let [b, e] = emb.dims();
         let f = self.features;
-        let emb = fast_tanh(self.embed.forward(hidden));
-        let e = emb.dims()[1];
         let emb = emb
             .unsqueeze_dim::<3>(1)
             .expand([b, n_sites, e])
@@ -156,6 +170,9 @@ pub struct Evaluated {
     pub entropy_site: Tensor<1>,
     /// V(s), `[B]`.
     pub value: Tensor<1>,
+    /// The actor's last hidden activation `[B, H]` the equivariant site head reads (`None`
+    /// without one).
+    pub actor_hidden: Option<Tensor<2>>,
 }
 
 impl ActorCritic {
@@ -200,9 +217,38 @@ impl ActorCritic {
         self.n_sites
     }
 
-    /// Site logits `[B, M]` and move means `[B, 3]` of normalised observations `[B, obs_dim]`
-    /// (`None` without a site head), and the trunk input.
-    fn heads(&self, obs: Tensor<2>) -> (Tensor<2>, Option<Tensor<2>>, Tensor<2>) {
+    /// Features per site of the equivariant site head (0 without one).
+    pub fn site_features(&self) -> usize {
+        self.site.as_ref().map_or(0, |h| h.features)
+    }
+
+    /// log π(k | ·) `[R, M]` of the equivariant site head over per-step site features
+    /// `[R, M·F]`, row r with the state embedding of the actor's hidden activation
+    /// `hidden[parent[r]]` (`hidden: [B, H]`; `env.site_every_step`). The embedding is computed
+    /// per decision, then repeated for its steps.
+    pub fn step_site_logp(
+        &self,
+        hidden: Tensor<2>,
+        parent: Tensor<1, Int>,
+        feats: Tensor<2>,
+    ) -> Tensor<2> {
+        let r = feats.dims()[0];
+        match &self.site {
+            Some(h) => {
+                let emb = h.embedding(hidden).select(0, parent);
+                log_softmax(h.logits_of_embedding(emb, feats, self.n_sites), 1)
+            }
+            None => Tensor::<2>::zeros([r, self.n_sites], &feats.device()),
+        }
+    }
+
+    /// Move means `[B, 3]` and site logits `[B, M]` of normalised observations `[B, obs_dim]`
+    /// (`None` without a site head), the trunk input, and the actor's last hidden activation
+    /// when the equivariant head reads it.
+    fn heads(
+        &self,
+        obs: Tensor<2>,
+    ) -> (Tensor<2>, Option<Tensor<2>>, Tensor<2>, Option<Tensor<2>>) {
         let [_, d] = obs.dims();
         let trunk = obs.clone().narrow(1, 0, self.trunk_dim);
         let m = self.n_sites;
@@ -210,12 +256,13 @@ impl ActorCritic {
             Some(h) => {
                 let (mean, hidden) = self.actor.forward_with_hidden(trunk.clone());
                 let feats = obs.narrow(1, self.trunk_dim, d - self.trunk_dim);
-                (mean, Some(h.logits(hidden, feats, m)), trunk)
+                let logits = h.logits(hidden.clone(), feats, m);
+                (mean, Some(logits), trunk, Some(hidden))
             }
             None => {
                 let head = self.actor.forward(trunk.clone());
                 let logits = (m > 0).then(|| head.clone().narrow(1, MOVE_DIM, m));
-                (head.narrow(1, 0, MOVE_DIM), logits, trunk)
+                (head.narrow(1, 0, MOVE_DIM), logits, trunk, None)
             }
         }
     }
@@ -224,7 +271,7 @@ impl ActorCritic {
     /// `obs: [B, obs_dim]` (normalised), `moves: [B, 3]` (unclipped), `sites: [B]`.
     pub fn evaluate(&self, obs: Tensor<2>, moves: Tensor<2>, sites: Tensor<1, Int>) -> Evaluated {
         let [b, _] = obs.dims();
-        let (mean, logits, trunk) = self.heads(obs);
+        let (mean, logits, trunk, actor_hidden) = self.heads(obs);
         let log_std = self.log_std.val();
         let inv_std = log_std.clone().neg().exp().unsqueeze::<2>();
         let z = (moves - mean) * inv_std;
@@ -273,6 +320,7 @@ impl ActorCritic {
             entropy_move,
             entropy_site,
             value,
+            actor_hidden,
         }
     }
 

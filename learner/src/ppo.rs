@@ -40,8 +40,16 @@ pub struct Batch {
     /// Every site's decision reward, scaled like the rewards, `[len × n_sites]`; empty unless
     /// the site head learns from all sites.
     pub site_rewards: Vec<f32>,
-    /// Sites per row of `site_rewards`.
+    /// Sites per row of `site_rewards` (and of the per-step rows).
     pub n_sites: usize,
+    /// With `env.site_every_step` (issue 15): decision i's steps are the rows
+    /// `step_offsets[i]..step_offsets[i + 1]` (`len + 1` entries; empty otherwise) of each
+    /// step's raw site features `[R × n_sites·F]` and every site's reward of that step, scaled
+    /// like the rewards, `[R × n_sites]`; the site head learns from those rows instead of
+    /// `site_rewards`.
+    pub step_offsets: Vec<usize>,
+    pub step_site_features: Vec<f32>,
+    pub step_site_rewards: Vec<f32>,
     /// V_old(s) `[len]`.
     pub values: Vec<f32>,
     pub advantages: Vec<f32>,
@@ -242,9 +250,10 @@ impl Ppo {
         let mut order: Vec<usize> = (0..n).collect();
         let mut grad_norm_sum = 0.0;
         let m = batch.n_sites;
+        let per_step = batch.per_step_rows(self.model.site_features());
         let all_sites = self.cfg.site_gradient == SiteGradient::AllSites
             && m > 0
-            && batch.site_rewards.len() == n * m;
+            && (per_step || batch.site_rewards.len() == n * m);
         stats.site_expected_regret = f64::NAN;
         'epochs: for _epoch in 0..self.cfg.update_epochs {
             stats.epochs += 1;
@@ -300,6 +309,7 @@ impl Ppo {
                     entropy_move,
                     entropy_site,
                     value,
+                    actor_hidden,
                     ..
                 } = self.model.evaluate(obs, moves, sites);
                 // Under the all-sites gradient the ratio and clip are the move's alone.
@@ -308,6 +318,10 @@ impl Ppo {
                 let (pg_loss, ratio) =
                     policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
                 let site_loss = match (&site_logp, all_sites) {
+                    (Some(_), true) if per_step => actor_hidden.map(|hidden| {
+                        self.step_site_loss(batch, idx, hidden, rng)
+                            .mul_scalar(self.cfg.site_coef)
+                    }),
                     (Some(logp), true) => {
                         let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
                         let a = Tensor::<2>::from_data(TensorData::new(a, [b, m]), &self.device);
@@ -407,6 +421,65 @@ impl Ppo {
         }
         stats.explained_variance = explained_variance(&batch.values, &batch.returns);
         stats
+    }
+}
+
+impl Batch {
+    /// Whether the per-step site rows are present and consistent for `features` values per
+    /// site (`env.site_every_step`).
+    pub fn per_step_rows(&self, features: usize) -> bool {
+        let m = self.n_sites;
+        let r = self.step_offsets.last().copied().unwrap_or(0);
+        m > 0
+            && features > 0
+            && self.step_offsets.len() == self.len() + 1
+            && self.step_offsets.windows(2).all(|w| w[0] <= w[1])
+            && self.step_site_rewards.len() == r * m
+            && self.step_site_features.len() == r * m * features
+    }
+}
+
+impl Ppo {
+    /// The all-sites loss over the steps of the minibatch's decisions `idx`
+    /// (`env.site_every_step`): `ppo.site_step_rows` steps of each decision drawn with `rng`
+    /// (every step at 0); step j of decision i is scored by the site head from its own features
+    /// with the actor's hidden activation `hidden[i]` of the decision's observation
+    /// (`[idx.len(), H]`, as the actors score it), against that step's site advantages
+    /// ([`site_advantages`] of its rows).
+    fn step_site_loss(
+        &self,
+        batch: &Batch,
+        idx: &[usize],
+        hidden: Tensor<2>,
+        rng: &mut impl RngExt,
+    ) -> Tensor<1> {
+        let m = batch.n_sites;
+        let f = self.model.site_features() * m;
+        let per = self.cfg.site_step_rows;
+        let (mut parent, mut feats, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+        let mut steps = Vec::new();
+        for (j, &i) in idx.iter().enumerate() {
+            steps.clear();
+            steps.extend(batch.step_offsets[i]..batch.step_offsets[i + 1]);
+            let chosen: &[usize] = if per > 0 && steps.len() > per {
+                steps.partial_shuffle(rng, per).0
+            } else {
+                &steps
+            };
+            for &r in chosen {
+                parent.push(j as i64);
+                feats.extend_from_slice(&batch.step_site_features[r * f..(r + 1) * f]);
+                rows.push(r);
+            }
+        }
+        let k = rows.len();
+        let adv = site_advantages(&batch.step_site_rewards, &rows, m, self.cfg.norm_adv);
+        let dev = &self.device;
+        let parent = Tensor::<1, Int>::from_data(TensorData::new(parent, [k]), dev);
+        let feats = Tensor::<2>::from_data(TensorData::new(feats, [k, f]), dev);
+        let adv = Tensor::<2>::from_data(TensorData::new(adv, [k, m]), dev);
+        let logp = self.model.step_site_logp(hidden, parent, feats);
+        all_sites_loss(logp, adv)
     }
 }
 

@@ -87,3 +87,55 @@ fn train_writes_its_run_directory_and_resume_continues_the_curve() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("checkpoint.bin"));
 }
+
+/// `env.site_every_step` (issue 15) through the distributed run: `dupac train` (a learner
+/// process and its actors over Zenoh) carries the per-step site fields in every trajectory
+/// chunk, within the limits derived from the configuration, and the learner trains the site
+/// head on them (`losses/site_loss` reported, no chunk dropped); the policy then flies and is
+/// evaluated with the site chosen every step.
+#[test]
+fn a_site_chosen_every_step_trains_over_zenoh_and_flies() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("run");
+    let mut common = small_run_args(dir.path());
+    common.extend(["--set".into(), "env.site_every_step=true".into()]);
+    let train = dupac_output(
+        &common,
+        &[
+            "train".into(),
+            "--out".into(),
+            out.display().to_string(),
+            "--set".into(),
+            "train.total_timesteps=1024".into(),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&train.stderr);
+    assert!(train.status.success(), "{stderr}");
+    let r = rows(&out.join("metrics.jsonl"));
+    assert!(r.len() >= 4, "{} rows", r.len());
+    for row in &r {
+        let loss = row["losses/site_loss"].as_f64().expect("site loss");
+        assert!(loss.is_finite() && loss <= 0.0, "{loss}");
+    }
+    for bad in ["chunk rejected", "oversized message dropped"] {
+        assert!(!stderr.contains(bad), "{stderr}");
+    }
+    let eval = dupac_output(
+        &common,
+        &[
+            "eval".into(),
+            "--no-planners".into(),
+            "--out".into(),
+            dir.path().join("eval").display().to_string(),
+            "--policy".into(),
+            format!("dupac={}", out.join("policy.bin").display()),
+        ],
+    );
+    assert!(
+        eval.status.success(),
+        "{}",
+        String::from_utf8_lossy(&eval.stderr)
+    );
+    let summary = std::fs::read_to_string(dir.path().join("eval/summary.csv")).expect("summary");
+    assert!(summary.lines().any(|l| l.starts_with("dupac,")), "{summary}");
+}

@@ -49,6 +49,10 @@ pub enum EnvError {
     EpisodeOver,
     #[error("the RSRP source has {got} sites, the world {want}")]
     SiteCountMismatch { got: usize, want: usize },
+    #[error(
+        "a site chosen every step needs env.site_every_step, the learned association and env.observation.site_features"
+    )]
+    SiteEveryStepUnavailable,
 }
 
 /// The hybrid action: a continuous move in [−1, 1]³ (clipped per axis; the unclipped value is
@@ -147,6 +151,10 @@ pub struct Env {
     site_rewards: Vec<f64>,
     /// Every site's RSRP at the last observation written (dBm; `site_trend`).
     rsrp_at_last_obs_dbm: Vec<f64>,
+    /// Of the last [`Env::act_site_every_step`]: each step's site features (`M × features` per
+    /// step) and every site's reward of that step (`M` per step).
+    step_site_features: Vec<f32>,
+    step_site_rewards: Vec<f64>,
 }
 
 impl Env {
@@ -228,6 +236,8 @@ impl Env {
             obs,
             substeps: Vec::new(),
             rsrp_at_last_obs_dbm: vec![f64::NAN; m],
+            step_site_features: Vec::new(),
+            step_site_rewards: Vec::new(),
             site_rewards: if env.association == Association::Learned {
                 vec![0.0; m]
             } else {
@@ -393,6 +403,86 @@ impl Env {
         self.write_observation();
         let last = last.ok_or(EnvError::EpisodeOver)?;
         Ok(Step { reward, ..last })
+    }
+
+    /// Whether the learned site is chosen at every step of a decision (`env.site_every_step`
+    /// with the learned association and the site features observed): then a policy acts with
+    /// [`Env::act_site_every_step`].
+    pub fn site_every_step(&self) -> bool {
+        self.cfg.site_every_step
+            && !self.site_rewards.is_empty()
+            && self.slots.site_features.is_some()
+    }
+
+    /// One decision whose move is held for `env.action_repeat` steps while the site is chosen at
+    /// every step (`env.site_every_step`, issue 15): before step k of the decision
+    /// `choose(k, features)` gets every site's features at the current state (`M × features`,
+    /// [`dupac_common::obs::site_feature`]; at k = 0 the observation's own) and returns the site
+    /// for that step. Each step is a choice: the handover margin and the minimum stay apply per
+    /// step. Every step's features and every site's reward of that step (the reward the step would
+    /// have had with site k chosen at it, the serving site before it being the one actually
+    /// serving) are kept: [`Env::step_site_features`], [`Env::step_site_rewards`]. Otherwise as
+    /// [`Env::act`]; [`Env::site_rewards`] is left zero.
+    pub fn act_site_every_step(
+        &mut self,
+        move_: Vector,
+        mut choose: impl FnMut(usize, &[f32]) -> SiteId,
+    ) -> Result<Step, EnvError> {
+        self.substeps.clear();
+        self.site_rewards.fill(0.0);
+        self.step_site_features.clear();
+        self.step_site_rewards.clear();
+        let Some(range) = self
+            .slots
+            .site_features
+            .clone()
+            .filter(|_| self.site_every_step())
+        else {
+            return Err(EnvError::SiteEveryStepUnavailable);
+        };
+        let per_step = range.len();
+        let mut reward = 0.0;
+        let mut last = None;
+        for k in 0..self.cfg.action_repeat.max(1) as usize {
+            let at = k * per_step;
+            if k == 0 {
+                self.step_site_features
+                    .extend_from_slice(&self.obs[range.clone()]);
+            } else {
+                let mut feats = std::mem::take(&mut self.step_site_features);
+                feats.resize(at + per_step, 0.0);
+                self.site_features_into(&mut feats[at..]);
+                self.step_site_features = feats;
+            }
+            let site = choose(k, &self.step_site_features[at..]);
+            self.site_rewards.fill(0.0);
+            let s = self.advance(&Action { move_, site }, true)?;
+            self.step_site_rewards.extend_from_slice(&self.site_rewards);
+            reward += s.reward;
+            self.substeps.push(s.info);
+            let end = s.terminated || s.truncated;
+            last = Some(s);
+            if end {
+                break;
+            }
+        }
+        self.site_rewards.fill(0.0);
+        self.write_observation();
+        let last = last.ok_or(EnvError::EpisodeOver)?;
+        Ok(Step { reward, ..last })
+    }
+
+    /// Every step's site features of the last [`Env::act_site_every_step`] (`M × features` per
+    /// step, as many steps as [`Env::substeps`]).
+    pub fn step_site_features(&self) -> &[f32] {
+        &self.step_site_features
+    }
+
+    /// Every step's every-site reward of the last [`Env::act_site_every_step`] (`M` per step):
+    /// entry `k·M + j` is what step k would have returned with site j chosen at it; the chosen
+    /// site's entry is the step's reward.
+    pub fn step_site_rewards(&self) -> &[f64] {
+        &self.step_site_rewards
     }
 
     /// The records of every step of the last [`Env::act`], in order.

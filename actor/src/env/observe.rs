@@ -7,7 +7,6 @@ use dupac_common::SiteId;
 use dupac_common::config::NearestObstacle;
 use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::obs::{site_feature, site_features_per_site};
-use std::ops::Range;
 
 impl Env {
     /// Nearest obstacle along the sensor fan: writes normalised distances into `fan` and returns
@@ -117,19 +116,24 @@ impl Env {
             obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
         }
         if let Some(r) = &s.site_features {
-            let out = &mut self.obs[r.clone()];
+            let mut obs = std::mem::take(&mut self.obs);
             if self.site_rewards.is_empty() {
                 // Not a learned association: nothing reads them.
-                out.fill(0.0);
+                obs[r.clone()].fill(0.0);
             } else {
-                self.write_site_features(r.clone());
+                self.site_features_into(&mut obs[r.clone()]);
+                if self.cfg.observation.site_trend {
+                    self.rsrp_at_last_obs_dbm.copy_from_slice(&self.rsrp_dbm);
+                }
             }
+            self.obs = obs;
         }
     }
 
-    /// The `site_features` field (obs::site_feature): each site's own features on fixed
-    /// physical scales, for the equivariant site head.
-    pub(super) fn write_site_features(&mut self, range: Range<usize>) {
+    /// The `site_features` field (obs::site_feature) at the current state into `out`
+    /// (`M × features`, site-major): each site's own features on fixed physical scales, for the
+    /// equivariant site head.
+    pub(super) fn site_features_into(&self, out: &mut [f32]) {
         let o = &self.cfg.observation;
         let p = self.position_m;
         let best = self.rsrp_dbm[argmax(&self.rsrp_dbm).index()].max(RSRP_FLOOR_DBM);
@@ -147,7 +151,7 @@ impl Env {
         let serving = self.serving.index();
         let per_site = site_features_per_site(o);
         for (k, site) in self.world.sites.iter().enumerate() {
-            let f = &mut self.obs[range.start + k * per_site..][..per_site];
+            let f = &mut out[k * per_site..][..per_site];
             let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
             let q = site.position_m;
             let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
@@ -177,9 +181,6 @@ impl Env {
                 };
                 f[RSRP_TREND] = (d / 10.0).clamp(-3.0, 3.0) as f32;
             }
-        }
-        if o.site_trend {
-            self.rsrp_at_last_obs_dbm.copy_from_slice(&self.rsrp_dbm);
         }
     }
 }
