@@ -72,11 +72,11 @@ pub fn decide(
             return first;
         }
         let logits = policy.step_site_logits(feats, s);
-        let k = match &mut pick {
+        let site = match &mut pick {
             SitePick::Argmax => argmax(logits),
             SitePick::Sample(u) => sample_categorical(logits, u()),
         };
-        SiteId(k as u16)
+        SiteId(site as u16)
     })?)
 }
 
@@ -206,7 +206,8 @@ impl Worker {
             // Every site's reward, for the all-sites site gradient (learned association only):
             // of the decision, or of each of its steps when the site is chosen every step.
             if self.env.site_every_step() {
-                tr.decision_steps.push(self.env.substeps().len() as u8);
+                // At most env.action_repeat ≤ 1000 steps (config).
+                tr.decision_steps.push(self.env.substeps().len() as u16);
                 tr.step_site_features
                     .extend_from_slice(self.env.step_site_features());
                 tr.step_site_rewards

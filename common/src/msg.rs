@@ -132,7 +132,7 @@ pub struct EnvTrajectory {
     /// (`Env::step_site_features`, `Env::step_site_rewards`), R = Σ `decision_steps`, decisions
     /// in order.
     #[serde(deserialize_with = "crate::budget::vec")]
-    pub decision_steps: Vec<u8>,
+    pub decision_steps: Vec<u16>,
     #[serde(deserialize_with = "crate::budget::vec")]
     pub step_site_features: Vec<f32>,
     #[serde(deserialize_with = "crate::budget::vec")]
@@ -671,7 +671,7 @@ mod tests {
                     } else {
                         vec![]
                     },
-                    decision_steps: vec![steps as u8; if steps == 0 { 0 } else { t }],
+                    decision_steps: vec![steps as u16; if steps == 0 { 0 } else { t }],
                     step_site_features: vec![1.0; rows * x.n_sites * feats],
                     step_site_rewards: vec![1.0; rows * x.n_sites],
                     values: vec![1.0; t],
@@ -770,7 +770,9 @@ mod tests {
         err(&|t| t.decision_steps = vec![3, 0], "a decision of 3 steps");
         err(&|t| t.decision_steps = vec![0, 2], "a decision of 0 steps");
         err(
-            &|t| t.step_site_features.pop().map_or((), |_| ()),
+            &|t| {
+                t.step_site_features.pop();
+            },
             "step_site_features",
         );
         err(&|t| t.step_site_rewards.push(0.0), "step_site_rewards");

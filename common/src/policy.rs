@@ -500,7 +500,12 @@ impl PolicyWeights {
             return &[];
         };
         s.step_logits.resize(self.n_sites, 0.0);
-        if feats.len() != self.n_sites * h.features || s.hidden.len() != h.embed.n_in {
+        let fits = feats.len() == self.n_sites * h.features && s.hidden.len() == h.embed.n_in;
+        debug_assert!(
+            fits,
+            "step_site_logits before an act on this scratch, or other features"
+        );
+        if !fits {
             // Not the layout this head reads, or no decision acted on yet: no scores.
             s.step_logits.fill(0.0);
         } else {

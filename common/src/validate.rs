@@ -154,7 +154,7 @@ impl ChunkExpect {
             + 2 * size_of::<bool>()
             + size_of::<EpisodeSummary>()
             + self.site_steps.map_or(0, |k| {
-                1 + f * k.per_decision * self.n_sites * (k.features + 1)
+                size_of::<u16>() + f * k.per_decision * self.n_sites * (k.features + 1)
             });
         let per_env =
             size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);
@@ -354,5 +354,20 @@ pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection
     }
     p.validate()
         .map_err(|e| reject(DropReason::Dimensions, e))?;
+    if let Some(k) = x.site_steps {
+        // A site chosen every step is scored by the equivariant head over these features.
+        if p.site_head
+            .as_ref()
+            .is_none_or(|h| h.features != k.features)
+        {
+            return Err(reject(
+                DropReason::Dimensions,
+                format!(
+                    "env.site_every_step needs the equivariant site head over {} features per site",
+                    k.features
+                ),
+            ));
+        }
+    }
     Ok(())
 }

@@ -529,11 +529,19 @@ impl Learner {
                 .iter()
                 .all(|s| s.traj.decision_steps.len() == s.traj.len());
         let all_sites = per_step
-            || self.cfg.ppo.site_gradient == SiteGradient::AllSites
+            || (self.cfg.ppo.site_gradient == SiteGradient::AllSites
                 && self.n_sites > 0
                 && segments
                     .iter()
-                    .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites);
+                    .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites));
+        if self.cfg.env.site_every_step
+            && self.cfg.env.association == dupac_common::config::Association::Learned
+            && !per_step
+        {
+            tracing::error!(
+                "env.site_every_step is on but the trajectories carry no per-step site rows: the site head learns from decision rows or not at all"
+            );
+        }
         // The route horizon reads the serving site before each decision from the observation.
         let serving_field = if all_sites && self.cfg.ppo.site_horizon == SiteHorizon::Route {
             ObsLayout::new(&self.cfg.env.observation, self.n_sites)

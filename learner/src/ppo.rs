@@ -68,6 +68,19 @@ impl Batch {
     pub fn is_empty(&self) -> bool {
         self.logprobs.is_empty()
     }
+
+    /// Whether the per-step site rows are present and consistent for `features` values per
+    /// site (`env.site_every_step`).
+    pub fn per_step_rows(&self, features: usize) -> bool {
+        let m = self.n_sites;
+        let r = self.step_offsets.last().copied().unwrap_or(0);
+        m > 0
+            && features > 0
+            && self.step_offsets.len() == self.len() + 1
+            && self.step_offsets.windows(2).all(|w| w[0] <= w[1])
+            && self.step_site_rewards.len() == r * m
+            && self.step_site_features.len() == r * m * features
+    }
 }
 
 /// What one update reports, with the metric names RL users know (CleanRL's `losses/*`).
@@ -251,6 +264,13 @@ impl Ppo {
         let mut grad_norm_sum = 0.0;
         let m = batch.n_sites;
         let per_step = batch.per_step_rows(self.model.site_features());
+        if !batch.step_offsets.is_empty() && !per_step {
+            tracing::error!(
+                rows = batch.step_offsets.len(),
+                decisions = n,
+                "per-step site rows that do not fit the batch: the site head does not learn from them"
+            );
+        }
         let all_sites = self.cfg.site_gradient == SiteGradient::AllSites
             && m > 0
             && (per_step || batch.site_rewards.len() == n * m);
@@ -424,21 +444,6 @@ impl Ppo {
     }
 }
 
-impl Batch {
-    /// Whether the per-step site rows are present and consistent for `features` values per
-    /// site (`env.site_every_step`).
-    pub fn per_step_rows(&self, features: usize) -> bool {
-        let m = self.n_sites;
-        let r = self.step_offsets.last().copied().unwrap_or(0);
-        m > 0
-            && features > 0
-            && self.step_offsets.len() == self.len() + 1
-            && self.step_offsets.windows(2).all(|w| w[0] <= w[1])
-            && self.step_site_rewards.len() == r * m
-            && self.step_site_features.len() == r * m * features
-    }
-}
-
 impl Ppo {
     /// The all-sites loss over the steps of the minibatch's decisions `idx`
     /// (`env.site_every_step`): `ppo.site_step_rows` steps of each decision drawn with `rng`
@@ -446,7 +451,7 @@ impl Ppo {
     /// with the actor's hidden activation `hidden[i]` of the decision's observation
     /// (`[idx.len(), H]`, as the actors score it), against that step's site advantages
     /// ([`site_advantages`] of its rows).
-    fn step_site_loss(
+    pub fn step_site_loss(
         &self,
         batch: &Batch,
         idx: &[usize],

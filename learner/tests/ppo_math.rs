@@ -703,3 +703,88 @@ fn the_site_head_learns_from_every_steps_site_rewards() {
         );
     }
 }
+
+/// `env.site_every_step`: the learner's per-step site loss against the actors' plain forward on
+/// a shuffled minibatch of decisions with uneven step counts (3, 1, 5, 2): every step is scored
+/// with its own decision's embedding and its own features, against its own every-site rewards,
+/// and the loss is `−mean_r Σ_k π(k|r) Â_{r,k}` over all of them (`ppo.site_step_rows = 0`).
+#[test]
+fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
+    let device = Device::flex().autodiff();
+    let p = equivariant_policy(7);
+    let d = p.obs_dim;
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let steps = [3usize, 1, 5, 2];
+    let n = steps.len();
+    let raw: Vec<f32> = (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect();
+    let mut batch = small_batch(1, n);
+    batch.obs_dim = d;
+    batch.obs = vec![0.0; n * d];
+    for (r, o) in raw.chunks(d).zip(batch.obs.chunks_mut(d)) {
+        p.obs_norm.apply(r, o);
+        o[OBS..].copy_from_slice(&r[OBS..]);
+    }
+    batch.step_offsets = std::iter::once(0)
+        .chain(steps.iter().scan(0, |acc, &k| {
+            *acc += k;
+            Some(*acc)
+        }))
+        .collect();
+    let total_rows: usize = steps.iter().sum();
+    let fw = SITES * FEATS;
+    batch.step_site_features = (0..total_rows * fw)
+        .map(|_| rng.random_range(-2.0f32..2.0))
+        .collect();
+    batch.step_site_rewards = (0..total_rows * SITES)
+        .map(|_| rng.random_range(-3.0f32..1.0))
+        .collect();
+    assert!(batch.per_step_rows(FEATS));
+    let cfg = dupac_common::config::PpoConfig {
+        site_step_rows: 0,
+        ..Default::default()
+    };
+    let norm_adv = cfg.norm_adv;
+    let ppo = Ppo::new(cfg, model_of(&p, &device), device.clone());
+    let idx = [2usize, 0, 3, 1];
+    let obs: Vec<f32> = idx
+        .iter()
+        .flat_map(|&i| batch.obs[i * d..(i + 1) * d].to_vec())
+        .collect();
+    let ev = ppo.model.evaluate(
+        Tensor::<2>::from_data(TensorData::new(obs, [n, d]), &device),
+        Tensor::<2>::zeros([n, MOVE_DIM], &device),
+        Tensor::<1, Int>::zeros([n], &device),
+    );
+    let hidden = ev.actor_hidden.expect("equivariant head");
+    let got = ppo
+        .step_site_loss(&batch, &idx, hidden, &mut rng)
+        .into_scalar::<f32>();
+    // By hand: the rows in the minibatch's order, each through the plain forward.
+    let rows: Vec<(usize, usize)> = idx
+        .iter()
+        .flat_map(|&i| (batch.step_offsets[i]..batch.step_offsets[i + 1]).map(move |r| (i, r)))
+        .collect();
+    let adv = site_advantages(
+        &batch.step_site_rewards,
+        &rows.iter().map(|&(_, r)| r).collect::<Vec<_>>(),
+        SITES,
+        norm_adv,
+    );
+    let mut s = Scratch::default();
+    let mut sum = 0.0f64;
+    for (q, &(i, r)) in rows.iter().enumerate() {
+        p.act_deterministic(&raw[i * d..(i + 1) * d], &mut s);
+        let l = p.step_site_logits(&batch.step_site_features[r * fw..(r + 1) * fw], &mut s);
+        let max = l.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        let z: f64 = l.iter().map(|&v| f64::from(v - max).exp()).sum();
+        for k in 0..SITES {
+            let pi = f64::from(l[k] - max).exp() / z;
+            sum += pi * f64::from(adv[q * SITES + k]);
+        }
+    }
+    let want = -sum / rows.len() as f64;
+    assert!(
+        (f64::from(got) - want).abs() < 1e-5,
+        "loss {got} vs by hand {want}"
+    );
+}

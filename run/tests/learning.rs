@@ -115,6 +115,10 @@ fn learns(association: Association, site_every_step: bool) {
             .expect("iteration")
             .expect("a batch");
         assert_eq!(r.stats.skipped_nonfinite, 0);
+        if site_every_step {
+            // The per-step rows reached the site head (the loss is 0 when none did).
+            assert!(r.stats.site_loss > 0.0, "site loss {}", r.stats.site_loss);
+        }
     }
     let trained = domain_stats(&fly(&trainer));
     eprintln!(
@@ -196,7 +200,7 @@ fn ppo_learns_to_reach_the_goal_on_a_small_procedural_city() {
 /// learns to reach the goal and to keep the site regret under 1 dB (the per-step rows through
 /// the learner, the per-step choice through the actors).
 #[test]
-fn a_site_chosen_every_step_learns_and_beats_a3_on_site_regret() {
+fn a_site_chosen_every_step_learns_and_keeps_the_site_regret_low() {
     learns(Association::Learned, true);
 }
 

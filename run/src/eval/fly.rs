@@ -88,6 +88,15 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             Kind::Hindsight(_) => Association::Learned,
         };
         if let Kind::Policy(p) = &method.kind {
+            if mcfg.env.site_every_step && p.site_head.is_none() {
+                // Only the equivariant head scores the sites of a later step: a policy of the
+                // paper's slot head (or without a site) is flown with the site held.
+                mcfg.env.site_every_step = false;
+                tracing::info!(
+                    label = %method.label,
+                    "env.site_every_step off for this policy: it has no equivariant site head"
+                );
+            }
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim && p.site_head.is_none() {
                 // A policy of the paper's slot head may have been trained without the per-site
