@@ -5,7 +5,8 @@
 
 use dupac_common::ActorId;
 use dupac_common::msg::{
-    ChunkExpect, Header, MsgLimits, WeightsMsg, decode_msg, encode_msg, validate_weights,
+    ChunkExpect, DropReason, Header, MsgLimits, SiteSteps, WeightsMsg, decode_msg, encode_msg,
+    validate_weights,
 };
 use dupac_common::obs::OBS_VERSION;
 use dupac_common::policy::{
@@ -118,6 +119,28 @@ fn expect() -> ChunkExpect {
         max_steps: 8,
         site_steps: None,
     }
+}
+
+/// With the site chosen every step (`env.site_every_step`), weights without the equivariant site
+/// head over the run's features are refused as a dimension drop: an actor could not score a
+/// later step with them (its rollout would stop with an error instead).
+#[test]
+fn weights_without_the_equivariant_head_are_refused_when_the_site_is_chosen_every_step() {
+    let msg = WeightsMsg {
+        header: Header::new("r", 1, ActorId::LEARNER, 2),
+        policy: policy(),
+    };
+    assert_eq!(validate_weights(&msg, &expect()), Ok(()));
+    let per_step = ChunkExpect {
+        site_steps: Some(SiteSteps {
+            per_decision: 5,
+            features: 3,
+        }),
+        ..expect()
+    };
+    let r = validate_weights(&msg, &per_step).expect_err("slot head");
+    assert_eq!(r.reason, DropReason::Dimensions);
+    assert!(r.detail.contains("env.site_every_step"), "{r:?}");
 }
 
 #[test]
