@@ -388,10 +388,20 @@ impl Env {
     pub fn act(&mut self, action: &Action) -> Result<Step, EnvError> {
         self.substeps.clear();
         self.site_rewards.fill(0.0);
+        self.decision(|env, k| env.advance(action, k == 0))
+    }
+
+    /// Runs the steps of one decision (`step(self, k)` for k = 0, 1, … up to
+    /// `env.action_repeat` or the episode's end), records them, writes the observation once, and
+    /// returns the summed reward with the last step's ends and info.
+    fn decision(
+        &mut self,
+        mut step: impl FnMut(&mut Env, usize) -> Result<Step, EnvError>,
+    ) -> Result<Step, EnvError> {
         let mut reward = 0.0;
         let mut last = None;
-        for k in 0..self.cfg.action_repeat.max(1) {
-            let s = self.advance(action, k == 0)?;
+        for k in 0..self.cfg.action_repeat.max(1) as usize {
+            let s = step(self, k)?;
             reward += s.reward;
             self.substeps.push(s.info);
             let end = s.terminated || s.truncated;
@@ -441,35 +451,26 @@ impl Env {
             return Err(EnvError::SiteEveryStepUnavailable);
         };
         let per_step = range.len();
-        let mut reward = 0.0;
-        let mut last = None;
-        for k in 0..self.cfg.action_repeat.max(1) as usize {
+        let step = self.decision(|env, k| {
             let at = k * per_step;
             if k == 0 {
-                self.step_site_features
-                    .extend_from_slice(&self.obs[range.clone()]);
+                env.step_site_features
+                    .extend_from_slice(&env.obs[range.clone()]);
             } else {
-                let mut feats = std::mem::take(&mut self.step_site_features);
+                let mut feats = std::mem::take(&mut env.step_site_features);
                 feats.resize(at + per_step, 0.0);
-                self.site_features_into(&mut feats[at..]);
-                self.step_site_features = feats;
+                env.site_features_into(&mut feats[at..]);
+                env.step_site_features = feats;
             }
-            let site = choose(k, &self.step_site_features[at..]);
-            self.site_rewards.fill(0.0);
-            let s = self.advance(&Action { move_, site }, true)?;
-            self.step_site_rewards.extend_from_slice(&self.site_rewards);
-            reward += s.reward;
-            self.substeps.push(s.info);
-            let end = s.terminated || s.truncated;
-            last = Some(s);
-            if end {
-                break;
-            }
-        }
+            let site = choose(k, &env.step_site_features[at..]);
+            env.site_rewards.fill(0.0);
+            let s = env.advance(&Action { move_, site }, true)?;
+            env.step_site_rewards.extend_from_slice(&env.site_rewards);
+            Ok(s)
+        });
+        // The per-decision rewards mean nothing here (each step's are kept).
         self.site_rewards.fill(0.0);
-        self.write_observation();
-        let last = last.ok_or(EnvError::EpisodeOver)?;
-        Ok(Step { reward, ..last })
+        step
     }
 
     /// Every step's site features of the last [`Env::act_site_every_step`] (`M × features` per
