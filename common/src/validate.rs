@@ -154,7 +154,8 @@ impl ChunkExpect {
             + 2 * size_of::<bool>()
             + size_of::<EpisodeSummary>()
             + self.site_steps.map_or(0, |k| {
-                size_of::<u16>() + f * k.per_decision * self.n_sites * (k.features + 1)
+                // A u16 of 251 or more takes 3 bytes as a bincode varint.
+                3 + f * k.per_decision * self.n_sites * (k.features + 1)
             });
         let per_env =
             size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);

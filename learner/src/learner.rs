@@ -536,6 +536,7 @@ impl Learner {
                     .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites));
         if self.cfg.env.site_every_step
             && self.cfg.env.association == dupac_common::config::Association::Learned
+            && !segments.is_empty()
             && !per_step
         {
             tracing::error!(

@@ -388,6 +388,8 @@ impl Env {
     pub fn act(&mut self, action: &Action) -> Result<Step, EnvError> {
         self.substeps.clear();
         self.site_rewards.fill(0.0);
+        self.step_site_features.clear();
+        self.step_site_rewards.clear();
         self.decision(|env, k| env.advance(action, k == 0))
     }
 
