@@ -79,6 +79,13 @@ fn equivariant_policy(seed: u64) -> PolicyWeights {
     p
 }
 
+/// log-softmax of plain logits (the reference the burn model is compared with).
+fn log_softmax(l: &[f32]) -> Vec<f32> {
+    let max = l.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+    let lse = max + l.iter().map(|&v| (v - max).exp()).sum::<f32>().ln();
+    l.iter().map(|&v| v - lse).collect()
+}
+
 fn t1(v: Vec<f32>, device: &Device) -> Tensor<1> {
     let n = v.len();
     Tensor::from_data(TensorData::new(v, [n]), device)
@@ -248,11 +255,6 @@ fn equivariant_site_head_matches_plain_forward_and_permutes_with_the_sites() {
     let ev = model.evaluate(x, moves, sites);
     let logp = tensor_to_vec(ev.site_logp.expect("site head"));
     let mut s = Scratch::default();
-    let log_softmax = |l: &[f32]| {
-        let max = l.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-        let lse = max + l.iter().map(|&v| (v - max).exp()).sum::<f32>().ln();
-        l.iter().map(|&v| v - lse).collect::<Vec<f32>>()
-    };
     for k in 0..n {
         let row = &raw[k * d..(k + 1) * d];
         let (h, v) = p.forward(row, &mut s);
@@ -587,11 +589,6 @@ fn a_later_steps_site_scores_hold_the_decisions_embedding() {
     let d = p.obs_dim;
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let mut s = Scratch::default();
-    let log_softmax = |l: &[f32]| {
-        let max = l.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-        let lse = max + l.iter().map(|&v| (v - max).exp()).sum::<f32>().ln();
-        l.iter().map(|&v| v - lse).collect::<Vec<f32>>()
-    };
     for _ in 0..16 {
         let row: Vec<f32> = (0..d).map(|_| rng.random_range(-2.0..2.0)).collect();
         let feats: Vec<f32> = (0..SITES * FEATS)
