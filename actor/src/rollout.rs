@@ -30,7 +30,7 @@ pub enum RolloutError {
     #[error("the policy has {policy} site logits, the scenario {env} sites")]
     SiteMismatch { policy: usize, env: usize },
     #[error(
-        "env.site_every_step needs a policy with the equivariant site head (ppo.site_head = \"equivariant\")"
+        "env.site_every_step (on by default) needs a policy with the equivariant site head (ppo.site_head = \"equivariant\"); fly a policy of the paper's slot head with --set env.site_every_step=false, or with the configuration it was trained with (docs/paper_dupac.toml)"
     )]
     SiteEveryStepNeedsHead,
 }

@@ -1,7 +1,9 @@
 //! `docs/spec_env.toml` restores the environment of docs/spec/env.md where the project's
 //! defaults depart from it (docs/env.md): the file must load and say exactly that.
 
-use dupac_common::config::{ActionClip, Config, NearestObstacle, SensorScale};
+use dupac_common::config::{
+    ActionClip, Config, NearestObstacle, SensorScale, SiteGradient, SiteHead,
+};
 use std::path::Path;
 
 #[test]
@@ -31,4 +33,22 @@ fn spec_env_toml_is_the_spec_environment() {
     spec.env.observation.geofence = false;
     spec.env.observation.goal_direction = false;
     assert_eq!(cfg, spec);
+}
+
+/// `docs/paper_dupac.toml` restores the paper's site learning (issue 15): it must load, pass the
+/// configuration's checks against today's defaults (the site chosen every step is on by default
+/// and needs the equivariant head: the file turns it off), and change only the site learning.
+#[test]
+fn paper_dupac_toml_is_the_papers_site_learning() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/paper_dupac.toml");
+    let cfg = Config::load(Some(&path), &[]).expect("docs/paper_dupac.toml loads and validates");
+    let mut paper = Config::default();
+    paper.env.site_every_step = false;
+    paper.env.reward.handover_reward = 0.0;
+    paper.env.reward.site_regret_weight = 0.0;
+    paper.env.reward.route_connectivity_weight = 0.0;
+    paper.env.observation.site_features = false;
+    paper.ppo.site_head = SiteHead::Slots;
+    paper.ppo.site_gradient = SiteGradient::Sampled;
+    assert_eq!(cfg, paper);
 }

@@ -106,9 +106,10 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     let mut old_schema = encode_msg(&good(now)).expect("encode");
     old_schema[8..12].copy_from_slice(&999u32.to_le_bytes());
     w.publish(99, old_schema);
-    // 512 KiB: over the chunk limit this configuration implies (≈ 0.2 MB), under zenoh's
-    // receive limit (distributed.max_message_mib = 1): dropped unread by the learner.
-    w.publish(99, vec![0u8; 512 << 10]);
+    // 896 KiB: over the chunk limit this configuration implies (≈ 0.5 MB with the per-step
+    // site fields of the default env.site_every_step; ≈ 0.2 MB without), under zenoh's receive
+    // limit (distributed.max_message_mib = 1): dropped unread by the learner.
+    w.publish(99, vec![0u8; 896 << 10]);
     let mut dims = good(now);
     dims.trajectories[0].obs.pop();
     w.publish(99, encode_msg(&dims).expect("encode"));
@@ -297,7 +298,8 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
 
     // 48 MiB on the wire: dropped by zenoh's receive limit before the learner sees it.
     let huge = amplifying_chunk(&weights, 66, 48 * (1 << 20) / 14);
-    // Just under the chunk limit the learner derives (≈ 0.2 MB): 20× that if decoded.
+    // ≈ 0.2 MB, under the chunk limit the learner derives (≈ 0.5 MB with the default per-step
+    // site fields): ≈ 5 MB if decoded, 10× that limit.
     let amplifying = amplifying_chunk(&weights, 67, 12_000);
     let t0 = Instant::now();
     let mut sent = 0u64;

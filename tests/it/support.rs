@@ -522,9 +522,13 @@ pub fn drops(s: &LearnerStats, reason: &str) -> u64 {
     s.drops.get(reason).copied().unwrap_or(0)
 }
 
-/// A well-formed chunk for the learner that `w` came from, acted with `version`.
+/// A well-formed chunk for the learner that `w` came from, acted with `version`. The tests' runs
+/// use the default `env.site_every_step`: with the equivariant site head in the weights, each
+/// decision carries its per-step site fields (one step per decision here).
 pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk {
     let (d, t) = (w.policy.obs_dim, 4usize);
+    let (m, per_step) = (w.policy.n_sites, w.policy.site_head.as_ref());
+    let steps = |per_row: usize| per_step.map_or(vec![], |_| vec![0.0; t * m * per_row]);
     let mut h = Header::new(
         &w.header.run_id,
         w.header.learner_incarnation,
@@ -543,9 +547,9 @@ pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk 
             logprobs: vec![-3.0; t],
             site_logprobs: vec![0.0; t],
             site_rewards: vec![],
-            decision_steps: vec![],
-            step_site_features: vec![],
-            step_site_rewards: vec![],
+            decision_steps: per_step.map_or(vec![], |_| vec![1; t]),
+            step_site_features: steps(per_step.map_or(0, |h| h.features)),
+            step_site_rewards: steps(1),
             values: vec![0.0; t],
             rewards: vec![0.0; t],
             terminated: vec![false; t],

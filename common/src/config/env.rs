@@ -90,11 +90,12 @@ pub struct RewardConfig {
     pub collision_reward: f64,
     /// Reward for leaving the flight area (terminated).
     pub out_of_bounds_reward: f64,
-    /// Reward added per handover (the paper has none: 0). A departure by default (−3): the learned
+    /// Reward added per handover (the paper has none: 0). A departure by default (−2): the learned
     /// association has no hysteresis or time-to-trigger as A3 does, and without a cost a policy
-    /// that is indifferent among sites switches freely. With `site_regret_weight` = 1 a switch
-    /// pays within one decision (5 steps) when the new site is ≥ 0.6 dB stronger (docs/env.md,
-    /// docs/results.md "w_s and the handover cost", issue 15).
+    /// that is indifferent among sites switches freely. With `site_regret_weight` = 1 and the
+    /// site chosen every step (`env.site_every_step`, the default) a switch pays when the new
+    /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
+    /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
     pub handover_reward: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
@@ -119,7 +120,7 @@ impl Default for RewardConfig {
             goal_reward: 100.0,
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
-            handover_reward: -3.0,
+            handover_reward: -2.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
         }
@@ -261,7 +262,10 @@ pub struct EnvConfig {
     /// held for 5 steps (240 ms) the choice loses SINR that A3 and the oracle, acting every
     /// step, keep (docs/results.md "A handover margin on the learned choice"). Needs
     /// `ppo.site_head = "equivariant"`, `ppo.site_gradient = "all_sites"`, `ppo.site_horizon =
-    /// "decision"`, no `env.observation.site_trend`. false = the paper. Learned association only.
+    /// "decision"`, no `env.observation.site_trend`. Default true since 2026-11-26 (with
+    /// `handover_reward` = −2: fewer ping-pongs and less SINR loss than the site held per
+    /// decision, 3 seeds; docs/results.md "A site chosen every step"); false = the paper.
+    /// Learned association only.
     pub site_every_step: bool,
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
     /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
@@ -288,7 +292,7 @@ impl Default for EnvConfig {
             ping_pong_window_s: 1.0,
             min_time_of_stay_s: 0.0,
             handover_margin_db: 0.0,
-            site_every_step: false,
+            site_every_step: true,
             site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
             observation: ObservationConfig::default(),

@@ -235,6 +235,12 @@ impl PpoConfig {
                 "\"equivariant\" scores sites from env.observation.site_features: set it to true, or use \"slots\"",
             ));
         }
+        if o.site_trend && !o.site_features {
+            return Err(bad(
+                "env.observation.site_trend",
+                "is a site feature: set env.observation.site_features to true too",
+            ));
+        }
         if e.site_every_step && e.association == Association::Learned {
             let need = [
                 (
@@ -254,15 +260,11 @@ impl PpoConfig {
             if let Some((_, what)) = need.iter().find(|(missing, _)| *missing) {
                 return Err(bad(
                     "env.site_every_step",
-                    format!("a site chosen every step needs {what}"),
+                    format!(
+                        "a site chosen every step needs {what} (the site is chosen every step by default; set env.site_every_step = false to hold it for a decision, as the paper does)"
+                    ),
                 ));
             }
-        }
-        if o.site_trend && !o.site_features {
-            return Err(bad(
-                "env.observation.site_trend",
-                "is a site feature: set env.observation.site_features to true too",
-            ));
         }
         if pp.site_step_rows > 1000 {
             return Err(bad(
