@@ -116,15 +116,22 @@ impl HandoverCounter {
         self.last
     }
 
+    /// Whether a handover from `before` to `now` at step `step` would be a ping-pong (without
+    /// recording it).
+    pub fn would_ping_pong(&self, before: u16, now: u16, step: u32) -> bool {
+        before != now
+            && self.last.is_some_and(|(left, at)| {
+                left == now && step.saturating_sub(at) <= self.window_steps
+            })
+    }
+
     /// The serving site went from `before` to `now` at step `step` (counted from 1):
     /// (handover, ping-pong).
     pub fn step(&mut self, before: u16, now: u16, step: u32) -> (bool, bool) {
         if before == now {
             return (false, false);
         }
-        let ping_pong = self
-            .last
-            .is_some_and(|(left, at)| left == now && step - at <= self.window_steps);
+        let ping_pong = self.would_ping_pong(before, now, step);
         self.last = Some((before, step));
         (true, ping_pong)
     }

@@ -809,6 +809,10 @@ fn site_rewards_are_what_each_site_would_have_given() {
     let mut cfg = Config::default();
     cfg.env.association = Association::Learned;
     site_rewards_match_their_counterfactuals(&cfg);
+    // With a ping-pong cost (issue 15) too.
+    cfg.env.reward.ping_pong_reward = -4.0;
+    cfg.env.observation.site_ping_pong = true;
+    site_rewards_match_their_counterfactuals(&cfg);
 }
 
 /// The same with a minimum time of stay of 0.3 s (7 steps): a decision's choice is deferred past
@@ -1118,6 +1122,74 @@ fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
     cfg.env.handover_margin_db = 0.0;
     cfg.env.min_time_of_stay_s = 0.1;
     step_site_rewards_match_their_counterfactuals(&cfg, 3);
+    // A ping-pong cost and its site feature: each step's every-site reward charges it where
+    // serving that site would be a ping-pong, and the features say which (the replay's own).
+    cfg.env.min_time_of_stay_s = 0.0;
+    cfg.env.reward.ping_pong_reward = -4.0;
+    cfg.env.observation.site_ping_pong = true;
+    step_site_rewards_match_their_counterfactuals(&cfg, 10);
+}
+
+/// `env.reward.ping_pong_reward` (issue 15): a handover back to the site the last handover left,
+/// within `env.ping_pong_window_s` (21 steps), costs that reward on top of the handover cost,
+/// and `env.observation.site_ping_pong` marks that site in the features beforehand, until the
+/// window has passed.
+#[test]
+fn a_ping_pong_is_charged_and_marked_in_the_site_features() {
+    use dupac_common::obs::site_feature;
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
+    // Site 0 serves at the start; 1, back to 0 (a ping-pong), then 0 held past the window.
+    let seq: Vec<u16> = [1, 0].into_iter().chain([0; 25]).collect();
+    let run = |ping_pong_reward: f64| {
+        let mut cfg = Config::default();
+        cfg.env.association = Association::Learned;
+        cfg.env.observation.site_ping_pong = true;
+        cfg.env.reward.ping_pong_reward = ping_pong_reward;
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
+        e.reset(1, episode).expect("reset");
+        let tail = e
+            .layout()
+            .range(field::SITE_FEATURES)
+            .expect("site features");
+        let per_site = tail.len() / 2;
+        let at = site_feature::ping_pong(&cfg.env.observation).expect("the feature");
+        let mut out = Vec::new();
+        for &site in &seq {
+            let flags = [0, 1].map(|k| e.observation()[tail.start + k * per_site + at]);
+            let st = e.step(&mv(0.0, 1.0, 0.0, site)).expect("step");
+            assert!(
+                (e.site_rewards()[usize::from(site)] - st.reward).abs() < 1e-9,
+                "the chosen site's entry is the reward"
+            );
+            out.push((flags, st.info.handover, st.info.ping_pong, st.reward));
+        }
+        out
+    };
+    let (charged, free) = (run(-4.0), run(0.0));
+    assert_eq!(
+        (charged[0].0, charged[0].1, charged[0].2),
+        ([0.0, 0.0], true, false)
+    );
+    assert_eq!(
+        (charged[1].0, charged[1].1, charged[1].2),
+        ([1.0, 0.0], true, true),
+        "before the switch back, site 0 is marked; the switch back is a ping-pong"
+    );
+    for (k, (flags, handover, _, _)) in charged.iter().enumerate().skip(2) {
+        assert!(!handover);
+        // Before step n = k + 1, site 1 (left at step 2) is marked while n − 2 ≤ 21.
+        let marked = k < 23;
+        assert_eq!(*flags, [0.0, f32::from(u8::from(marked))], "step {}", k + 1);
+    }
+    for (k, (c, f)) in charged.iter().zip(&free).enumerate() {
+        let want = if k == 1 { f.3 - 4.0 } else { f.3 };
+        assert!(
+            (c.3 - want).abs() < 1e-9,
+            "step {}: {} vs {want}",
+            k + 1,
+            c.3
+        );
+    }
 }
 
 /// Without `env.site_every_step` (or without the learned association) a per-step decision is

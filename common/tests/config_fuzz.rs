@@ -271,6 +271,8 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         ("env", "min_time_of_stay_s", "1e9"),
         ("env", "handover_margin_db", "-0.5"),
         ("env", "handover_margin_db", "100.0"),
+        ("env.reward", "ping_pong_reward", "1.0"),
+        ("env.reward", "ping_pong_reward", "-1e9"),
     ];
     for (section, leaf, value) in cases {
         let key = format!("{section}.{leaf}");
@@ -294,6 +296,29 @@ fn out_of_range_values_are_rejected_naming_the_key() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("env.observation.site_trend"), "{e}");
+    let e = Config::from_toml_str(
+        "[env.observation]\nsite_features = false\nsite_ping_pong = true\n[ppo]\nsite_head = \"slots\"\n",
+        ORIGIN,
+        &[],
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("env.observation.site_ping_pong"),
+        "{e}"
+    );
+    // A ping-pong cost the learned site cannot see: the feature it needs is named.
+    let pp = "env.reward.ping_pong_reward=-4".to_string();
+    let e = Config::from_toml_str("", ORIGIN, std::slice::from_ref(&pp))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("env.reward.ping_pong_reward") && e.contains("env.observation.site_ping_pong"),
+        "{e}"
+    );
+    let with_feature = [pp.clone(), "env.observation.site_ping_pong=true".into()];
+    assert!(Config::from_toml_str("", ORIGIN, &with_feature).is_ok());
+    // The base method's A3 ping-pongs are charged without a feature (nothing learns the site).
+    assert!(Config::from_toml_str("", ORIGIN, &[pp, "env.association=\"a3\"".into()]).is_ok());
     // A site chosen every step with what it cannot run with: each requirement named.
     for (set, needs) in [
         ("ppo.site_head=\"slots\"", "ppo.site_head = \"equivariant\""),

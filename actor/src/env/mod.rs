@@ -581,6 +581,8 @@ impl Env {
             chosen = self.decision_origin;
         }
         self.serving = self.associator.next(chosen, &self.rsrp_dbm);
+        // The counter before this step: whether serving site k now would be a ping-pong.
+        let counter = self.handovers;
         let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
         let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
         let class = self.thresholds.classify(serving_rsrp_dbm);
@@ -608,7 +610,7 @@ impl Env {
             outcome = Some(Outcome::Goal);
             common += r.goal_reward;
         }
-        let term = |rsrp: f64, handover: bool| {
+        let term = |rsrp: f64, handover: bool, ping_pong: bool| {
             site_term(
                 &r,
                 &thresholds,
@@ -617,9 +619,10 @@ impl Env {
                 rsrp,
                 best_rsrp_dbm,
                 handover,
+                ping_pong,
             )
         };
-        let reward = common + term(serving_rsrp_dbm, handover);
+        let reward = common + term(serving_rsrp_dbm, handover, ping_pong);
         if !self.site_rewards.is_empty() {
             // The counterfactual of site k serves k from the step at which this decision's
             // choice takes effect (its first step, or the end of the minimum stay) on; before
@@ -632,9 +635,11 @@ impl Env {
                 *acc += if !applied {
                     reward
                 } else if margin_on && self.refused[k] {
-                    common + term(self.rsrp_dbm[self.decision_origin.index()], false)
+                    common + term(self.rsrp_dbm[self.decision_origin.index()], false, false)
                 } else {
-                    common + term(self.rsrp_dbm[k], choice_step && k != before.index())
+                    let switch = choice_step && k != before.index();
+                    let pp = switch && counter.would_ping_pong(before.0, k as u16, self.step);
+                    common + term(self.rsrp_dbm[k], switch, pp)
                 };
             }
         }

@@ -150,6 +150,7 @@ impl Env {
         let goal = goal.unwrap_or(heading);
         let serving = self.serving.index();
         let per_site = site_features_per_site(o);
+        let ping_pong_at = site_feature::ping_pong(o);
         for (k, site) in self.world.sites.iter().enumerate() {
             let f = &mut out[k * per_site..][..per_site];
             let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
@@ -180,6 +181,13 @@ impl Env {
                     w - before.max(RSRP_FLOOR_DBM)
                 };
                 f[RSRP_TREND] = (d / 10.0).clamp(-3.0, 3.0) as f32;
+            }
+            if let Some(i) = ping_pong_at {
+                // Serving k at the next step (step + 1) would be a ping-pong.
+                let pp = self
+                    .handovers
+                    .would_ping_pong(serving as u16, k as u16, self.step + 1);
+                f[i] = f32::from(u8::from(pp));
             }
         }
     }

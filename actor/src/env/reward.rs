@@ -28,8 +28,10 @@ pub const MAX_REGRET_DB: f64 = 60.0;
 
 /// The part of a step's reward that depends on the serving site (issue 15): Eq. (8) with that
 /// site's RSRP and class (nothing after a collision or leaving the area, whose reward replaces
-/// Eq. (8)), the handover cost `handover_reward` if serving it is a handover, and
+/// Eq. (8)), the handover cost `handover_reward` if serving it is a handover (and
+/// `ping_pong_reward` too if that handover is a ping-pong), and
 /// `−site_regret_weight · min(best − rsrp, 60 dB)`.
+#[allow(clippy::too_many_arguments)]
 pub fn site_term(
     cfg: &RewardConfig,
     thresholds: &RsrpThresholds,
@@ -38,6 +40,7 @@ pub fn site_term(
     rsrp_dbm: f64,
     best_rsrp_dbm: f64,
     handover: bool,
+    ping_pong: bool,
 ) -> f64 {
     let w = rsrp_dbm.max(RSRP_FLOOR_DBM);
     let mut r = if crashed {
@@ -47,6 +50,9 @@ pub fn site_term(
     };
     if handover {
         r += cfg.handover_reward;
+        if ping_pong {
+            r += cfg.ping_pong_reward;
+        }
     }
     if cfg.site_regret_weight > 0.0 {
         let regret = (best_rsrp_dbm.max(RSRP_FLOOR_DBM) - w).clamp(0.0, MAX_REGRET_DB);

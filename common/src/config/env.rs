@@ -97,6 +97,15 @@ pub struct RewardConfig {
     /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
     /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
     pub handover_reward: f64,
+    /// Reward added per *ping-pong* (≤ 0; 0 = off, the default): a handover back to the site the
+    /// previous handover left, within `env.ping_pong_window_s` (the metric's definition), on top
+    /// of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
+    /// estimator is myopic, so a switch is never charged the switch back that undoes it; this
+    /// charges the switch back itself, when it is made, so returning to a site within a second
+    /// needs a larger lead than leaving it (a hysteresis on returns only, as a causal rule can
+    /// know). Needs `env.observation.site_ping_pong` with the learned association (the site
+    /// head must see which site would be a ping-pong).
+    pub ping_pong_reward: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
     /// costs SINR against the stronger interferer; this term prefers the stronger site
@@ -121,6 +130,7 @@ impl Default for RewardConfig {
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
             handover_reward: -2.0,
+            ping_pong_reward: 0.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
         }
@@ -175,6 +185,11 @@ pub struct ObservationConfig {
     /// the site head can tell a rising site from a passing peak (A3 has its time-to-trigger for
     /// that). Off by default (issue 15; measured in docs/results.md "What any association can do").
     pub site_trend: bool,
+    /// One more site feature (with `site_features`): 1 for the site that serving next would be a
+    /// ping-pong (the site the last handover left, within `env.ping_pong_window_s`), else 0
+    /// ([`crate::obs::site_feature::ping_pong`]). Off by default; needed by
+    /// `env.reward.ping_pong_reward` (issue 15).
+    pub site_ping_pong: bool,
 }
 
 impl Default for ObservationConfig {
@@ -194,6 +209,7 @@ impl Default for ObservationConfig {
             rsrp_scale_db: 30.0,
             site_features: true,
             site_trend: false,
+            site_ping_pong: false,
         }
     }
 }
@@ -417,6 +433,12 @@ impl EnvConfig {
             if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
                 return Err(bad(k, format!("must be in [0, 1000], got {v}")));
             }
+        }
+        if !(rw.ping_pong_reward.is_finite() && (-1e3..=0.0).contains(&rw.ping_pong_reward)) {
+            return Err(bad(
+                "env.reward.ping_pong_reward",
+                format!("must be in [-1000, 0], got {}", rw.ping_pong_reward),
+            ));
         }
         let o = &e.observation;
         positive("env.observation.sensor_range_m", o.sensor_range_m)?;

@@ -241,6 +241,21 @@ impl PpoConfig {
                 "is a site feature: set env.observation.site_features to true too",
             ));
         }
+        if o.site_ping_pong && !o.site_features {
+            return Err(bad(
+                "env.observation.site_ping_pong",
+                "is a site feature: set env.observation.site_features to true too",
+            ));
+        }
+        if e.reward.ping_pong_reward != 0.0
+            && e.association == Association::Learned
+            && !o.site_ping_pong
+        {
+            return Err(bad(
+                "env.reward.ping_pong_reward",
+                "the learned site must see which site would be a ping-pong: set env.observation.site_ping_pong = true (and env.observation.site_features)",
+            ));
+        }
         if e.site_every_step && e.association == Association::Learned {
             let need = [
                 (
