@@ -317,6 +317,20 @@ fn out_of_range_values_are_rejected_naming_the_key() {
     );
     let with_feature = [pp.clone(), "env.observation.site_ping_pong=true".into()];
     assert!(Config::from_toml_str("", ORIGIN, &with_feature).is_ok());
+    // The route horizon does not model it (its dynamic programme would count it twice).
+    let route = [
+        with_feature[0].clone(),
+        with_feature[1].clone(),
+        "env.site_every_step=false".into(),
+        "ppo.site_horizon=\"route\"".into(),
+    ];
+    let e = Config::from_toml_str("", ORIGIN, &route)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("env.reward.ping_pong_reward") && e.contains("site_horizon"),
+        "{e}"
+    );
     // The base method's A3 ping-pongs are charged without a feature (nothing learns the site).
     assert!(Config::from_toml_str("", ORIGIN, &[pp, "env.association=\"a3\"".into()]).is_ok());
     // A site chosen every step with what it cannot run with: each requirement named.

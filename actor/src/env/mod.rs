@@ -496,7 +496,8 @@ impl Env {
     /// Every site's reward of the last [`Env::act`] (or [`Env::step`]): entry k is the reward
     /// the decision would have had with site k chosen, the flight being the same (the site does
     /// not move the UAV): the same Eq. (8), terminal and route terms, the site's own RSRP class
-    /// and regret, and the handover cost if k is not the site serving before the decision; with
+    /// and regret, and the handover cost if k is not the site serving before the decision (and
+    /// `env.reward.ping_pong_reward` if serving k would be a ping-pong); with
     /// `env.handover_margin_db`, a site the margin would refuse gets the serving site's reward
     /// without a handover. The chosen site's entry equals the reward returned. Empty unless `env.association =
     /// "learned"` (issue 15: the site head learns from all of them).

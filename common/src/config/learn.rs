@@ -249,6 +249,17 @@ impl PpoConfig {
         }
         if e.reward.ping_pong_reward != 0.0
             && e.association == Association::Learned
+            && pp.site_horizon == SiteHorizon::Route
+        {
+            // The route horizon's dynamic programme removes only the handover cost from each
+            // site's reward: a ping-pong cost would be counted twice.
+            return Err(bad(
+                "env.reward.ping_pong_reward",
+                "is not modelled by ppo.site_horizon = \"route\": use \"decision\", or set the cost to 0",
+            ));
+        }
+        if e.reward.ping_pong_reward != 0.0
+            && e.association == Association::Learned
             && !o.site_ping_pong
         {
             return Err(bad(
