@@ -77,6 +77,7 @@ fn world() -> Arc<RadioWorld> {
 /// departures of issue 15, tested on their own below).
 fn paper_reward(cfg: &mut Config) {
     cfg.env.reward.handover_reward = 0.0;
+    cfg.env.reward.ping_pong_reward = 0.0;
     cfg.env.reward.site_regret_weight = 0.0;
     cfg.env.reward.route_connectivity_weight = 0.0;
 }
@@ -703,7 +704,9 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
     cfg.env.association = Association::Learned;
     cfg.env.observation.site_trend = true;
     let per_site = site_features_per_site(&cfg.env.observation);
-    assert_eq!(per_site, 11);
+    // The trend, then the ping-pong flag (on by default), last.
+    assert_eq!(per_site, 12);
+    assert_eq!(site_feature::ping_pong(&cfg.env.observation), Some(11));
     let mut e = Env::new(&cfg, world(), Arc::new(Field(field, 2))).expect("env");
     let trend = |e: &Env| {
         let r = e

@@ -229,10 +229,11 @@ mod tests {
     #[test]
     fn default_layout_is_the_documented_one() {
         let l = ObsLayout::new(&ObservationConfig::default(), 30);
-        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1, then 30 × 10 site features
-        assert_eq!(l.len(), 104 + 300);
+        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1, then 30 × 11 site features (the ping-pong
+        // flag on by default)
+        assert_eq!(l.len(), 104 + 330);
         assert_eq!(l.trunk_len(), 104);
-        assert_eq!(l.range(field::SITE_FEATURES), Some(104..404));
+        assert_eq!(l.range(field::SITE_FEATURES), Some(104..434));
         assert_eq!(l.range(field::POSITION), Some(0..3));
         assert_eq!(l.range(field::GOAL_DIRECTION), Some(10..13));
         assert_eq!(l.range(field::SENSOR_FAN), Some(17..43));

@@ -45,6 +45,8 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     let mut paper = Config::default();
     paper.env.site_every_step = false;
     paper.env.reward.handover_reward = 0.0;
+    paper.env.reward.ping_pong_reward = 0.0;
+    paper.env.observation.site_ping_pong = false;
     paper.env.reward.site_regret_weight = 0.0;
     paper.env.reward.route_connectivity_weight = 0.0;
     paper.env.observation.site_features = false;

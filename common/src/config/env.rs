@@ -97,7 +97,7 @@ pub struct RewardConfig {
     /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
     /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
     pub handover_reward: f64,
-    /// Reward added per *ping-pong* (≤ 0; 0 = off, the default): a handover back to the site the
+    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −4 since 2026-11-26): a handover back to the site the
     /// previous handover left, within `env.ping_pong_window_s` (the metric's definition), on top
     /// of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
     /// estimator is myopic, so a switch is never charged the switch back that undoes it; this
@@ -130,7 +130,7 @@ impl Default for RewardConfig {
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
             handover_reward: -2.0,
-            ping_pong_reward: 0.0,
+            ping_pong_reward: -4.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
         }
@@ -187,7 +187,7 @@ pub struct ObservationConfig {
     pub site_trend: bool,
     /// One more site feature (with `site_features`): 1 for the site that serving next would be a
     /// ping-pong (the site the last handover left, within `env.ping_pong_window_s`), else 0
-    /// ([`crate::obs::site_feature::ping_pong`]). Off by default; needed by
+    /// ([`crate::obs::site_feature::ping_pong`]). On by default since 2026-11-26; needed by
     /// `env.reward.ping_pong_reward` (issue 15).
     pub site_ping_pong: bool,
 }
@@ -209,7 +209,7 @@ impl Default for ObservationConfig {
             rsrp_scale_db: 30.0,
             site_features: true,
             site_trend: false,
-            site_ping_pong: false,
+            site_ping_pong: true,
         }
     }
 }

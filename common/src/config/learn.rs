@@ -244,7 +244,7 @@ impl PpoConfig {
         if o.site_ping_pong && !o.site_features {
             return Err(bad(
                 "env.observation.site_ping_pong",
-                "is a site feature: set env.observation.site_features to true too",
+                "is a site feature (on by default): set env.observation.site_features to true too, or this to false (and env.reward.ping_pong_reward to 0)",
             ));
         }
         if e.reward.ping_pong_reward != 0.0
@@ -264,7 +264,7 @@ impl PpoConfig {
         {
             return Err(bad(
                 "env.reward.ping_pong_reward",
-                "the learned site must see which site would be a ping-pong: set env.observation.site_ping_pong = true (and env.observation.site_features)",
+                "the learned site must see which site would be a ping-pong: set env.observation.site_ping_pong = true (and env.observation.site_features), or the cost to 0",
             ));
         }
         if e.site_every_step && e.association == Association::Learned {
