@@ -73,7 +73,7 @@ fn world() -> Arc<RadioWorld> {
     ))
 }
 
-/// The paper's reward, Eq. (8) alone: no handover cost, site-regret or route term (the
+/// The paper's reward, Eq. (8) alone: no handover or ping-pong cost, site-regret or route term (the
 /// departures of issue 15, tested on their own below).
 fn paper_reward(cfg: &mut Config) {
     cfg.env.reward.handover_reward = 0.0;
@@ -742,7 +742,7 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
     )
     .expect("reset");
     assert_eq!(trend(&e), [0.0, 0.0]);
-    // Without the key the layout is today's: 10 features per site.
+    // Without the key the layout is today's: 11 features per site (with the ping-pong flag).
     let plain = Env::new(&Config::default(), world(), Arc::new(Field(field, 2))).expect("env");
     assert_eq!(plain.layout().len() + 2, e.layout().len());
 }
@@ -806,15 +806,16 @@ const CROSSING: fn(usize, Point) -> f64 = |s, p| {
 /// Issue 15: `Env::site_rewards` holds, for every site k, the reward the decision would have had
 /// with k chosen: replaying the same decisions with k chosen at decision t gives exactly that
 /// reward, and the chosen site's entry is the reward returned. The departures' terms (handover
-/// cost, site regret, route connectivity) are on, as by default.
+/// and ping-pong costs, site regret, route connectivity) are on, as by default; then without the
+/// ping-pong cost and its feature.
 #[test]
 fn site_rewards_are_what_each_site_would_have_given() {
     let mut cfg = Config::default();
     cfg.env.association = Association::Learned;
+    assert!(cfg.env.reward.ping_pong_reward < 0.0 && cfg.env.observation.site_ping_pong);
     site_rewards_match_their_counterfactuals(&cfg);
-    // With a ping-pong cost (issue 15) too.
-    cfg.env.reward.ping_pong_reward = -4.0;
-    cfg.env.observation.site_ping_pong = true;
+    cfg.env.reward.ping_pong_reward = 0.0;
+    cfg.env.observation.site_ping_pong = false;
     site_rewards_match_their_counterfactuals(&cfg);
 }
 
@@ -1117,6 +1118,9 @@ fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
     let mut cfg = Config::default();
     cfg.env.association = Association::Learned;
     cfg.env.site_every_step = true;
+    // Without the ping-pong cost and its feature first (the default has both: last below).
+    cfg.env.reward.ping_pong_reward = 0.0;
+    cfg.env.observation.site_ping_pong = false;
     step_site_rewards_match_their_counterfactuals(&cfg, 10);
     // The margin and the minimum stay apply per step (site 1 leads by 2 dB from y = 37 m on:
     // one handover, every later choice of site 0 refused).

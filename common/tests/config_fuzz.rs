@@ -333,7 +333,12 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         "{e}"
     );
     // The base method's A3 ping-pongs are charged without a feature (nothing learns the site).
-    assert!(Config::from_toml_str("", ORIGIN, &[pp, "env.association=\"a3\"".into()]).is_ok());
+    let a3 = [
+        pp,
+        "env.observation.site_ping_pong=false".into(),
+        "env.association=\"a3\"".into(),
+    ];
+    assert!(Config::from_toml_str("", ORIGIN, &a3).is_ok());
     // A site chosen every step with what it cannot run with: each requirement named.
     for (set, needs) in [
         ("ppo.site_head=\"slots\"", "ppo.site_head = \"equivariant\""),
