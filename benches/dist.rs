@@ -108,6 +108,7 @@ fn benches(c: &mut Criterion) {
             log_std: [0.0; 3],
             obs_norm: ObsNormalizer::new(OBS, true, 10.0),
             reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+            observation: None,
         },
     };
     let wb = encode_msg(&w).expect("encode");

@@ -30,6 +30,7 @@ fn policy() -> PolicyWeights {
         log_std: [0.0; 3],
         obs_norm: ObsNormalizer::new(OBS, true, 10.0),
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+        observation: None,
     }
 }
 

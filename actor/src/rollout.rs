@@ -29,6 +29,8 @@ pub enum RolloutError {
     ObsMismatch { policy: usize, env: usize },
     #[error("the policy has {policy} site logits, the scenario {env} sites")]
     SiteMismatch { policy: usize, env: usize },
+    #[error("the policy was {0}")]
+    ObservationMismatch(String),
     #[error(
         "env.site_every_step (on by default) needs a policy with the equivariant site head (ppo.site_head = \"equivariant\"); fly a policy of the paper's slot head with --set env.site_every_step=false, or with the configuration it was trained with (docs/paper_dupac.toml)"
     )]
@@ -176,6 +178,9 @@ impl Worker {
                 env: self.env.num_sites(),
             });
         }
+        policy
+            .check_observation(&self.env.config().observation)
+            .map_err(RolloutError::ObservationMismatch)?;
         let mut tr = EnvTrajectory {
             env: self.index,
             obs_dim: d,

@@ -18,6 +18,7 @@
 //!   (the tail of the observation, fixed scales) and an embedding `tanh(E·h)` of the actor's last
 //!   hidden activation `h`, so permuting the sites permutes the logits.
 
+use crate::config::{Config, ObservationConfig};
 pub use crate::normalize::{ObsNormalizer, RewardScaler, RunningMeanStd};
 use serde::{Deserialize, Serialize};
 
@@ -267,6 +268,36 @@ pub struct PolicyWeights {
     pub log_std: [f32; MOVE_DIM],
     pub obs_norm: ObsNormalizer,
     pub reward_scaler: RewardScaler,
+    /// The observation the policy was trained on (`env.observation`), recorded since policy file
+    /// format 3: flags that give layouts of one length (`site_trend`, `site_ping_pong`) and the
+    /// scales of its values (sensor range, RSRP centre) are not visible in the weights' shapes.
+    /// `None` in a file of an older format, which is checked by its length only
+    /// ([`PolicyWeights::configure`]).
+    pub observation: Option<ObservationConfig>,
+}
+
+/// The `env.observation` keys on which `a` and `b` differ, each as `key: a vs b` (empty when
+/// equal).
+pub fn observation_diff(a: &ObservationConfig, b: &ObservationConfig) -> Vec<String> {
+    let table = |o: &ObservationConfig| match toml::Value::try_from(o) {
+        Ok(toml::Value::Table(t)) => t,
+        _ => toml::Table::new(),
+    };
+    let (ta, tb) = (table(a), table(b));
+    let mut keys: Vec<&String> = ta.keys().chain(tb.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    let show = |v: Option<&toml::Value>| v.map_or_else(|| "–".to_string(), |v| v.to_string());
+    keys.into_iter()
+        .filter(|k| ta.get(*k) != tb.get(*k))
+        .map(|k| {
+            format!(
+                "env.observation.{k}: {} vs {}",
+                show(ta.get(k)),
+                show(tb.get(k))
+            )
+        })
+        .collect()
 }
 
 /// One sampled (or deterministic) action with what the learner stores about it.
@@ -335,6 +366,10 @@ impl PolicyWeights {
                 crate::obs::OBS_VERSION
             ));
         }
+        if let Some(o) = &self.observation {
+            o.validate()
+                .map_err(|e| format!("the recorded observation: {e}"))?;
+        }
         let trunk = self.trunk_dim();
         if trunk == 0 || trunk > self.obs_dim {
             return Err(format!(
@@ -390,6 +425,35 @@ impl PolicyWeights {
             return Err("reward_scaler: statistics, clip or gamma out of range".into());
         }
         Ok(())
+    }
+
+    /// `cfg` with `env.observation` set to the observation this policy was trained on, checked
+    /// on its own ([`ObservationConfig::validate`]; a file is untrusted input): what `dupac eval`
+    /// and `dupac fly` fly it with, whatever the configuration says. `cfg` unchanged for a
+    /// policy of an older file format, which records none. The error names the invalid key.
+    /// Only the observation is taken: the training-time rules that tie it to the reward
+    /// (a ping-pong cost needs its feature) are not about flying.
+    pub fn configure(&self, cfg: &Config) -> Result<Config, String> {
+        let mut c = cfg.clone();
+        if let Some(o) = &self.observation {
+            o.validate()
+                .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
+            c.env.observation = o.clone();
+        }
+        Ok(c)
+    }
+
+    /// Refuses a policy trained on another observation than `cfg`'s (what an actor or a resumed
+    /// learner needs: they cannot fly it with another); the error lists the keys that differ.
+    /// A policy of an older file format records none and passes (its length is checked apart).
+    pub fn check_observation(&self, cfg: &ObservationConfig) -> Result<(), String> {
+        match &self.observation {
+            Some(o) if o != cfg => Err(format!(
+                "trained on another observation than this configuration's (policy vs configuration): {}",
+                observation_diff(o, cfg).join(", ")
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// Values of the observation the actor and critic MLPs read (the rest are site features).

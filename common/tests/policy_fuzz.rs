@@ -45,6 +45,7 @@ fn policy() -> PolicyWeights {
         log_std: [-0.5; MOVE_DIM],
         obs_norm: ObsNormalizer::new(OBS, true, 5.0),
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+        observation: Some(dupac_common::config::ObservationConfig::default()),
     }
 }
 
@@ -69,7 +70,7 @@ fn set_field(p: &mut PolicyWeights, which: usize, v: f64) {
             0
         }
     };
-    match which % 16 {
+    match which % 18 {
         0 => p.obs_norm.clip = v,
         1 => p.obs_norm.stats.mean[0] = v,
         2 => p.obs_norm.stats.var[1] = v,
@@ -85,6 +86,16 @@ fn set_field(p: &mut PolicyWeights, which: usize, v: f64) {
         12 => p.actor.layers[1].n_in = n(v),
         13 => p.actor.layers[0].weight.truncate(n(v)),
         14 => p.obs_norm.stats.mean.truncate(n(v)),
+        15 => {
+            p.observation
+                .get_or_insert_with(Default::default)
+                .rsrp_scale_db = v
+        }
+        16 => {
+            p.observation
+                .get_or_insert_with(Default::default)
+                .sensor_range_m = v
+        }
         _ => p.obs_version = n(v) as u32,
     }
 }
@@ -155,7 +166,7 @@ proptest! {
 
     #[test]
     fn a_policy_with_a_hostile_field_is_refused_or_acts(
-        which in 0usize..16,
+        which in 0usize..18,
         v in prop::sample::select(HOSTILE),
     ) {
         let mut p = policy();
@@ -184,4 +195,40 @@ proptest! {
             act(&w.policy);
         }
     }
+}
+
+/// The observation a policy records (issue 15: two layouts of one length) is what it is flown
+/// with, and what an actor or a resumed learner must share; a hostile one is refused by key.
+#[test]
+fn a_policy_is_flown_with_the_observation_it_records() {
+    use dupac_common::config::{Config, ObservationConfig};
+    let cfg = Config::default();
+    let mut trend = ObservationConfig {
+        site_trend: true,
+        site_ping_pong: false,
+        ..ObservationConfig::default()
+    };
+    let mut p = policy();
+    p.observation = Some(trend.clone());
+    assert_eq!(p.configure(&cfg).expect("flown").env.observation, trend);
+    let e = p
+        .check_observation(&cfg.env.observation)
+        .expect_err("another");
+    assert!(
+        e.contains("env.observation.site_ping_pong: false vs true")
+            && e.contains("env.observation.site_trend: true vs false"),
+        "{e}"
+    );
+    assert_eq!(p.check_observation(&trend), Ok(()));
+    // An older file records none: flown with the configuration's, checked by length elsewhere.
+    p.observation = None;
+    assert_eq!(p.configure(&cfg).expect("flown"), cfg);
+    assert_eq!(p.check_observation(&cfg.env.observation), Ok(()));
+    // A hostile record is refused by its key, by validation and by `configure`.
+    trend.rsrp_scale_db = f64::NAN;
+    p.observation = Some(trend);
+    let e = p.validate().expect_err("NaN scale");
+    assert!(e.contains("env.observation.rsrp_scale_db"), "{e}");
+    let e = p.configure(&cfg).expect_err("NaN scale");
+    assert!(e.contains("env.observation.rsrp_scale_db"), "{e}");
 }

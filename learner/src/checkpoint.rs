@@ -20,9 +20,13 @@ use std::path::Path;
 use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
-const CHECKPOINT_VERSION: u32 = 2;
+/// Format 3 records the policy's observation ([`PolicyWeights::observation`]); format 2 is
+/// still read ([`legacy`]).
+const CHECKPOINT_VERSION: u32 = 3;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 2;
+const POLICY_VERSION: u32 = 3;
+/// The previous format (2026-11-24 to 2026-11-26), read without the observation.
+const FORMAT_2: u32 = 2;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -62,6 +66,119 @@ struct CheckpointFile {
     meta: CheckpointMeta,
     model: Vec<u8>,
     optim: Vec<u8>,
+}
+
+/// File format 2: the same files without [`PolicyWeights::observation`] (bincode is not
+/// self-describing, so the old layout is spelled out once here and converted).
+mod legacy {
+    use dupac_common::config::Config;
+    use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
+    use serde::Deserialize;
+
+    #[derive(Deserialize)]
+    pub(super) struct PolicyWeightsV2 {
+        version: u64,
+        obs_version: u32,
+        obs_dim: usize,
+        n_sites: usize,
+        actor: Mlp,
+        critic: Mlp,
+        site_head: Option<SiteHead>,
+        log_std: [f32; dupac_common::policy::MOVE_DIM],
+        obs_norm: ObsNormalizer,
+        reward_scaler: RewardScaler,
+    }
+
+    impl PolicyWeightsV2 {
+        /// The policy, with `observation` (none recorded in a format-2 policy file; a checkpoint
+        /// has it in its configuration).
+        pub(super) fn upgrade(
+            self,
+            observation: Option<dupac_common::config::ObservationConfig>,
+        ) -> PolicyWeights {
+            PolicyWeights {
+                version: self.version,
+                obs_version: self.obs_version,
+                obs_dim: self.obs_dim,
+                n_sites: self.n_sites,
+                actor: self.actor,
+                critic: self.critic,
+                site_head: self.site_head,
+                log_std: self.log_std,
+                obs_norm: self.obs_norm,
+                reward_scaler: self.reward_scaler,
+                observation,
+            }
+        }
+    }
+
+    #[derive(Deserialize)]
+    struct CheckpointMetaV2 {
+        seed: u64,
+        update: u64,
+        global_step: u64,
+        episodes: u64,
+        train_seconds: f64,
+        config_toml: String,
+        policy: PolicyWeightsV2,
+        return_acc: Vec<f64>,
+    }
+
+    #[derive(Deserialize)]
+    pub(super) struct CheckpointFileV2 {
+        meta: CheckpointMetaV2,
+        model: Vec<u8>,
+        optim: Vec<u8>,
+    }
+
+    impl CheckpointFileV2 {
+        /// The checkpoint with the observation of the run's own configuration (`None` when that
+        /// no longer parses).
+        pub(super) fn upgrade(self) -> super::CheckpointFile {
+            let m = self.meta;
+            let observation = toml::from_str::<Config>(&m.config_toml)
+                .ok()
+                .map(|c| c.env.observation);
+            super::CheckpointFile {
+                meta: super::CheckpointMeta {
+                    seed: m.seed,
+                    update: m.update,
+                    global_step: m.global_step,
+                    episodes: m.episodes,
+                    train_seconds: m.train_seconds,
+                    config_toml: m.config_toml,
+                    policy: m.policy.upgrade(observation),
+                    return_acc: m.return_acc,
+                },
+                model: self.model,
+                optim: self.optim,
+            }
+        }
+    }
+}
+
+/// Decodes a checkpoint file of this format or of format 2.
+fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, CheckpointError> {
+    match codec::decode(
+        CHECKPOINT_MAGIC,
+        CHECKPOINT_VERSION,
+        bytes,
+        MAX_FILE_BYTES,
+        what,
+    ) {
+        Err(CodecError::Version { got: FORMAT_2, .. }) => {
+            codec::decode::<legacy::CheckpointFileV2>(
+                CHECKPOINT_MAGIC,
+                FORMAT_2,
+                bytes,
+                MAX_FILE_BYTES,
+                what,
+            )
+            .map(legacy::CheckpointFileV2::upgrade)
+            .map_err(CheckpointError::from)
+        }
+        r => r.map_err(older_format),
+    }
 }
 
 /// Writes a checkpoint of `model` and `optim` atomically to `path`.
@@ -104,14 +221,7 @@ pub struct LoadedCheckpoint {
 pub fn load_checkpoint(path: &Path) -> Result<LoadedCheckpoint, CheckpointError> {
     let what = path.display().to_string();
     let bytes = codec::read_limited(path, MAX_FILE_BYTES)?;
-    let f: CheckpointFile = codec::decode(
-        CHECKPOINT_MAGIC,
-        CHECKPOINT_VERSION,
-        &bytes,
-        MAX_FILE_BYTES,
-        &what,
-    )
-    .map_err(older_format)?;
+    let f = decode_checkpoint(&bytes, &what)?;
     f.meta
         .policy
         .validate()
@@ -160,7 +270,7 @@ pub fn save_policy(path: &Path, policy: &PolicyWeights) -> Result<(), Checkpoint
 }
 
 /// An older format of policy or checkpoint file, named in words: format 1 carried observation
-/// layouts 1–2 and slot site logits only.
+/// layouts 1–2 and slot site logits only (format 2 is read: [`legacy`]).
 fn older_format(e: CodecError) -> CheckpointError {
     match e {
         CodecError::Version { what, got, want } if got < want => CheckpointError::Invalid {
@@ -179,18 +289,21 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let what = path.display().to_string();
     let bytes = codec::read_limited(path, MAX_FILE_BYTES)?;
     let policy: PolicyWeights = if bytes.starts_with(CHECKPOINT_MAGIC) {
-        let f: CheckpointFile = codec::decode(
-            CHECKPOINT_MAGIC,
-            CHECKPOINT_VERSION,
-            &bytes,
-            MAX_FILE_BYTES,
-            &what,
-        )
-        .map_err(older_format)?;
-        f.meta.policy
+        decode_checkpoint(&bytes, &what)?.meta.policy
     } else {
-        codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)
-            .map_err(older_format)?
+        match codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what) {
+            Err(CodecError::Version { got: FORMAT_2, .. }) => {
+                codec::decode::<legacy::PolicyWeightsV2>(
+                    POLICY_MAGIC,
+                    FORMAT_2,
+                    &bytes,
+                    MAX_FILE_BYTES,
+                    &what,
+                )?
+                .upgrade(None)
+            }
+            r => r.map_err(older_format)?,
+        }
     };
     policy
         .validate()
@@ -199,4 +312,166 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
             message,
         })?;
     Ok(policy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learner::Learner;
+    use dupac_common::config::Config;
+    use dupac_common::obs::ObsLayout;
+    use dupac_common::policy::{Mlp, ObsNormalizer, RewardScaler, SiteHead};
+
+    fn learner(cfg: &Config) -> Learner {
+        let n = 4;
+        let obs_dim = ObsLayout::new(&cfg.env.observation, n).len();
+        Learner::new(cfg.clone(), obs_dim, n, &Device::flex())
+    }
+
+    fn small() -> Config {
+        let mut cfg = Config::default();
+        cfg.ppo.hidden = vec![8, 8];
+        cfg.ppo.site_hidden = vec![8];
+        cfg.ppo.site_embed = 4;
+        cfg
+    }
+
+    /// [`PolicyWeights`] as file format 2 wrote it: its fields in order, without the observation.
+    #[derive(Serialize)]
+    struct PolicyWeightsV2<'a> {
+        version: u64,
+        obs_version: u32,
+        obs_dim: usize,
+        n_sites: usize,
+        actor: &'a Mlp,
+        critic: &'a Mlp,
+        site_head: &'a Option<SiteHead>,
+        log_std: [f32; 3],
+        obs_norm: &'a ObsNormalizer,
+        reward_scaler: &'a RewardScaler,
+    }
+
+    fn v2(p: &PolicyWeights) -> PolicyWeightsV2<'_> {
+        PolicyWeightsV2 {
+            version: p.version,
+            obs_version: p.obs_version,
+            obs_dim: p.obs_dim,
+            n_sites: p.n_sites,
+            actor: &p.actor,
+            critic: &p.critic,
+            site_head: &p.site_head,
+            log_std: p.log_std,
+            obs_norm: &p.obs_norm,
+            reward_scaler: &p.reward_scaler,
+        }
+    }
+
+    #[test]
+    fn a_policy_records_its_observation_and_an_older_file_still_loads() {
+        let mut cfg = small();
+        // A layout of the same length as the default's, another feature at index 10.
+        cfg.env.observation.site_ping_pong = false;
+        cfg.env.reward.ping_pong_reward = 0.0;
+        cfg.env.observation.site_trend = true;
+        cfg.env.site_every_step = false;
+        cfg.validate().expect("valid");
+        let p = learner(&cfg).policy();
+        assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("policy.bin");
+        save_policy(&path, &p).expect("save");
+        assert_eq!(load_policy(&path).expect("load"), p);
+
+        // Format 2 (no observation recorded) loads, with none.
+        let bytes = codec::encode(POLICY_MAGIC, FORMAT_2, &v2(&p), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let old = load_policy(&path).expect("a format-2 policy loads");
+        assert_eq!(old.observation, None);
+        assert_eq!(
+            PolicyWeights {
+                observation: None,
+                ..p.clone()
+            },
+            old
+        );
+
+        // Format 1 is refused by name.
+        let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let e = load_policy(&path).expect_err("format 1").to_string();
+        assert!(
+            e.contains("older DUPAC") && e.contains("file format 1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_format_2_checkpoint_takes_its_observation_from_its_configuration() {
+        #[derive(Serialize)]
+        struct MetaV2<'a> {
+            seed: u64,
+            update: u64,
+            global_step: u64,
+            episodes: u64,
+            train_seconds: f64,
+            config_toml: &'a str,
+            policy: PolicyWeightsV2<'a>,
+            return_acc: Vec<f64>,
+        }
+        #[derive(Serialize)]
+        struct FileV2<'a> {
+            meta: MetaV2<'a>,
+            model: Vec<u8>,
+            optim: Vec<u8>,
+        }
+        let mut cfg = small();
+        cfg.env.observation.rsrp_scale_db = 17.0;
+        let p = learner(&cfg).policy();
+        let toml = cfg.to_toml_string();
+        let file = FileV2 {
+            meta: MetaV2 {
+                seed: 1,
+                update: 2,
+                global_step: 3,
+                episodes: 4,
+                train_seconds: 5.0,
+                config_toml: &toml,
+                policy: v2(&p),
+                return_acc: vec![0.5],
+            },
+            model: vec![1, 2],
+            optim: vec![3],
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("checkpoint.bin");
+        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_2, &file, "checkpoint").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let ck = load_checkpoint(&path).expect("a format-2 checkpoint loads");
+        assert_eq!(
+            ck.meta.policy.observation.as_ref(),
+            Some(&cfg.env.observation)
+        );
+        assert_eq!(ck.meta.update, 2);
+        assert_eq!(ck.meta.return_acc, vec![0.5]);
+        assert_eq!(load_policy(&path).expect("its policy"), ck.meta.policy);
+    }
+
+    #[test]
+    fn resuming_on_another_observation_is_refused_by_key() {
+        let cfg = small();
+        let mut l = learner(&cfg);
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("checkpoint.bin");
+        l.save(&path).expect("save");
+        let ck = load_checkpoint(&path).expect("load");
+        let mut other = small();
+        other.env.observation.rsrp_centre_dbm = -80.0;
+        let e = learner(&other)
+            .restore(&Device::flex(), &ck)
+            .expect_err("another observation")
+            .to_string();
+        assert!(e.contains("env.observation.rsrp_centre_dbm"), "{e}");
+        l.restore(&Device::flex(), &ck)
+            .expect("the same observation");
+    }
 }

@@ -194,6 +194,8 @@ impl Learner {
     ) -> Result<(), TrainError> {
         let device = &device.clone().autodiff();
         let p = &ck.meta.policy;
+        p.check_observation(&self.cfg.env.observation)
+            .map_err(|m| TrainError::Invalid(format!("checkpoint policy: {m}")))?;
         if p.obs_dim != self.obs_dim
             || p.n_sites != self.n_sites
             || p.trunk_dim() != self.trunk_dim
@@ -275,6 +277,7 @@ impl Learner {
             log_std,
             obs_norm: self.obs_norm.clone(),
             reward_scaler: self.reward_scaler.clone(),
+            observation: Some(self.cfg.env.observation.clone()),
         }
     }
 

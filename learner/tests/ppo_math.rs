@@ -48,6 +48,7 @@ fn plain_policy(seed: u64, n_sites: usize, out_gain: f64) -> PolicyWeights {
         log_std: [-0.3, 0.1, 0.4],
         obs_norm,
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+        observation: None,
     }
 }
 

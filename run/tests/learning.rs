@@ -19,7 +19,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
-fn config(association: Association) -> Config {
+fn config(association: Association, updates: u64) -> Config {
     let mut cfg = Config::default();
     cfg.scenario.city = CityKind::Procedural;
     cfg.scenario.procedural.size_m = 500.0;
@@ -35,7 +35,7 @@ fn config(association: Association) -> Config {
     cfg.train.seed = 3;
     cfg.train.num_envs = 8;
     cfg.train.num_steps = 128;
-    cfg.train.total_timesteps = 8 * 128 * 150;
+    cfg.train.total_timesteps = 8 * 128 * updates;
     cfg.train.pool_size = 200;
     cfg.ppo.num_minibatches = 4;
     cfg.ppo.hidden = vec![64, 64];
@@ -81,8 +81,22 @@ fn random_policy_success(
     ok as f64 / pairs.len() as f64
 }
 
+/// Budget (PPO updates) of the learning runs.
+const UPDATES: u64 = 150;
+/// Budget of the run with the site chosen every step (today's default), where the learned site
+/// must beat A3: at 150 updates it ties or trails A3 (0.741 against 0.603 dB with a ping-pong
+/// cost of −4); at 800 it is ahead on every seed tried (2026-11-26, seeds 3, 4, 5: with today's
+/// cost of −8 0.363/0.352/0.301 against 0.549/0.578/0.569 dB; with −4 0.298/0.333/0.306 against
+/// 0.538/0.671/0.550 dB).
+const UPDATES_SITE_EVERY_STEP: u64 = 800;
+
 fn learns(association: Association, site_every_step: bool) {
-    let mut cfg = config(association);
+    let updates = if site_every_step {
+        UPDATES_SITE_EVERY_STEP
+    } else {
+        UPDATES
+    };
+    let mut cfg = config(association, updates);
     cfg.env.site_every_step = site_every_step;
     cfg.validate().expect("valid test config");
     let world = Arc::new(RadioWorld::build(&cfg).expect("procedural world"));
@@ -134,11 +148,9 @@ fn learns(association: Association, site_every_step: bool) {
     assert!(trained.success_rate >= init + 0.3, "init {init:.2}");
     if association == Association::Learned {
         // Issue 15: the learned site choice keeps the site regret (best − serving RSRP) under
-        // 1 dB on the held-out pairs, from the several dB of the untrained head. Printed beside
-        // it: A3's regret on the same policy flown with A3 choosing the site (the issue asks
-        // for the learned choice to beat it; on this city, at this budget of 150 updates, it
-        // does not: 0.86 against 0.68 dB with the defaults of 2026-11-25 (w_s = 1, handover
-        // −3), docs/training.md "Site learning: what was measured").
+        // 1 dB on the held-out pairs, from the several dB of the untrained head; with the site
+        // chosen every step (today's default, 800 updates) it beats A3's regret on the same
+        // policy flown with A3 choosing the site.
         let policy = trainer.policy();
         let regret = |assoc: Association| {
             let mut c = cfg.clone();
@@ -165,16 +177,20 @@ fn learns(association: Association, site_every_step: bool) {
             init_stats.site_regret_db, trained.site_regret_db
         );
         assert!((learned - trained.site_regret_db).abs() < 1e-9);
-        // With the site chosen every step (the move every 5) the learned choice ties A3 here:
-        // 0.62 against 0.62 dB at h = −3, 0.562 against 0.556 dB at h = −2; with today's
-        // ping-pong cost (−4, since 2026-11-26) it is behind: 0.741 against 0.603 dB (the
-        // decision-level run: 0.879 against 0.653 dB). The issue's "beats A3" is not asserted
-        // because it is not what was measured.
+        // At 150 updates the site held per decision trails A3 here (0.590 against 0.556 dB with
+        // today's rewards): only the bound is asserted for it.
         assert!(
             learned <= 1.0 && learned < 0.5 * init_stats.site_regret_db,
             "learned site regret {learned:.2} dB (untrained {:.2} dB)",
             init_stats.site_regret_db
         );
+        if site_every_step {
+            // Measured 0.53–0.66 × A3's on three seeds; 0.8 leaves room for other float paths.
+            assert!(
+                learned < 0.8 * a3,
+                "learned site regret {learned:.3} dB does not beat A3's {a3:.3} dB on the same moves"
+            );
+        }
     }
 }
 
@@ -199,10 +215,11 @@ fn ppo_learns_to_reach_the_goal_on_a_small_procedural_city() {
 }
 
 /// Issue 15, `env.site_every_step` (the default since 2026-11-26; the test above turns it off):
-/// the same learning run with the site chosen at every step learns to reach the goal and to keep the site regret under 1 dB (the per-step rows through
-/// the learner, the per-step choice through the actors).
+/// the same learning run with the site chosen at every step, at 800 updates, learns to reach the
+/// goal and keeps a lower site regret than A3 on the same moves (the per-step rows through the
+/// learner, the per-step choice through the actors).
 #[test]
-fn a_site_chosen_every_step_learns_and_keeps_the_site_regret_low() {
+fn a_site_chosen_every_step_learns_and_beats_a3_on_site_regret() {
     learns(Association::Learned, true);
 }
 
@@ -214,7 +231,7 @@ fn the_base_method_learns_with_a3_association() {
 #[test]
 fn same_seed_same_run_different_seed_different_run() {
     let run = |seed: u64| {
-        let mut cfg = config(Association::Learned);
+        let mut cfg = config(Association::Learned, UPDATES);
         cfg.train.seed = seed;
         cfg.train.total_timesteps = 8 * 128 * 2;
         let world = Arc::new(RadioWorld::build(&cfg).expect("world"));
@@ -244,4 +261,29 @@ fn same_seed_same_run_different_seed_different_run() {
     assert_eq!(a, b, "same seed, same weights and normalisers");
     assert_eq!(ra, rb);
     assert_ne!(a.actor, c.actor, "another seed, another run");
+}
+
+/// Actors fly only weights of their own observation: the observation a policy records is
+/// checked before each rollout (two layouts of one length — `site_trend` and `site_ping_pong` —
+/// or another RSRP scale would otherwise be misread silently).
+#[test]
+fn workers_refuse_weights_of_another_observation() {
+    use dupac_learner::source::TrajectorySource;
+    let cfg = config(Association::Learned, 1);
+    let world = Arc::new(RadioWorld::build(&cfg).expect("world"));
+    let rsrp: Arc<dyn RsrpSource + Send + Sync> = world.clone();
+    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let pool = training_pool(&planner, &cfg.pairs, &cfg.env, 20, 1, &|_| {});
+    let (t, mut workers) = trainer(&cfg, &world, &rsrp, pool);
+    let mut p = t.policy();
+    let samples = t.batch_size();
+    assert!(workers.collect(&p, samples, &t.progress()).is_ok());
+    if let Some(o) = p.observation.as_mut() {
+        o.rsrp_centre_dbm -= 10.0;
+    }
+    let Err(e) = workers.collect(&p, samples, &t.progress()) else {
+        panic!("weights of another observation were flown");
+    };
+    let e = e.to_string();
+    assert!(e.contains("env.observation.rsrp_centre_dbm"), "{e}");
 }

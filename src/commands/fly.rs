@@ -98,6 +98,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         || "the followed weights".to_string(),
         |p| p.display().to_string(),
     );
+    // Fly the policy with the observation it was trained on (recorded since policy format 3).
+    let cfg = policy
+        .configure(&cfg)
+        .map_err(|e| anyhow!("{policy_name}: {e}"))?;
     // The radio world does not depend on the association: one build serves both paths.
     let (world, rsrp) = match built {
         Some(wr) => wr,

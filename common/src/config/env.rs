@@ -97,14 +97,16 @@ pub struct RewardConfig {
     /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
     /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
     pub handover_reward: f64,
-    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −4 since 2026-11-26): a handover back to the site the
-    /// previous handover left, within `env.ping_pong_window_s` (the metric's definition), on top
+    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −8 since 2026-11-26, −4 that morning):
+    /// a handover back to the site the previous handover left, within `env.ping_pong_window_s` (the metric's definition), on top
     /// of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
     /// estimator is myopic, so a switch is never charged the switch back that undoes it; this
     /// charges the switch back itself, when it is made, so returning to a site within a second
     /// needs a larger lead than leaving it (a hysteresis on returns only, as a causal rule can
     /// know). Needs `env.observation.site_ping_pong` with the learned association (the site
-    /// head must see which site would be a ping-pong).
+    /// head must see which site would be a ping-pong). With h = −2 a return within the window
+    /// is charged 10, what 10 dB-steps of site regret cost (docs/results.md "The −8 cost
+    /// (adopted)").
     pub ping_pong_reward: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
@@ -130,7 +132,7 @@ impl Default for RewardConfig {
             collision_reward: -1000.0,
             out_of_bounds_reward: -1000.0,
             handover_reward: -2.0,
-            ping_pong_reward: -4.0,
+            ping_pong_reward: -8.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
         }
@@ -440,15 +442,36 @@ impl EnvConfig {
                 format!("must be in [-1000, 0], got {}", rw.ping_pong_reward),
             ));
         }
-        let o = &e.observation;
-        positive("env.observation.sensor_range_m", o.sensor_range_m)?;
-        positive("env.observation.goal_scale_m", o.goal_scale_m)?;
-        finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
-        positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;
+        e.observation.validate()?;
         if e.radio_mode == RadioMode::Cache && (c.z_min_m > e.z_min_m || c.z_max_m < e.z_max_m) {
             return Err(bad(
                 "cache.z_min_m",
                 "the RSRP cache must span the flight band env.z_min_m..env.z_max_m",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl ObservationConfig {
+    /// Checks `[env.observation]` on its own (also what a policy's recorded observation must
+    /// pass: [`crate::policy::PolicyWeights::configure`]).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let o = self;
+        positive("env.observation.sensor_range_m", o.sensor_range_m)?;
+        positive("env.observation.goal_scale_m", o.goal_scale_m)?;
+        finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
+        positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;
+        if o.site_trend && !o.site_features {
+            return Err(bad(
+                "env.observation.site_trend",
+                "is a site feature: set env.observation.site_features to true too",
+            ));
+        }
+        if o.site_ping_pong && !o.site_features {
+            return Err(bad(
+                "env.observation.site_ping_pong",
+                "is a site feature (on by default): set env.observation.site_features to true too, or this to false (and env.reward.ping_pong_reward to 0)",
             ));
         }
         Ok(())

@@ -235,18 +235,6 @@ impl PpoConfig {
                 "\"equivariant\" scores sites from env.observation.site_features: set it to true, or use \"slots\"",
             ));
         }
-        if o.site_trend && !o.site_features {
-            return Err(bad(
-                "env.observation.site_trend",
-                "is a site feature: set env.observation.site_features to true too",
-            ));
-        }
-        if o.site_ping_pong && !o.site_features {
-            return Err(bad(
-                "env.observation.site_ping_pong",
-                "is a site feature (on by default): set env.observation.site_features to true too, or this to false (and env.reward.ping_pong_reward to 0)",
-            ));
-        }
         if e.reward.ping_pong_reward != 0.0
             && e.association == Association::Learned
             && pp.site_horizon == SiteHorizon::Route

@@ -97,8 +97,15 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                     "env.site_every_step off for this policy: it has no equivariant site head"
                 );
             }
+            if p.observation.is_some() {
+                // Flown with the observation it was trained on, whatever this configuration's.
+                mcfg = p
+                    .configure(&mcfg)
+                    .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
+            }
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
-            if probe.layout().len() != p.obs_dim && p.site_head.is_none() {
+            if probe.layout().len() != p.obs_dim && p.site_head.is_none() && p.observation.is_none()
+            {
                 // A policy of the paper's slot head may have been trained without the per-site
                 // features (docs/paper_dupac.toml): fly it with the layout it was trained on.
                 let o = &mut mcfg.env.observation;
