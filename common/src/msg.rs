@@ -19,7 +19,8 @@ use std::collections::BTreeMap;
 
 /// Version of every message layout below; bump on any change.
 /// 4: the per-step site fields of [`EnvTrajectory`] (`env.site_every_step`).
-pub const SCHEMA_VERSION: u32 = 4;
+/// 5: [`PolicyWeights::observation`] in the weights message.
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

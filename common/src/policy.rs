@@ -369,6 +369,16 @@ impl PolicyWeights {
         if let Some(o) = &self.observation {
             o.validate()
                 .map_err(|e| format!("the recorded observation: {e}"))?;
+            if let Some(h) = &self.site_head {
+                let f = crate::obs::site_features_per_site(o);
+                if !o.site_features || h.features != f {
+                    return Err(format!(
+                        "the site head reads {} features per site, the recorded observation has {}",
+                        h.features,
+                        if o.site_features { f } else { 0 }
+                    ));
+                }
+            }
         }
         let trunk = self.trunk_dim();
         if trunk == 0 || trunk > self.obs_dim {
@@ -430,15 +440,22 @@ impl PolicyWeights {
     /// `cfg` with `env.observation` set to the observation this policy was trained on, checked
     /// on its own ([`ObservationConfig::validate`]; a file is untrusted input): what `dupac eval`
     /// and `dupac fly` fly it with, whatever the configuration says. `cfg` unchanged for a
-    /// policy of an older file format, which records none. The error names the invalid key.
-    /// Only the observation is taken: the training-time rules that tie it to the reward
-    /// (a ping-pong cost needs its feature) are not about flying.
+    /// policy of an older file format, which records none. The error names the invalid key
+    /// (a loaded policy has passed [`PolicyWeights::validate`] already; this also guards one
+    /// built in code). Only the observation is taken: the training-time rules that tie it to
+    /// the reward (a ping-pong cost needs its feature) are not about flying. One rule is about
+    /// flying: a policy that observes the site trend was trained with the site held for the
+    /// decision (the configuration refuses the trend with `env.site_every_step`), so it is
+    /// flown so.
     pub fn configure(&self, cfg: &Config) -> Result<Config, String> {
         let mut c = cfg.clone();
         if let Some(o) = &self.observation {
             o.validate()
                 .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
             c.env.observation = o.clone();
+            if o.site_trend {
+                c.env.site_every_step = false;
+            }
         }
         Ok(c)
     }

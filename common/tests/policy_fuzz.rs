@@ -210,7 +210,10 @@ fn a_policy_is_flown_with_the_observation_it_records() {
     };
     let mut p = policy();
     p.observation = Some(trend.clone());
-    assert_eq!(p.configure(&cfg).expect("flown").env.observation, trend);
+    let flown = p.configure(&cfg).expect("flown");
+    assert_eq!(flown.env.observation, trend);
+    // Trained with the trend, it was trained with the site held: flown so.
+    assert!(cfg.env.site_every_step && !flown.env.site_every_step);
     let e = p
         .check_observation(&cfg.env.observation)
         .expect_err("another");

@@ -69,33 +69,32 @@ struct CheckpointFile {
 }
 
 /// File format 2: the same files without [`PolicyWeights::observation`] (bincode is not
-/// self-describing, so the old layout is spelled out once here and converted).
+/// self-describing, so the old layout is spelled out once here and converted). The tests write
+/// format-2 files with these types too.
 mod legacy {
-    use dupac_common::config::Config;
+    use dupac_common::config::ObservationConfig;
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
     use serde::Deserialize;
 
     #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
     pub(super) struct PolicyWeightsV2 {
-        version: u64,
-        obs_version: u32,
-        obs_dim: usize,
-        n_sites: usize,
-        actor: Mlp,
-        critic: Mlp,
-        site_head: Option<SiteHead>,
-        log_std: [f32; dupac_common::policy::MOVE_DIM],
-        obs_norm: ObsNormalizer,
-        reward_scaler: RewardScaler,
+        pub(super) version: u64,
+        pub(super) obs_version: u32,
+        pub(super) obs_dim: usize,
+        pub(super) n_sites: usize,
+        pub(super) actor: Mlp,
+        pub(super) critic: Mlp,
+        pub(super) site_head: Option<SiteHead>,
+        pub(super) log_std: [f32; dupac_common::policy::MOVE_DIM],
+        pub(super) obs_norm: ObsNormalizer,
+        pub(super) reward_scaler: RewardScaler,
     }
 
     impl PolicyWeightsV2 {
         /// The policy, with `observation` (none recorded in a format-2 policy file; a checkpoint
         /// has it in its configuration).
-        pub(super) fn upgrade(
-            self,
-            observation: Option<dupac_common::config::ObservationConfig>,
-        ) -> PolicyWeights {
+        pub(super) fn upgrade(self, observation: Option<ObservationConfig>) -> PolicyWeights {
             PolicyWeights {
                 version: self.version,
                 obs_version: self.obs_version,
@@ -113,32 +112,47 @@ mod legacy {
     }
 
     #[derive(Deserialize)]
-    struct CheckpointMetaV2 {
-        seed: u64,
-        update: u64,
-        global_step: u64,
-        episodes: u64,
-        train_seconds: f64,
-        config_toml: String,
-        policy: PolicyWeightsV2,
-        return_acc: Vec<f64>,
+    #[cfg_attr(test, derive(serde::Serialize))]
+    pub(super) struct CheckpointMetaV2 {
+        pub(super) seed: u64,
+        pub(super) update: u64,
+        pub(super) global_step: u64,
+        pub(super) episodes: u64,
+        pub(super) train_seconds: f64,
+        pub(super) config_toml: String,
+        pub(super) policy: PolicyWeightsV2,
+        pub(super) return_acc: Vec<f64>,
     }
 
     #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
     pub(super) struct CheckpointFileV2 {
-        meta: CheckpointMetaV2,
-        model: Vec<u8>,
-        optim: Vec<u8>,
+        pub(super) meta: CheckpointMetaV2,
+        pub(super) model: Vec<u8>,
+        pub(super) optim: Vec<u8>,
+    }
+
+    /// The observation a run's configuration (TOML) gives, when that is certain: every key of
+    /// today's `[env.observation]` written in it (a key added since — a feature that did not
+    /// exist then — would otherwise take today's default) and the values valid. `None` else.
+    pub(super) fn observation_of(config_toml: &str) -> Option<ObservationConfig> {
+        let table: toml::Table = toml::from_str(config_toml).ok()?;
+        let written = table.get("env")?.get("observation")?.as_table()?;
+        let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
+        if !today.as_table()?.keys().all(|k| written.contains_key(k)) {
+            return None;
+        }
+        let o: ObservationConfig = written.clone().try_into().ok()?;
+        o.validate().ok()?;
+        Some(o)
     }
 
     impl CheckpointFileV2 {
-        /// The checkpoint with the observation of the run's own configuration (`None` when that
-        /// no longer parses).
+        /// The checkpoint with the observation of the run's own configuration when it is
+        /// certain ([`observation_of`]); none recorded otherwise (checked by length).
         pub(super) fn upgrade(self) -> super::CheckpointFile {
             let m = self.meta;
-            let observation = toml::from_str::<Config>(&m.config_toml)
-                .ok()
-                .map(|c| c.env.observation);
+            let observation = observation_of(&m.config_toml);
             super::CheckpointFile {
                 meta: super::CheckpointMeta {
                     seed: m.seed,
@@ -316,11 +330,11 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 
 #[cfg(test)]
 mod tests {
+    use super::legacy::{CheckpointFileV2, CheckpointMetaV2, PolicyWeightsV2};
     use super::*;
     use crate::learner::Learner;
     use dupac_common::config::Config;
     use dupac_common::obs::ObsLayout;
-    use dupac_common::policy::{Mlp, ObsNormalizer, RewardScaler, SiteHead};
 
     fn learner(cfg: &Config) -> Learner {
         let n = 4;
@@ -336,34 +350,48 @@ mod tests {
         cfg
     }
 
-    /// [`PolicyWeights`] as file format 2 wrote it: its fields in order, without the observation.
-    #[derive(Serialize)]
-    struct PolicyWeightsV2<'a> {
-        version: u64,
-        obs_version: u32,
-        obs_dim: usize,
-        n_sites: usize,
-        actor: &'a Mlp,
-        critic: &'a Mlp,
-        site_head: &'a Option<SiteHead>,
-        log_std: [f32; 3],
-        obs_norm: &'a ObsNormalizer,
-        reward_scaler: &'a RewardScaler,
-    }
-
-    fn v2(p: &PolicyWeights) -> PolicyWeightsV2<'_> {
+    /// `p` as file format 2 wrote it (without the observation).
+    fn v2(p: &PolicyWeights) -> PolicyWeightsV2 {
+        let p = p.clone();
         PolicyWeightsV2 {
             version: p.version,
             obs_version: p.obs_version,
             obs_dim: p.obs_dim,
             n_sites: p.n_sites,
-            actor: &p.actor,
-            critic: &p.critic,
-            site_head: &p.site_head,
+            actor: p.actor,
+            critic: p.critic,
+            site_head: p.site_head,
             log_std: p.log_std,
-            obs_norm: &p.obs_norm,
-            reward_scaler: &p.reward_scaler,
+            obs_norm: p.obs_norm,
+            reward_scaler: p.reward_scaler,
         }
+    }
+
+    /// A format-2 checkpoint of `p` whose configuration is `config_toml`, loaded.
+    fn load_v2_checkpoint(p: &PolicyWeights, config_toml: String) -> LoadedCheckpoint {
+        let file = CheckpointFileV2 {
+            meta: CheckpointMetaV2 {
+                seed: 1,
+                update: 2,
+                global_step: 3,
+                episodes: 4,
+                train_seconds: 5.0,
+                config_toml,
+                policy: v2(p),
+                return_acc: vec![0.5],
+            },
+            model: vec![1, 2],
+            optim: vec![3],
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("checkpoint.bin");
+        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_2, &file, "checkpoint").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let ck = load_checkpoint(&path).expect("a format-2 checkpoint loads");
+        assert_eq!(ck.meta.update, 2);
+        assert_eq!(ck.meta.return_acc, vec![0.5]);
+        assert_eq!(load_policy(&path).expect("its policy"), ck.meta.policy);
+        ck
     }
 
     #[test]
@@ -377,6 +405,16 @@ mod tests {
         cfg.validate().expect("valid");
         let p = learner(&cfg).policy();
         assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
+        // A record that disagrees with the site head's features is refused.
+        let mut wrong = p.clone();
+        if let Some(o) = wrong.observation.as_mut() {
+            o.site_trend = false;
+        }
+        let e = wrong.validate().expect_err("10 recorded features, 11 read");
+        assert!(
+            e.contains("11 features per site") && e.contains("has 10"),
+            "{e}"
+        );
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("policy.bin");
         save_policy(&path, &p).expect("save");
@@ -406,54 +444,32 @@ mod tests {
     }
 
     #[test]
-    fn a_format_2_checkpoint_takes_its_observation_from_its_configuration() {
-        #[derive(Serialize)]
-        struct MetaV2<'a> {
-            seed: u64,
-            update: u64,
-            global_step: u64,
-            episodes: u64,
-            train_seconds: f64,
-            config_toml: &'a str,
-            policy: PolicyWeightsV2<'a>,
-            return_acc: Vec<f64>,
-        }
-        #[derive(Serialize)]
-        struct FileV2<'a> {
-            meta: MetaV2<'a>,
-            model: Vec<u8>,
-            optim: Vec<u8>,
-        }
+    fn a_format_2_checkpoint_takes_its_observation_from_its_configuration_when_certain() {
         let mut cfg = small();
         cfg.env.observation.rsrp_scale_db = 17.0;
         let p = learner(&cfg).policy();
-        let toml = cfg.to_toml_string();
-        let file = FileV2 {
-            meta: MetaV2 {
-                seed: 1,
-                update: 2,
-                global_step: 3,
-                episodes: 4,
-                train_seconds: 5.0,
-                config_toml: &toml,
-                policy: v2(&p),
-                return_acc: vec![0.5],
-            },
-            model: vec![1, 2],
-            optim: vec![3],
-        };
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("checkpoint.bin");
-        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_2, &file, "checkpoint").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let ck = load_checkpoint(&path).expect("a format-2 checkpoint loads");
+        let ck = load_v2_checkpoint(&p, cfg.to_toml_string());
         assert_eq!(
             ck.meta.policy.observation.as_ref(),
             Some(&cfg.env.observation)
         );
-        assert_eq!(ck.meta.update, 2);
-        assert_eq!(ck.meta.return_acc, vec![0.5]);
-        assert_eq!(load_policy(&path).expect("its policy"), ck.meta.policy);
+        // Written before a key existed (site_ping_pong, 2026-11-26): today's default would be
+        // a guess (on, for a feature that did not exist), so none is recorded.
+        let mut old = cfg.to_toml_string();
+        let line = old
+            .lines()
+            .find(|l| l.starts_with("site_ping_pong"))
+            .expect("the key is written")
+            .to_string();
+        old = old.replace(&format!("{line}\n"), "");
+        let ck = load_v2_checkpoint(&p, old);
+        assert_eq!(ck.meta.policy.observation, None);
+        // An invalid value in it: none either, and the checkpoint still loads.
+        let bad = cfg
+            .to_toml_string()
+            .replace("rsrp_scale_db = 17.0", "rsrp_scale_db = -1.0");
+        let ck = load_v2_checkpoint(&p, bad);
+        assert_eq!(ck.meta.policy.observation, None);
     }
 
     #[test]

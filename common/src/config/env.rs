@@ -97,9 +97,9 @@ pub struct RewardConfig {
     /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
     /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
     pub handover_reward: f64,
-    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −8 since 2026-11-26, −4 that morning):
-    /// a handover back to the site the previous handover left, within `env.ping_pong_window_s` (the metric's definition), on top
-    /// of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
+    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −8 since 2026-11-26, −4 before):
+    /// a handover back to the site the previous handover left, within `env.ping_pong_window_s`
+    /// (the metric's definition), on top of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
     /// estimator is myopic, so a switch is never charged the switch back that undoes it; this
     /// charges the switch back itself, when it is made, so returning to a site within a second
     /// needs a larger lead than leaving it (a hysteresis on returns only, as a causal rule can
@@ -141,6 +141,11 @@ impl Default for RewardConfig {
 
 /// Which parts of the observation are present (spec/env.md "Observation"); each addition to the
 /// paper's state can be switched off for ablations.
+///
+/// Every policy records the one it was trained on ([`crate::policy::PolicyWeights::observation`]),
+/// so this struct is part of the policy and checkpoint file formats (learner `checkpoint.rs`)
+/// and of the weights message ([`crate::msg::SCHEMA_VERSION`]): adding a field means bumping
+/// those versions and reading the previous format as `checkpoint.rs`'s `legacy` module does.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ObservationConfig {
@@ -459,6 +464,14 @@ impl ObservationConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let o = self;
         positive("env.observation.sensor_range_m", o.sensor_range_m)?;
+        // Bounds the sensor's ray casts (also for a range a policy file records).
+        within(
+            "env.observation.sensor_range_m",
+            o.sensor_range_m,
+            0.0,
+            10_000.0,
+            "m",
+        )?;
         positive("env.observation.goal_scale_m", o.goal_scale_m)?;
         finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
         positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;

@@ -335,13 +335,6 @@ impl Config {
         let e = &self.env;
         within("env.z_max_m", e.z_max_m, 0.0, 10_000.0, "m")?;
         within("env.speed_mps", e.speed_mps, 0.0, 1_000.0, "m/s")?;
-        within(
-            "env.observation.sensor_range_m",
-            e.observation.sensor_range_m,
-            0.0,
-            10_000.0,
-            "m",
-        )?;
         at_most("env.action_repeat", u64::from(e.action_repeat), 1_000)?;
         within("pairs.max_m", self.pairs.max_m, 0.0, 100_000.0, "m")?;
         let c = &self.cache;

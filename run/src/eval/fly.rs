@@ -97,12 +97,11 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                     "env.site_every_step off for this policy: it has no equivariant site head"
                 );
             }
-            if p.observation.is_some() {
-                // Flown with the observation it was trained on, whatever this configuration's.
-                mcfg = p
-                    .configure(&mcfg)
-                    .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
-            }
+            // Flown with the observation it was trained on, whatever this configuration's (a
+            // policy file of format 3 records it; older ones are matched by length below).
+            mcfg = p
+                .configure(&mcfg)
+                .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim && p.site_head.is_none() && p.observation.is_none()
             {
@@ -123,11 +122,16 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             }
             if probe.layout().len() != p.obs_dim {
                 return Err(refused!(
-                    "policy {} (seed {}): it expects {} observations, this configuration gives {} (evaluate with the configuration it was trained with)",
+                    "policy {} (seed {}): it expects {} observations, this configuration gives {} ({})",
                     method.label,
                     method.seed,
                     p.obs_dim,
-                    probe.layout().len()
+                    probe.layout().len(),
+                    if p.observation.is_some() {
+                        "its recorded observation is used: another number of sites (scenario.n_sites)?"
+                    } else {
+                        "evaluate with the configuration it was trained with"
+                    }
                 ));
             }
         }
