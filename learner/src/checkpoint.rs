@@ -152,7 +152,12 @@ mod legacy {
         /// certain ([`observation_of`]); none recorded otherwise (checked by length).
         pub(super) fn upgrade(self) -> super::CheckpointFile {
             let m = self.meta;
-            let observation = observation_of(&m.config_toml);
+            let mut policy = m.policy.upgrade(observation_of(&m.config_toml));
+            if policy.observation.is_some() && policy.validate().is_err() {
+                // The configuration disagrees with the weights (a resume that changed the
+                // observation at the same length): not certain either.
+                policy.observation = None;
+            }
             super::CheckpointFile {
                 meta: super::CheckpointMeta {
                     seed: m.seed,
@@ -161,7 +166,7 @@ mod legacy {
                     episodes: m.episodes,
                     train_seconds: m.train_seconds,
                     config_toml: m.config_toml,
-                    policy: m.policy.upgrade(observation),
+                    policy,
                     return_acc: m.return_acc,
                 },
                 model: self.model,

@@ -99,9 +99,16 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             }
             // Flown with the observation it was trained on, whatever this configuration's (a
             // policy file of format 3 records it; older ones are matched by length below).
+            let per_step = mcfg.env.site_every_step;
             mcfg = p
                 .configure(&mcfg)
                 .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
+            if per_step && !mcfg.env.site_every_step {
+                tracing::info!(
+                    label = %method.label,
+                    "env.site_every_step off for this policy: it observes the site trend, so it was trained with the site held"
+                );
+            }
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim && p.site_head.is_none() && p.observation.is_none()
             {
