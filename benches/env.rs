@@ -34,11 +34,7 @@ fn benches(c: &mut Criterion) {
     let episodes: Vec<Episode> = (0..64)
         .map(|_| {
             let (s, d) = (free(), free());
-            Episode {
-                source_m: s,
-                destination_m: d,
-                shortest_m: 800.0,
-            }
+            Episode::new(s, d, 800.0)
         })
         .collect();
 
@@ -47,7 +43,7 @@ fn benches(c: &mut Criterion) {
             if radio { cache.clone() } else { world.clone() };
         let mut env = Env::new(&cfg, world.clone(), rsrp).expect("env");
         let mut k = 0usize;
-        env.reset(0, episodes[0]).expect("reset");
+        env.reset(0, episodes[0].clone()).expect("reset");
         let mut g = c.benchmark_group("env");
         g.throughput(Throughput::Elements(1));
         if !radio {
@@ -81,7 +77,7 @@ fn fly_on(env: &mut Env, k: &mut usize, episodes: &[Episode], decide: bool) {
     let s = if decide { env.act(&a) } else { env.step(&a) }.expect("step");
     if s.terminated || s.truncated {
         *k += 1;
-        env.reset(*k as u64, episodes[*k % episodes.len()])
+        env.reset(*k as u64, episodes[*k % episodes.len()].clone())
             .expect("reset");
     }
     black_box(env.observation());

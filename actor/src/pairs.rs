@@ -27,6 +27,7 @@
 //! `straight_m` (computed from the endpoints); when given, `straight_m` must match the endpoints
 //! and `shortest_m` must be ≥ `straight_m` and > 0. Every error names the file and line.
 
+use crate::env::{Episode, PathGuide};
 use crate::planner::{Planner, dist};
 use dupac_common::config::{EnvConfig, PairsConfig};
 use dupac_common::geometry::Point;
@@ -36,6 +37,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Domain tag of the evaluation set's random streams ("eval").
 pub const EVAL_DOMAIN: u64 = 0x6c61_7665;
@@ -69,6 +71,47 @@ pub struct Pair {
     /// Evaluation bin (m) the pair belongs to; absent for training pairs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bin_m: Option<f64>,
+    /// The planned shortest path from source to destination (not written to files: planned
+    /// again when read, [`attach_paths`]), the episode's guide ([`Pair::episode`]).
+    #[serde(skip)]
+    pub path: Option<Arc<PathGuide>>,
+}
+
+impl Pair {
+    /// The episode of this pair, flown from source to destination or, `reversed`, back; with
+    /// the planned path as its guide when the pair has one.
+    pub fn episode(&self, reversed: bool) -> Episode {
+        let (source_m, destination_m) = if reversed {
+            (self.destination_m, self.source_m)
+        } else {
+            (self.source_m, self.destination_m)
+        };
+        Episode {
+            source_m,
+            destination_m,
+            shortest_m: self.shortest_m,
+            guide: self.path.as_ref().map(|g| {
+                if reversed {
+                    Arc::new(g.reversed())
+                } else {
+                    g.clone()
+                }
+            }),
+        }
+    }
+}
+
+/// Plans the shortest path of every pair that has none (in parallel; a pair the planner cannot
+/// connect keeps none, and an episode that needs it is refused with [`crate::env::EnvError::NoGuide`]).
+pub fn attach_paths(planner: &Planner, pairs: &mut [Pair]) {
+    pairs
+        .par_iter_mut()
+        .filter(|p| p.path.is_none())
+        .for_each(|p| {
+            if let Ok(path) = planner.shortest(p.source_m, p.destination_m) {
+                p.path = PathGuide::new(&path.waypoints_m).map(Arc::new);
+            }
+        });
 }
 
 /// What a user's pairs file may contain: [`Pair`] with `id`, `shortest_m` and `straight_m`
@@ -247,6 +290,7 @@ fn candidate(
                 shortest_m: path.length_m,
                 straight_m: dist(source, destination),
                 bin_m,
+                path: PathGuide::new(&path.waypoints_m).map(Arc::new),
             });
         }
     }
@@ -382,7 +426,7 @@ pub fn write_pairs_jsonl(path: &Path, pairs: &[Pair]) -> Result<(), PairsError> 
 /// optional fields). Each line must be a JSON object with finite numbers; both endpoints must pass
 /// [`check_endpoint`] with `cfg.endpoint_clearance_m`; `shortest_m` > 0 (computed with `planner`
 /// when absent, which also proves the pair flyable); ids must be unique. Errors are
-/// `FILE:LINE: message`.
+/// `FILE:LINE: message`. Every pair gets its planned shortest path ([`attach_paths`]).
 pub fn read_pairs_jsonl(
     path: &Path,
     planner: &Planner,
@@ -421,6 +465,7 @@ pub fn read_pairs_jsonl(
             path: path.to_path_buf(),
         });
     }
+    attach_paths(planner, &mut out);
     Ok(out)
 }
 
@@ -456,6 +501,7 @@ fn validate(
             "straight_m {s} does not match the endpoints' distance {straight} m"
         ));
     }
+    let mut planned = None;
     let shortest_m = match input.shortest_m {
         Some(v) => {
             if !(v.is_finite() && v > 0.0) {
@@ -475,6 +521,7 @@ fn validate(
             if path.length_m <= 0.0 {
                 return Err("source and destination coincide".into());
             }
+            planned = PathGuide::new(&path.waypoints_m).map(Arc::new);
             path.length_m
         }
     };
@@ -490,6 +537,7 @@ fn validate(
         shortest_m,
         straight_m: input.straight_m.unwrap_or(straight),
         bin_m: input.bin_m,
+        path: planned,
     })
 }
 

@@ -36,6 +36,7 @@ pub fn fly_waypoints(
     waypoints_m: &[Point],
     site: impl FnMut(&Env) -> SiteId,
 ) -> Result<Flight, EnvError> {
+    let destination_m = episode.destination_m;
     env.reset(seed, episode)?;
     let max_step = env.config().max_step_m;
     let mut next = 0usize;
@@ -45,10 +46,7 @@ pub fn fly_waypoints(
         while next < waypoints_m.len() && dist(p, waypoints_m[next]) < 1e-6 {
             next += 1;
         }
-        let target = waypoints_m
-            .get(next)
-            .copied()
-            .unwrap_or(episode.destination_m);
+        let target = waypoints_m.get(next).copied().unwrap_or(destination_m);
         let scale = dist(target, p).max(max_step);
         Some((target - p) / scale)
     })

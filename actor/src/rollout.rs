@@ -136,22 +136,11 @@ impl Worker {
     fn new_episode(&mut self) -> Result<(), RolloutError> {
         let k = self.rng.random_range(0..self.pool.len());
         let p = &self.pool[k];
-        let (source_m, destination_m) = if self.rng.random::<bool>() {
-            (p.source_m, p.destination_m)
-        } else {
-            (p.destination_m, p.source_m)
-        };
+        let episode = p.episode(!self.rng.random::<bool>());
         let reset_seed = self.rng.random::<u64>();
         self.pair_id = p.id;
         self.shortest_m = p.shortest_m;
-        let obs = self.env.reset(
-            reset_seed,
-            Episode {
-                source_m,
-                destination_m,
-                shortest_m: p.shortest_m,
-            },
-        )?;
+        let obs = self.env.reset(reset_seed, episode)?;
         self.obs.clear();
         self.obs.extend_from_slice(obs);
         self.acc = EpisodeAccumulator::new(self.env.config());
@@ -269,6 +258,7 @@ pub fn fly_policy(
     seed: u64,
 ) -> Result<(EpisodeSummary, Vec<StepInfo>), RolloutError> {
     let mut scratch = Scratch::default();
+    let shortest_m = episode.shortest_m;
     let mut obs = env.reset(seed, episode)?.to_vec();
     let mut acc = EpisodeAccumulator::new(env.config());
     let mut steps = Vec::new();
@@ -281,7 +271,7 @@ pub fn fly_policy(
         }
         if step.terminated || step.truncated {
             let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
-            return Ok((acc.finish(pair_id, episode.shortest_m, outcome), steps));
+            return Ok((acc.finish(pair_id, shortest_m, outcome), steps));
         }
         obs.clear();
         obs.extend_from_slice(env.observation());

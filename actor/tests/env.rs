@@ -92,11 +92,7 @@ fn env_with(assoc: Association, f: fn(usize, Point) -> f64) -> Env {
 fn ep(src: Point, dst: Point) -> Episode {
     let d =
         ((src[0] - dst[0]).powi(2) + (src[1] - dst[1]).powi(2) + (src[2] - dst[2]).powi(2)).sqrt();
-    Episode {
-        source_m: src,
-        destination_m: dst,
-        shortest_m: d,
-    }
+    Episode::new(src, dst, d)
 }
 
 fn mv(x: f64, y: f64, z: f64, s: u16) -> Action {
@@ -627,7 +623,7 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     // Five steps one at a time and one decision of five give the same flight, step for step.
     let pair = ep(Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
     let mut single = make(1);
-    single.reset(3, pair).expect("reset");
+    single.reset(3, pair.clone()).expect("reset");
     let a = mv(0.6, 0.8, 0.0, 1);
     let mut rewards = 0.0;
     let mut infos = Vec::new();
@@ -637,7 +633,7 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
         infos.push(s.info);
     }
     let mut five = make(5);
-    five.reset(3, pair).expect("reset");
+    five.reset(3, pair.clone()).expect("reset");
     let s = five.act(&a).expect("act");
     assert_eq!(five.substeps(), &infos[..]);
     assert_eq!(s.info, infos[4]);
@@ -896,7 +892,7 @@ fn site_rewards_match_their_counterfactuals(cfg: &Config) {
         .map(|t| mv(0.0, 1.0, 0.0, [0, 0, 1, 1, 0, 1, 1, 1][t % 8]))
         .collect();
     let mut main = make();
-    main.reset(1, episode).expect("reset");
+    main.reset(1, episode.clone()).expect("reset");
     let mut classes = std::collections::HashSet::new();
     for (t, a) in plan.iter().enumerate() {
         let s = main.act(a).expect("act");
@@ -910,7 +906,7 @@ fn site_rewards_match_their_counterfactuals(cfg: &Config) {
         );
         for (k, want) in sr.iter().enumerate() {
             let mut alt = make();
-            alt.reset(1, episode).expect("reset");
+            alt.reset(1, episode.clone()).expect("reset");
             for b in &plan[..t] {
                 alt.act(b).expect("replay");
             }
@@ -1038,7 +1034,7 @@ fn step_site_rewards_match_their_counterfactuals(cfg: &Config, min_handovers: us
     let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
     let seq = |t: usize| SiteId([0u16, 1, 1, 0, 1, 0, 0, 1, 1, 1, 0][t % 11]);
     let mut main = make();
-    main.reset(1, episode).expect("reset");
+    main.reset(1, episode.clone()).expect("reset");
     assert!(main.site_every_step());
     let tail = main
         .layout()
@@ -1079,7 +1075,7 @@ fn step_site_rewards_match_their_counterfactuals(cfg: &Config, min_handovers: us
             switches += usize::from(info.handover);
             for j in 0..2 {
                 let mut alt = make();
-                alt.reset(1, episode).expect("reset");
+                alt.reset(1, episode.clone()).expect("reset");
                 for u in 0..t0 + k {
                     alt.step(&Action {
                         move_: Vector::new(0.0, 1.0, 0.0),
@@ -1153,7 +1149,7 @@ fn a_ping_pong_is_charged_and_marked_in_the_site_features() {
         cfg.env.observation.site_ping_pong = true;
         cfg.env.reward.ping_pong_reward = ping_pong_reward;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
-        e.reset(1, episode).expect("reset");
+        e.reset(1, episode.clone()).expect("reset");
         let tail = e
             .layout()
             .range(field::SITE_FEATURES)
@@ -1209,11 +1205,84 @@ fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
         cfg.env.association = assoc;
         cfg.env.site_every_step = every;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
-        e.reset(1, episode).expect("reset");
+        e.reset(1, episode.clone()).expect("reset");
         assert!(!e.site_every_step());
         assert_eq!(
             e.act_site_every_step(Vector::new(0.0, 1.0, 0.0), |_, _| SiteId(0)),
             Err(EnvError::SiteEveryStepUnavailable)
         );
     }
+}
+
+/// The path guide (issue 15, docs/env.md "Path guide"): the observation points along the
+/// episode's planned path, `env.reward.progress = "path"` pays the distance made good along it
+/// (not the straight-line gain), and an episode without a path, or with another pair's, is
+/// refused.
+#[test]
+fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
+    use dupac_actor::env::PathGuide;
+    use dupac_common::config::Progress;
+    let mut cfg = Config::default();
+    cfg.env.association = Association::A3;
+    paper_reward(&mut cfg);
+    cfg.env.observation.path_guide = true;
+    cfg.env.reward.progress = Progress::Path;
+    let (src, dst) = (Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    assert_eq!(e.reset(1, ep(src, dst)).unwrap_err(), EnvError::NoGuide);
+    // A detour east of the straight line: 100 + 300 + 100 = 500 m.
+    let (c1, c2) = (
+        Point::new(100.0, -150.0, 70.0),
+        Point::new(100.0, 150.0, 70.0),
+    );
+    let detour = Arc::new(PathGuide::new(&[src, c1, c2, dst]).expect("path"));
+    let wrong = Episode {
+        guide: Some(Arc::new(PathGuide::new(&[src, c1]).expect("path"))),
+        ..ep(src, dst)
+    };
+    assert!(matches!(
+        e.reset(1, wrong),
+        Err(EnvError::GuideMismatch { .. })
+    ));
+    let guided = Episode {
+        guide: Some(detour),
+        ..ep(src, dst)
+    };
+    let obs = e.reset(1, guided.clone()).expect("reset").to_vec();
+    let r = e.layout().range(field::PATH_GUIDE).expect("the field");
+    let scale = cfg.env.observation.goal_scale_m;
+    let close = |a: f32, b: f64| (f64::from(a) - b).abs() < 1e-5;
+    // 30 m ahead on the first leg: due east, though the goal is due north.
+    assert!(
+        close(obs[r.start], 1.0) && close(obs[r.start + 1], 0.0),
+        "{obs:?}"
+    );
+    assert!(close(obs[r.start + 3], 500.0 / scale));
+    let east = Action {
+        move_: Vector::new(1.0, 0.0, 0.0),
+        site: SiteId(0),
+    };
+    let s = e.step(&east).expect("step");
+    let step_m = cfg.env.max_step_m;
+    let mu1 = cfg.env.reward.mu1;
+    assert!((s.reward - mu1 * step_m).abs() < 1e-9, "{}", s.reward);
+    // The same move under the paper's straight progress pays the straight-line change (< 0).
+    let mut straight_cfg = cfg.clone();
+    straight_cfg.env.reward.progress = Progress::Straight;
+    let mut f = Env::new(&straight_cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    f.reset(1, guided).expect("reset");
+    let t = f.step(&east).expect("step");
+    let straight_gain = 300.0 - (step_m * step_m + 300.0 * 300.0).sqrt();
+    assert!(
+        (t.reward - mu1 * straight_gain).abs() < 1e-9,
+        "{}",
+        t.reward
+    );
+    // Without the guide the layout has no such field.
+    assert!(
+        env_with(Association::A3, EXCELLENT)
+            .layout()
+            .range(field::PATH_GUIDE)
+            .is_none()
+    );
 }

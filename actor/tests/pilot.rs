@@ -2,7 +2,7 @@
 //! shortest flyable path of every held-out evaluation pair of Midtown (the real data, the default
 //! seed and K = 50 per bin) reaches the goal without a collision.
 
-use dupac_actor::env::{Env, Episode, Outcome};
+use dupac_actor::env::{Env, Outcome};
 use dupac_actor::pairs::eval_pairs;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
@@ -51,12 +51,10 @@ fn scripted_pilot_reaches_the_goal_on_every_evaluation_pair() {
                 Ok(path) => path,
                 Err(e) => return Some(format!("pair {}: {e}", p.id)),
             };
-            let ep = Episode {
-                source_m: p.source_m,
-                destination_m: p.destination_m,
-                shortest_m: p.shortest_m,
-            };
-            match fly_waypoints(&mut env, p.id, ep, &path.waypoints_m, |e| e.serving()) {
+            let ep = p.episode(false);
+            match fly_waypoints(&mut env, p.id, ep.clone(), &path.waypoints_m, |e| {
+                e.serving()
+            }) {
                 Ok(f) if f.outcome == Outcome::Goal => {
                     // The flight follows the plan: flown + the last < 10 m equals the plan.
                     let last = f.steps.last().map(|s| s.distance_to_goal_m).unwrap_or(0.0);

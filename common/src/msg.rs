@@ -20,7 +20,8 @@ use std::collections::BTreeMap;
 /// Version of every message layout below; bump on any change.
 /// 4: the per-step site fields of [`EnvTrajectory`] (`env.site_every_step`).
 /// 5: [`PolicyWeights::observation`] in the weights message.
-pub const SCHEMA_VERSION: u32 = 5;
+/// 6: the path guide's keys in that observation (`env.observation.path_guide`).
+pub const SCHEMA_VERSION: u32 = 6;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -8,6 +8,9 @@ use std::ops::Range;
 /// Version of the observation layout; bump on any change of order, scaling or meaning.
 /// 2: the goal direction field (`goal_direction`) and the geofence in the sensors
 /// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
+/// The optional `path_guide` field (2026-11-26, off by default) did not bump it: a layout
+/// without it is unchanged, and one with it is 4 values longer and recorded in the policy
+/// (`env.observation.path_guide`, policy file format 4).
 pub const OBS_VERSION: u32 = 3;
 
 /// Features per site in the `site_features` field, in this order (fixed physical scales, not
@@ -94,6 +97,7 @@ pub mod field {
     pub const GOAL_VECTOR: &str = "goal_vector";
     pub const GOAL_DISTANCE: &str = "goal_distance";
     pub const GOAL_DIRECTION: &str = "goal_direction";
+    pub const PATH_GUIDE: &str = "path_guide";
     pub const OBSTACLE_DISTANCE: &str = "obstacle_distance";
     pub const OBSTACLE_DIRECTION: &str = "obstacle_direction";
     pub const SENSOR_FAN: &str = "sensor_fan";
@@ -140,6 +144,13 @@ impl ObsLayout {
                     "(destination − position) / |destination − position| (zeros at the destination)",
                 );
             }
+        }
+        if cfg.path_guide {
+            push(
+                PATH_GUIDE,
+                4,
+                "unit direction to the point path_lookahead_m along the planned path beyond its nearest point (zeros at the destination), then the path distance to go / goal_scale_m",
+            );
         }
         push(
             OBSTACLE_DISTANCE,

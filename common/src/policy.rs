@@ -379,6 +379,13 @@ impl PolicyWeights {
                     ));
                 }
             }
+            let len = crate::obs::ObsLayout::new(o, self.n_sites).len();
+            if len != self.obs_dim {
+                return Err(format!(
+                    "the recorded observation is {len} values long for {} sites, the policy reads {}",
+                    self.n_sites, self.obs_dim
+                ));
+            }
         }
         let trunk = self.trunk_dim();
         if trunk == 0 || trunk > self.obs_dim {

@@ -45,7 +45,8 @@ fn policy() -> PolicyWeights {
         log_std: [-0.5; MOVE_DIM],
         obs_norm: ObsNormalizer::new(OBS, true, 5.0),
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
-        observation: Some(dupac_common::config::ObservationConfig::default()),
+        // Too small for any observation layout to describe: records none, as format 2 did.
+        observation: None,
     }
 }
 

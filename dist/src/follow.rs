@@ -20,6 +20,7 @@ pub fn fly_following(
     step_ms: u64,
 ) -> Result<(EpisodeSummary, Vec<StepInfo>, Vec<u64>), ActorError> {
     let mut scratch = Scratch::default();
+    let shortest_m = episode.shortest_m;
     let mut obs = env.reset(pair_id, episode)?.to_vec();
     let mut acc = EpisodeAccumulator::new(env.config());
     let (mut steps, mut versions) = (Vec::new(), Vec::new());
@@ -37,11 +38,7 @@ pub fn fly_following(
         }
         if step.terminated || step.truncated {
             let outcome = step.info.outcome.unwrap_or(Outcome::TimeLimit);
-            return Ok((
-                acc.finish(pair_id, episode.shortest_m, outcome),
-                steps,
-                versions,
-            ));
+            return Ok((acc.finish(pair_id, shortest_m, outcome), steps, versions));
         }
         obs.clear();
         obs.extend_from_slice(env.observation());

@@ -20,13 +20,15 @@ use std::path::Path;
 use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
-/// Format 3 records the policy's observation ([`PolicyWeights::observation`]); format 2 is
-/// still read ([`legacy`]).
-const CHECKPOINT_VERSION: u32 = 3;
+/// Format 3 records the policy's observation ([`PolicyWeights::observation`]), format 4 with
+/// the path guide's keys; formats 2 and 3 are still read ([`legacy`]).
+const CHECKPOINT_VERSION: u32 = 4;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 3;
-/// The previous format (2026-11-24 to 2026-11-26), read without the observation.
+const POLICY_VERSION: u32 = 4;
+/// 2026-11-24 to 2026-11-26, read without the observation.
 const FORMAT_2: u32 = 2;
+/// 2026-11-26, the observation without the path guide.
+const FORMAT_3: u32 = 3;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -68,17 +70,68 @@ struct CheckpointFile {
     optim: Vec<u8>,
 }
 
-/// File format 2: the same files without [`PolicyWeights::observation`] (bincode is not
-/// self-describing, so the old layout is spelled out once here and converted). The tests write
-/// format-2 files with these types too.
+/// Files of earlier formats (bincode is not self-describing, so each old layout is spelled out
+/// once here and converted): format 2 without [`PolicyWeights::observation`], format 3 with the
+/// observation as it was before the path guide (`env.observation.path_guide`,
+/// `path_lookahead_m`). The tests write old files with these types too.
 mod legacy {
-    use dupac_common::config::ObservationConfig;
+    use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale};
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
     use serde::Deserialize;
 
+    /// Keys of `[env.observation]` added after file format 3, whose absence means what a run
+    /// written before them did (their default: the feature off).
+    const ADDED_AFTER_FORMAT_3: [&str; 2] = ["path_guide", "path_lookahead_m"];
+
+    /// `env.observation` as format 3 recorded it.
     #[derive(Deserialize)]
     #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct PolicyWeightsV2 {
+    pub(super) struct ObservationV3 {
+        pub(super) goal: bool,
+        pub(super) sensor_fan: bool,
+        pub(super) rsrp_all: bool,
+        pub(super) rsrp_serving: bool,
+        pub(super) sensor_range_m: f64,
+        pub(super) sensor_scale: SensorScale,
+        pub(super) nearest_obstacle: NearestObstacle,
+        pub(super) geofence: bool,
+        pub(super) goal_scale_m: f64,
+        pub(super) goal_direction: bool,
+        pub(super) rsrp_centre_dbm: f64,
+        pub(super) rsrp_scale_db: f64,
+        pub(super) site_features: bool,
+        pub(super) site_trend: bool,
+        pub(super) site_ping_pong: bool,
+    }
+
+    impl ObservationV3 {
+        pub(super) fn upgrade(self) -> ObservationConfig {
+            ObservationConfig {
+                goal: self.goal,
+                sensor_fan: self.sensor_fan,
+                rsrp_all: self.rsrp_all,
+                rsrp_serving: self.rsrp_serving,
+                sensor_range_m: self.sensor_range_m,
+                sensor_scale: self.sensor_scale,
+                nearest_obstacle: self.nearest_obstacle,
+                geofence: self.geofence,
+                goal_scale_m: self.goal_scale_m,
+                goal_direction: self.goal_direction,
+                rsrp_centre_dbm: self.rsrp_centre_dbm,
+                rsrp_scale_db: self.rsrp_scale_db,
+                site_features: self.site_features,
+                site_trend: self.site_trend,
+                site_ping_pong: self.site_ping_pong,
+                ..ObservationConfig::default()
+            }
+        }
+    }
+
+    /// The policy of formats 2 and 3: `O` = `()` (format 2, none recorded) or
+    /// `Option<ObservationV3>` (format 3).
+    #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
+    pub(super) struct PolicyWeightsOld<O> {
         pub(super) version: u64,
         pub(super) obs_version: u32,
         pub(super) obs_dim: usize,
@@ -89,12 +142,16 @@ mod legacy {
         pub(super) log_std: [f32; dupac_common::policy::MOVE_DIM],
         pub(super) obs_norm: ObsNormalizer,
         pub(super) reward_scaler: RewardScaler,
+        /// `()` encodes to nothing: format 2 had no such field.
+        pub(super) observation: O,
     }
 
-    impl PolicyWeightsV2 {
-        /// The policy, with `observation` (none recorded in a format-2 policy file; a checkpoint
-        /// has it in its configuration).
-        pub(super) fn upgrade(self, observation: Option<ObservationConfig>) -> PolicyWeights {
+    pub(super) type PolicyWeightsV2 = PolicyWeightsOld<()>;
+    pub(super) type PolicyWeightsV3 = PolicyWeightsOld<Option<ObservationV3>>;
+
+    impl<O> PolicyWeightsOld<O> {
+        /// The policy, with `observation`.
+        pub(super) fn with(self, observation: Option<ObservationConfig>) -> PolicyWeights {
             PolicyWeights {
                 version: self.version,
                 obs_version: self.obs_version,
@@ -111,35 +168,53 @@ mod legacy {
         }
     }
 
+    impl PolicyWeightsV3 {
+        pub(super) fn upgrade(mut self) -> PolicyWeights {
+            let o = self.observation.take().map(ObservationV3::upgrade);
+            self.with(o)
+        }
+    }
+
     #[derive(Deserialize)]
     #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct CheckpointMetaV2 {
+    pub(super) struct CheckpointMetaOld<P> {
         pub(super) seed: u64,
         pub(super) update: u64,
         pub(super) global_step: u64,
         pub(super) episodes: u64,
         pub(super) train_seconds: f64,
         pub(super) config_toml: String,
-        pub(super) policy: PolicyWeightsV2,
+        pub(super) policy: P,
         pub(super) return_acc: Vec<f64>,
     }
 
     #[derive(Deserialize)]
     #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct CheckpointFileV2 {
-        pub(super) meta: CheckpointMetaV2,
+    pub(super) struct CheckpointFileOld<P> {
+        pub(super) meta: CheckpointMetaOld<P>,
         pub(super) model: Vec<u8>,
         pub(super) optim: Vec<u8>,
     }
 
+    #[cfg(test)]
+    pub(super) type CheckpointMetaV2 = CheckpointMetaOld<PolicyWeightsV2>;
+    pub(super) type CheckpointFileV2 = CheckpointFileOld<PolicyWeightsV2>;
+    pub(super) type CheckpointFileV3 = CheckpointFileOld<PolicyWeightsV3>;
+
     /// The observation a run's configuration (TOML) gives, when that is certain: every key of
     /// today's `[env.observation]` written in it (a key added since — a feature that did not
-    /// exist then — would otherwise take today's default) and the values valid. `None` else.
+    /// exist then — would otherwise take today's default), those added after format 3 apart
+    /// (their absence means off, as it did), and the values valid. `None` else.
     pub(super) fn observation_of(config_toml: &str) -> Option<ObservationConfig> {
         let table: toml::Table = toml::from_str(config_toml).ok()?;
         let written = table.get("env")?.get("observation")?.as_table()?;
         let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
-        if !today.as_table()?.keys().all(|k| written.contains_key(k)) {
+        if !today
+            .as_table()?
+            .keys()
+            .filter(|k| !ADDED_AFTER_FORMAT_3.contains(&k.as_str()))
+            .all(|k| written.contains_key(k))
+        {
             return None;
         }
         let o: ObservationConfig = written.clone().try_into().ok()?;
@@ -147,17 +222,15 @@ mod legacy {
         Some(o)
     }
 
-    impl CheckpointFileV2 {
-        /// The checkpoint with the observation of the run's own configuration when it is
-        /// certain ([`observation_of`]); none recorded otherwise (checked by length).
-        pub(super) fn upgrade(self) -> super::CheckpointFile {
+    impl<P> CheckpointFileOld<P> {
+        /// The checkpoint with the policy `upgrade` gives from the file's policy and its
+        /// configuration.
+        pub(super) fn upgrade(
+            self,
+            upgrade: impl FnOnce(P, &str) -> PolicyWeights,
+        ) -> super::CheckpointFile {
             let m = self.meta;
-            let mut policy = m.policy.upgrade(observation_of(&m.config_toml));
-            if policy.observation.is_some() && policy.validate().is_err() {
-                // The configuration disagrees with the weights (a resume that changed the
-                // observation at the same length): not certain either.
-                policy.observation = None;
-            }
+            let policy = upgrade(m.policy, &m.config_toml);
             super::CheckpointFile {
                 meta: super::CheckpointMeta {
                     seed: m.seed,
@@ -174,9 +247,21 @@ mod legacy {
             }
         }
     }
+
+    /// A format-2 checkpoint's policy with the observation of the run's own configuration when
+    /// it is certain ([`observation_of`]); none recorded otherwise (checked by length).
+    pub(super) fn upgrade_v2(p: PolicyWeightsV2, config_toml: &str) -> PolicyWeights {
+        let mut policy = p.with(observation_of(config_toml));
+        if policy.observation.is_some() && policy.validate().is_err() {
+            // The configuration disagrees with the weights (a resume that changed the
+            // observation at the same length): not certain either.
+            policy.observation = None;
+        }
+        policy
+    }
 }
 
-/// Decodes a checkpoint file of this format or of format 2.
+/// Decodes a checkpoint file of this format or of formats 2 and 3.
 fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, CheckpointError> {
     match codec::decode(
         CHECKPOINT_MAGIC,
@@ -193,7 +278,18 @@ fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, Checkpo
                 MAX_FILE_BYTES,
                 what,
             )
-            .map(legacy::CheckpointFileV2::upgrade)
+            .map(|c| c.upgrade(legacy::upgrade_v2))
+            .map_err(CheckpointError::from)
+        }
+        Err(CodecError::Version { got: FORMAT_3, .. }) => {
+            codec::decode::<legacy::CheckpointFileV3>(
+                CHECKPOINT_MAGIC,
+                FORMAT_3,
+                bytes,
+                MAX_FILE_BYTES,
+                what,
+            )
+            .map(|c| c.upgrade(|p, _| p.upgrade()))
             .map_err(CheckpointError::from)
         }
         r => r.map_err(older_format),
@@ -319,7 +415,17 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
                     MAX_FILE_BYTES,
                     &what,
                 )?
-                .upgrade(None)
+                .with(None)
+            }
+            Err(CodecError::Version { got: FORMAT_3, .. }) => {
+                codec::decode::<legacy::PolicyWeightsV3>(
+                    POLICY_MAGIC,
+                    FORMAT_3,
+                    &bytes,
+                    MAX_FILE_BYTES,
+                    &what,
+                )?
+                .upgrade()
             }
             r => r.map_err(older_format)?,
         }
@@ -335,7 +441,9 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 
 #[cfg(test)]
 mod tests {
-    use super::legacy::{CheckpointFileV2, CheckpointMetaV2, PolicyWeightsV2};
+    use super::legacy::{
+        CheckpointFileV2, CheckpointMetaV2, ObservationV3, PolicyWeightsOld, PolicyWeightsV2,
+    };
     use super::*;
     use crate::learner::Learner;
     use dupac_common::config::Config;
@@ -369,6 +477,42 @@ mod tests {
             log_std: p.log_std,
             obs_norm: p.obs_norm,
             reward_scaler: p.reward_scaler,
+            observation: (),
+        }
+    }
+
+    /// `p` as file format 3 wrote it (the observation without the path guide's keys).
+    fn v3(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV3>> {
+        let o = p.observation.clone().map(|o| ObservationV3 {
+            goal: o.goal,
+            sensor_fan: o.sensor_fan,
+            rsrp_all: o.rsrp_all,
+            rsrp_serving: o.rsrp_serving,
+            sensor_range_m: o.sensor_range_m,
+            sensor_scale: o.sensor_scale,
+            nearest_obstacle: o.nearest_obstacle,
+            geofence: o.geofence,
+            goal_scale_m: o.goal_scale_m,
+            goal_direction: o.goal_direction,
+            rsrp_centre_dbm: o.rsrp_centre_dbm,
+            rsrp_scale_db: o.rsrp_scale_db,
+            site_features: o.site_features,
+            site_trend: o.site_trend,
+            site_ping_pong: o.site_ping_pong,
+        });
+        let v2 = v2(p);
+        PolicyWeightsOld {
+            version: v2.version,
+            obs_version: v2.obs_version,
+            obs_dim: v2.obs_dim,
+            n_sites: v2.n_sites,
+            actor: v2.actor,
+            critic: v2.critic,
+            site_head: v2.site_head,
+            log_std: v2.log_std,
+            obs_norm: v2.obs_norm,
+            reward_scaler: v2.reward_scaler,
+            observation: o,
         }
     }
 
@@ -437,6 +581,34 @@ mod tests {
             },
             old
         );
+
+        // Format 3 (the observation without the path guide) loads, with the guide off.
+        let bytes = codec::encode(POLICY_MAGIC, FORMAT_3, &v3(&p), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let v3_policy = load_policy(&path).expect("a format-3 policy loads");
+        assert_eq!(v3_policy, p);
+        assert!(!v3_policy.observation.as_ref().is_some_and(|o| o.path_guide));
+        // …and a format-3 checkpoint.
+        let file = super::legacy::CheckpointFileOld {
+            meta: super::legacy::CheckpointMetaOld {
+                seed: 1,
+                update: 2,
+                global_step: 3,
+                episodes: 4,
+                train_seconds: 5.0,
+                config_toml: String::new(),
+                policy: v3(&p),
+                return_acc: vec![0.5],
+            },
+            model: vec![1, 2],
+            optim: vec![3],
+        };
+        let ck_path = dir.path().join("checkpoint.bin");
+        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_3, &file, "checkpoint").expect("encode");
+        std::fs::write(&ck_path, bytes).expect("write");
+        let ck = load_checkpoint(&ck_path).expect("a format-3 checkpoint loads");
+        assert_eq!(ck.meta.policy, p);
+        assert_eq!(ck.meta.update, 2);
 
         // Format 1 is refused by name.
         let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");

@@ -3,7 +3,7 @@
 
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
-use dupac_actor::env::{Env, Episode};
+use dupac_actor::env::Env;
 use dupac_actor::metrics::EpisodeSummary;
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::fly_policy;
@@ -25,11 +25,7 @@ pub fn evaluate(
         .par_iter()
         .map(|p| {
             let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-            let ep = Episode {
-                source_m: p.source_m,
-                destination_m: p.destination_m,
-                shortest_m: p.shortest_m,
-            };
+            let ep = p.episode(false);
             Ok(fly_policy(&mut env, policy, p.id, ep, p.id)?.0)
         })
         .collect()

@@ -4,7 +4,7 @@
 
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
-use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
+use dupac_actor::env::{Env, Outcome, StepInfo};
 use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{Flight, fly_waypoints};
@@ -198,11 +198,7 @@ pub fn shortest_with_a3(
     a3_cfg.env.association = Association::A3;
     let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
     let shortest = planner.shortest(p.source_m, p.destination_m)?;
-    let episode = Episode {
-        source_m: p.source_m,
-        destination_m: p.destination_m,
-        shortest_m: p.shortest_m,
-    };
+    let episode = p.episode(false);
     let flight = fly_waypoints(&mut env, p.id, episode, &shortest.waypoints_m, |e| {
         e.serving()
     })?;

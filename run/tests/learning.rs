@@ -2,7 +2,7 @@
 //! pairs, a fixed seed and a bounded budget, PPO's deterministic policy reaches the goal far more
 //! often than a uniformly random policy and than itself at initialisation.
 
-use dupac_actor::env::{Action, Env, Episode, Outcome};
+use dupac_actor::env::{Action, Env, Outcome};
 use dupac_actor::metrics::domain_stats;
 use dupac_actor::pairs::{Pair, eval_pairs, training_pool};
 use dupac_actor::planner::Planner;
@@ -53,15 +53,7 @@ fn random_policy_success(
     let mut ok = 0;
     for p in pairs {
         let mut env = Env::new(cfg, world.clone(), rsrp.clone()).expect("env");
-        env.reset(
-            p.id,
-            Episode {
-                source_m: p.source_m,
-                destination_m: p.destination_m,
-                shortest_m: p.shortest_m,
-            },
-        )
-        .expect("reset");
+        env.reset(p.id, p.episode(false)).expect("reset");
         loop {
             let a = Action {
                 move_: Vector::new(
@@ -158,11 +150,7 @@ fn learns(association: Association, site_every_step: bool) {
             let (mut sum, mut n) = (0.0, 0usize);
             for p in &held_out {
                 let mut env = Env::new(&c, world.clone(), rsrp.clone()).expect("env");
-                let ep = Episode {
-                    source_m: p.source_m,
-                    destination_m: p.destination_m,
-                    shortest_m: p.shortest_m,
-                };
+                let ep = p.episode(false);
                 let (_, steps) = fly_policy(&mut env, &policy, p.id, ep, p.id).expect("fly");
                 for s in &steps {
                     sum += s.site_regret_db();

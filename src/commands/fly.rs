@@ -8,7 +8,7 @@ use crate::plot::plan::render_world_plan;
 use crate::plot::plan::trace_of;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
+use dupac_actor::env::{Env, Outcome, StepInfo};
 use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
@@ -123,11 +123,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
             pairs.len()
         )
     })?;
-    let episode = Episode {
-        source_m: p.source_m,
-        destination_m: p.destination_m,
-        shortest_m: p.shortest_m,
-    };
+    let episode = p.episode(false);
     let mut env = Env::new(&cfg, world.clone(), rsrp.clone())?;
     if env.layout().len() != policy.obs_dim {
         bail!(

@@ -6,7 +6,7 @@ use crate::io::write_atomic;
 use crate::plot::plan::{render_world_plan, trace_of};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Episode};
+use dupac_actor::env::{Env, Episode, PathGuide};
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
@@ -97,6 +97,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         source_m: source,
         destination_m: destination,
         shortest_m: shortest.length_m,
+        guide: PathGuide::new(&shortest.waypoints_m).map(Arc::new),
     };
     let lambdas = if args.lambdas.is_empty() {
         vec![cfg.planner.lambda]
@@ -120,7 +121,9 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     let mut traces = Vec::new();
     let mut rows = Vec::new();
     for (label, plan) in &plans {
-        let flight = fly_waypoints(&mut env, 0, episode, &plan.waypoints_m, |e| e.serving())?;
+        let flight = fly_waypoints(&mut env, 0, episode.clone(), &plan.waypoints_m, |e| {
+            e.serving()
+        })?;
         rows.push(summarise(label, plan.length_m, episode.shortest_m, &flight));
         let start_rsrp = env_rsrp_at(cache.as_ref(), &world, source);
         let file = format!("flight_{}.csv", slug(label));

@@ -9,17 +9,19 @@
 //! Deviations from the paper (all configurable) are listed in `docs/env.md`.
 
 mod association;
+mod guide;
 mod info;
 mod observe;
 mod reward;
 
 use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
+pub use guide::{GuideFix, PathGuide};
 pub use info::{Outcome, StepInfo};
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
 use dupac_common::SiteId;
-use dupac_common::config::{ActionClip, Association, Config, EnvConfig};
+use dupac_common::config::{ActionClip, Association, Config, EnvConfig, Progress};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
@@ -53,6 +55,14 @@ pub enum EnvError {
         "a site chosen every step needs env.site_every_step, the learned association and env.observation.site_features"
     )]
     SiteEveryStepUnavailable,
+    /// `env.observation.path_guide` or `env.reward.progress = "path"` without a planned path.
+    #[error(
+        "env.observation.path_guide and env.reward.progress = \"path\" need the episode's planned path, and this episode has none"
+    )]
+    NoGuide,
+    /// The planned path does not join the episode's endpoints.
+    #[error("the episode's planned path runs from {from:?} to {to:?}, not between its endpoints")]
+    GuideMismatch { from: Point, to: Point },
 }
 
 /// The hybrid action: a continuous move in [−1, 1]³ (clipped per axis; the unclipped value is
@@ -66,12 +76,27 @@ pub struct Action {
 }
 
 /// An episode's endpoints and its shortest flyable path length (for the time limit).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Episode {
     pub source_m: Point,
     pub destination_m: Point,
     /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
     pub shortest_m: f64,
+    /// The planned shortest path from source to destination, for `env.observation.path_guide`
+    /// and `env.reward.progress = "path"` (required by them, unused otherwise).
+    pub guide: Option<Arc<PathGuide>>,
+}
+
+impl Episode {
+    /// An episode without a planned path.
+    pub fn new(source_m: Point, destination_m: Point, shortest_m: f64) -> Episode {
+        Episode {
+            source_m,
+            destination_m,
+            shortest_m,
+            guide: None,
+        }
+    }
 }
 
 /// Result of one step (the observation is read with [`Env::observation`]).
@@ -93,6 +118,7 @@ struct Slots {
     goal_vector: Option<Range<usize>>,
     goal_distance: Option<Range<usize>>,
     goal_direction: Option<Range<usize>>,
+    path_guide: Option<Range<usize>>,
     obstacle_distance: Range<usize>,
     obstacle_direction: Range<usize>,
     sensor_fan: Option<Range<usize>>,
@@ -140,6 +166,11 @@ pub struct Env {
     time_limit: u32,
     distance_flown_m: f64,
     distance_to_goal_m: f64,
+    /// Distance still to fly along the episode's planned path (m; [`PathGuide::fix`]); the
+    /// straight distance when the episode has no path.
+    path_to_go_m: f64,
+    /// The UAV's tracked place on the planned path (arc length, m).
+    path_s_m: f64,
     /// Handovers and ping-pongs (`env.ping_pong_window_s` in steps), and the last handover.
     handovers: HandoverCounter,
     done: bool,
@@ -181,6 +212,7 @@ impl Env {
             goal_vector: layout.range(field::GOAL_VECTOR),
             goal_distance: layout.range(field::GOAL_DISTANCE),
             goal_direction: layout.range(field::GOAL_DIRECTION),
+            path_guide: layout.range(field::PATH_GUIDE),
             obstacle_distance: req(field::OBSTACLE_DISTANCE),
             obstacle_direction: req(field::OBSTACLE_DIRECTION),
             sensor_fan: layout.range(field::SENSOR_FAN),
@@ -230,6 +262,8 @@ impl Env {
             time_limit: 0,
             distance_flown_m: 0.0,
             distance_to_goal_m: 0.0,
+            path_to_go_m: 0.0,
+            path_s_m: 0.0,
             handovers: HandoverCounter::new(ping_pong_steps),
             done: true,
             seed: 0,
@@ -346,8 +380,19 @@ impl Env {
         if !(episode.shortest_m.is_finite() && episode.shortest_m > 0.0) {
             return Err(EnvError::BadShortest(episode.shortest_m));
         }
+        let needs_guide =
+            self.cfg.observation.path_guide || self.cfg.reward.progress == Progress::Path;
+        match &episode.guide {
+            None if needs_guide => return Err(EnvError::NoGuide),
+            Some(g) => {
+                let (from, to) = g.ends_m();
+                if dist(from, episode.source_m) > 1e-6 || dist(to, episode.destination_m) > 1e-6 {
+                    return Err(EnvError::GuideMismatch { from, to });
+                }
+            }
+            None => {}
+        }
         self.seed = seed;
-        self.episode = Some(episode);
         self.position_m = episode.source_m;
         self.velocity_per_max_step = Vector::zeros();
         self.step = 0;
@@ -356,6 +401,13 @@ impl Env {
             .clamp(1.0, f64::from(u32::MAX)) as u32;
         self.distance_flown_m = 0.0;
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
+        self.path_s_m = 0.0;
+        self.path_to_go_m = self.distance_to_goal_m;
+        if let Some(g) = &episode.guide {
+            let fix = g.fix(self.position_m, 0.0, self.guide_window_m());
+            (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
+        }
+        self.episode = Some(episode);
         self.handovers.reset();
         self.choice_pending = false;
         self.choice_refused = false;
@@ -505,13 +557,23 @@ impl Env {
         &self.site_rewards
     }
 
+    /// Arc length (m) within which the UAV's place on the planned path is sought each step
+    /// ([`PathGuide::fix`]): two steps, so the place keeps up with a UAV flying beside the path.
+    fn guide_window_m(&self) -> f64 {
+        2.0 * self.cfg.max_step_m.max(0.5)
+    }
+
     /// `step` without writing the observation; `first` = the first step of a decision (the
     /// only one at which a choice of site can be a handover).
     fn advance(&mut self, action: &Action, first: bool) -> Result<Step, EnvError> {
         if self.done {
             return Err(EnvError::EpisodeOver);
         }
-        let episode = self.episode.ok_or(EnvError::EpisodeOver)?;
+        let destination_m = self
+            .episode
+            .as_ref()
+            .ok_or(EnvError::EpisodeOver)?
+            .destination_m;
         if action.move_.iter().any(|v| !v.is_finite()) {
             return Err(EnvError::NonFiniteAction(action.move_.into()));
         }
@@ -547,8 +609,18 @@ impl Env {
         self.position_m = to;
         self.distance_flown_m += step_length_m;
         let d_prev = self.distance_to_goal_m;
-        self.distance_to_goal_m = dist(to, episode.destination_m);
-        let progress_m = d_prev - self.distance_to_goal_m;
+        self.distance_to_goal_m = dist(to, destination_m);
+        let path_prev = self.path_to_go_m;
+        self.path_to_go_m = self.distance_to_goal_m;
+        let window_m = self.guide_window_m();
+        if let Some(g) = self.episode.as_ref().and_then(|e| e.guide.as_ref()) {
+            let fix = g.fix(to, self.path_s_m, window_m);
+            (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
+        }
+        let progress_m = match self.cfg.reward.progress {
+            Progress::Straight => d_prev - self.distance_to_goal_m,
+            Progress::Path => path_prev - self.path_to_go_m,
+        };
 
         // Radio: every site's RSRP at the new position, then the association rule.
         self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);

@@ -98,6 +98,17 @@ impl Env {
                 }
             }
         }
+        if let (Some(r), Some(g)) = (
+            &s.path_guide,
+            self.episode.as_ref().and_then(|e| e.guide.as_ref()),
+        ) {
+            let to = g.point_at(self.path_s_m + o.path_lookahead_m) - p;
+            let n = to.norm();
+            for k in 0..3 {
+                obs[r.start + k] = if n > 1e-9 { (to[k] / n) as f32 } else { 0.0 };
+            }
+            obs[r.start + 3] = (self.path_to_go_m / o.goal_scale_m) as f32;
+        }
         obs[s.obstacle_distance.start] = c_t;
         for k in 0..3 {
             obs[s.obstacle_direction.start + k] = dir[k] as f32;
@@ -143,6 +154,7 @@ impl Env {
         };
         let goal = self
             .episode
+            .as_ref()
             .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
         let heading = unit2(self.velocity_per_max_step[0], self.velocity_per_max_step[1])
             .or(goal)

@@ -120,6 +120,24 @@ pub struct RewardConfig {
     /// choice has its own terms). 0 = the paper's Eq. (8) alone, under which a metre in mediocre
     /// costs ≈ 0.9 while a metre of detour costs ≈ μ1 (a departure; docs/env.md).
     pub route_connectivity_weight: f64,
+    /// What the progress Δd of Eq. (8) measures: `straight` = the decrease of the straight-line
+    /// distance to the destination (the paper), `path` = the decrease of the distance still to
+    /// fly along the episode's planned shortest path (from the nearest point of the path, plus
+    /// the path beyond it), which does not pay for flying into a courtyard that points at the
+    /// goal. A departure (issue 15; docs/env.md "Path guide"); both sum to about the same over
+    /// an episode that reaches the goal.
+    pub progress: Progress,
+}
+
+/// The distance whose decrease is the progress Δd of Eq. (8) ([`RewardConfig::progress`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Progress {
+    /// Straight-line distance to the destination (paper Eq. 8).
+    #[default]
+    Straight,
+    /// Distance still to fly along the episode's planned shortest path.
+    Path,
 }
 
 impl Default for RewardConfig {
@@ -135,6 +153,7 @@ impl Default for RewardConfig {
             ping_pong_reward: -8.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
+            progress: Progress::Straight,
         }
     }
 }
@@ -197,6 +216,15 @@ pub struct ObservationConfig {
     /// ([`crate::obs::site_feature::ping_pong`]). On by default since 2026-11-26; needed by
     /// `env.reward.ping_pong_reward` (issue 15).
     pub site_ping_pong: bool,
+    /// Observe the episode's planned path (`path_guide`, 4 values after the goal fields): the
+    /// unit direction to the point `path_lookahead_m` further along the shortest flyable path
+    /// from where the UAV is nearest to it, and the path distance still to fly / `goal_scale_m`.
+    /// Map knowledge the paper's UAV does not have (its sensors see 50 m): a departure against
+    /// the timeouts of a reactive policy stuck behind a building (issue 15; docs/env.md "Path
+    /// guide"). Off by default.
+    pub path_guide: bool,
+    /// How far along the planned path the guide's direction points (m).
+    pub path_lookahead_m: f64,
 }
 
 impl Default for ObservationConfig {
@@ -217,6 +245,8 @@ impl Default for ObservationConfig {
             site_features: true,
             site_trend: false,
             site_ping_pong: true,
+            path_guide: false,
+            path_lookahead_m: 30.0,
         }
     }
 }
@@ -487,6 +517,14 @@ impl ObservationConfig {
                 "is a site feature (on by default): set env.observation.site_features to true too, or this to false (and env.reward.ping_pong_reward to 0)",
             ));
         }
+        positive("env.observation.path_lookahead_m", o.path_lookahead_m)?;
+        within(
+            "env.observation.path_lookahead_m",
+            o.path_lookahead_m,
+            0.0,
+            10_000.0,
+            "m",
+        )?;
         Ok(())
     }
 }

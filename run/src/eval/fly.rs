@@ -6,7 +6,7 @@ use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight,
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{SharedRsrp, read_eval_pairs, world_and_cache};
-use dupac_actor::env::{Env, Episode, Outcome};
+use dupac_actor::env::{Env, Outcome};
 use dupac_actor::eval::{
     FlightRecord, NOISE_PER_RE_DBM, StepRecord, hindsight_association, sinr_db,
 };
@@ -254,11 +254,7 @@ fn fly_one(
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let episode = Episode {
-        source_m: p.source_m,
-        destination_m: p.destination_m,
-        shortest_m: p.shortest_m,
-    };
+    let episode = p.episode(false);
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
