@@ -28,7 +28,7 @@
 //! and `shortest_m` must be ≥ `straight_m` and > 0. Every error names the file and line.
 
 use crate::env::{Episode, PathGuide};
-use crate::planner::{Planner, dist};
+use crate::planner::{PlanError, Planner, dist};
 use dupac_common::config::{EnvConfig, PairsConfig};
 use dupac_common::geometry::Point;
 use rand::{RngExt, SeedableRng};
@@ -71,10 +71,13 @@ pub struct Pair {
     /// Evaluation bin (m) the pair belongs to; absent for training pairs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bin_m: Option<f64>,
-    /// The planned shortest path from source to destination (not written to files: planned
-    /// again when read, [`attach_paths`]), the episode's guide ([`Pair::episode`]).
+    /// The planned path from source to destination, the episode's guide ([`Pair::episode`]):
+    /// the shortest path of the sampler, or another from [`attach_paths`]. Not written to files.
     #[serde(skip)]
     pub path: Option<Arc<PathGuide>>,
+    /// λ of the coverage-aware planner that planned `path` (0: the shortest path).
+    #[serde(skip)]
+    pub path_lambda: f64,
 }
 
 impl Pair {
@@ -101,17 +104,28 @@ impl Pair {
     }
 }
 
-/// Plans the shortest path of every pair that has none (in parallel; a pair the planner cannot
-/// connect keeps none, and an episode that needs it is refused with [`crate::env::EnvError::NoGuide`]).
-pub fn attach_paths(planner: &Planner, pairs: &mut [Pair]) {
+/// Plans `pair`'s guide path unless it has one of `lambda` already: the shortest path
+/// (`lambda` = 0) or the coverage-aware one ([`Planner::coverage_aware`], which needs
+/// [`Planner::with_coverage`]).
+pub fn plan_path(planner: &Planner, pair: &mut Pair, lambda: f64) -> Result<(), PlanError> {
+    if pair.path.is_some() && pair.path_lambda == lambda {
+        return Ok(());
+    }
+    let path = if lambda > 0.0 {
+        planner.coverage_aware(pair.source_m, pair.destination_m, lambda)?
+    } else {
+        planner.shortest(pair.source_m, pair.destination_m)?
+    };
+    pair.path = PathGuide::new(&path.waypoints_m).map(Arc::new);
+    pair.path_lambda = lambda;
+    Ok(())
+}
+
+/// [`plan_path`] for every pair, in parallel; the first failure names its pair.
+pub fn attach_paths(planner: &Planner, pairs: &mut [Pair], lambda: f64) -> Result<(), String> {
     pairs
         .par_iter_mut()
-        .filter(|p| p.path.is_none())
-        .for_each(|p| {
-            if let Ok(path) = planner.shortest(p.source_m, p.destination_m) {
-                p.path = PathGuide::new(&path.waypoints_m).map(Arc::new);
-            }
-        });
+        .try_for_each(|p| plan_path(planner, p, lambda).map_err(|e| format!("pair {}: {e}", p.id)))
 }
 
 /// What a user's pairs file may contain: [`Pair`] with `id`, `shortest_m` and `straight_m`
@@ -291,6 +305,7 @@ fn candidate(
                 straight_m: dist(source, destination),
                 bin_m,
                 path: PathGuide::new(&path.waypoints_m).map(Arc::new),
+                path_lambda: 0.0,
             });
         }
     }
@@ -426,7 +441,8 @@ pub fn write_pairs_jsonl(path: &Path, pairs: &[Pair]) -> Result<(), PairsError> 
 /// optional fields). Each line must be a JSON object with finite numbers; both endpoints must pass
 /// [`check_endpoint`] with `cfg.endpoint_clearance_m`; `shortest_m` > 0 (computed with `planner`
 /// when absent, which also proves the pair flyable); ids must be unique. Errors are
-/// `FILE:LINE: message`. Every pair gets its planned shortest path ([`attach_paths`]).
+/// `FILE:LINE: message`. A pair whose `shortest_m` was computed keeps that path as its guide
+/// ([`attach_paths`] gives the others one).
 pub fn read_pairs_jsonl(
     path: &Path,
     planner: &Planner,
@@ -465,7 +481,6 @@ pub fn read_pairs_jsonl(
             path: path.to_path_buf(),
         });
     }
-    attach_paths(planner, &mut out);
     Ok(out)
 }
 
@@ -538,6 +553,7 @@ fn validate(
         straight_m: input.straight_m.unwrap_or(straight),
         bin_m: input.bin_m,
         path: planned,
+        path_lambda: 0.0,
     })
 }
 

@@ -73,7 +73,7 @@ struct CheckpointFile {
 /// Files of earlier formats (bincode is not self-describing, so each old layout is spelled out
 /// once here and converted): format 2 without [`PolicyWeights::observation`], format 3 with the
 /// observation as it was before the path guide (`env.observation.path_guide`,
-/// `path_lookahead_m`). The tests write old files with these types too.
+/// `path_lookahead_m`, `path_guide_lambda`). The tests write old files with these types too.
 mod legacy {
     use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale};
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
@@ -81,7 +81,7 @@ mod legacy {
 
     /// Keys of `[env.observation]` added after file format 3, whose absence means what a run
     /// written before them did (their default: the feature off).
-    const ADDED_AFTER_FORMAT_3: [&str; 2] = ["path_guide", "path_lookahead_m"];
+    const ADDED_AFTER_FORMAT_3: [&str; 3] = ["path_guide", "path_lookahead_m", "path_guide_lambda"];
 
     /// `env.observation` as format 3 recorded it.
     #[derive(Deserialize)]

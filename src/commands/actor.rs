@@ -6,7 +6,6 @@ use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
-use dupac_actor::planner::Planner;
 use dupac_common::ActorId;
 use dupac_dist::actor::{ActorOptions, run_actor};
 use dupac_run::scenario::{make_pool, world_and_cache};
@@ -42,10 +41,14 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let cfg = super::run_args::resolve_config(global, args.association, None)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
-    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
     let pool = match &args.pool {
-        Some(p) => read_pairs_jsonl(p, &planner, &cfg.pairs)
-            .with_context(|| format!("--pool {}", p.display()))?,
+        Some(p) => {
+            let mut pool = read_pairs_jsonl(p, &planner, &cfg.pairs)
+                .with_context(|| format!("--pool {}", p.display()))?;
+            dupac_run::scenario::guide_pairs(&cfg, &planner, &mut pool)?;
+            pool
+        }
         None => make_pool(&cfg, &planner, global.quiet)?,
     };
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

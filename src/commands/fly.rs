@@ -9,7 +9,6 @@ use crate::plot::plan::trace_of;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Outcome, StepInfo};
-use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
 use dupac_dist::actor::Follower;
@@ -113,7 +112,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         Some(wr) => wr,
         None => world_and_cache(&cfg, global.quiet)?,
     };
-    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
     let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planner)?;
     let p = pairs.get(args.pair).ok_or_else(|| {
         anyhow!(

@@ -12,7 +12,6 @@ use crate::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
 use dupac_actor::pairs::write_pairs_jsonl;
-use dupac_actor::planner::Planner;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{StatsMsg, decode_msg};
 use dupac_run::run_dir::checkpoint_to_resume;
@@ -35,8 +34,8 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;
 
     // Everything the children would otherwise each compute (and race on): built once here.
-    let (world, _rsrp) = world_and_cache(&cfg, global.quiet)?;
-    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
     held_out_pairs(&cfg, &planner, global.quiet)?;
     let pool_path = out.join("train_pool.jsonl");
     let pool = make_pool(&cfg, &planner, global.quiet)?;

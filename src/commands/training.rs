@@ -8,7 +8,6 @@ use crate::GlobalArgs;
 use anyhow::Result;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
-use dupac_actor::planner::Planner;
 use dupac_common::Config;
 use dupac_learner::{Learner, TrajectorySource};
 use dupac_radio::world::RadioWorld;
@@ -46,7 +45,7 @@ impl Training {
         let device = device(run.device)?;
         let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
         let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
-        let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+        let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
         let eval_set = spread(
             &held_out_pairs(&cfg, &planner, global.quiet)?,
             cfg.train.eval_pairs,

@@ -144,3 +144,93 @@ fn a_site_chosen_every_step_trains_over_zenoh_and_flies() {
         "{summary}"
     );
 }
+
+/// The path guide (issue 15, docs/env.md "Path guide"): a run guided along the coverage-aware
+/// path with the path progress trains (in one process, and over Zenoh, where the actors plan the
+/// pool's paths themselves); its policy records the guide, so `dupac eval` and `dupac fly` fly it
+/// guided without being told; a policy without the guide is refused where one is needed.
+#[test]
+fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let common = small_run_args(dir.path());
+    let guided = [
+        "--set",
+        "env.observation.path_guide=true",
+        "--set",
+        "env.observation.path_guide_lambda=1",
+        "--set",
+        "env.reward.progress=path",
+        "--set",
+        "train.total_timesteps=1024",
+    ];
+    for (name, single) in [("one", true), ("zenoh", false)] {
+        let out = dir.path().join(name);
+        let mut a: Vec<String> = vec!["train".into(), "-q".into()];
+        if single {
+            a.push("--single-process".into());
+        }
+        a.extend(["--out".into(), out.display().to_string()]);
+        a.extend(guided.iter().map(|s| s.to_string()));
+        let train = dupac_output(&common, &a);
+        assert!(
+            train.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&train.stderr)
+        );
+        let r = rows(&out.join("metrics.jsonl"));
+        assert!(r.len() >= 4, "{name}: {} rows", r.len());
+    }
+    let policy = dir.path().join("one").join("policy.bin");
+    let eval = dupac_output(
+        &common,
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--no-planners".into(),
+            "--out".into(),
+            dir.path().join("eval").display().to_string(),
+            "--policy".into(),
+            format!("guided={}", policy.display()),
+        ],
+    );
+    assert!(
+        eval.status.success(),
+        "{}",
+        String::from_utf8_lossy(&eval.stderr)
+    );
+    let fly = dupac_output(
+        &common,
+        &[
+            "fly".into(),
+            "-q".into(),
+            "--policy".into(),
+            policy.display().to_string(),
+            "--pair".into(),
+            "0".into(),
+            "--out".into(),
+            dir.path().join("fly").display().to_string(),
+        ],
+    );
+    assert!(
+        fly.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fly.stderr)
+    );
+    // Resuming the guided run without the guide is refused by key.
+    let resume = dupac_output(
+        &common,
+        &[
+            "train".into(),
+            "-q".into(),
+            "--single-process".into(),
+            "--resume".into(),
+            "--out".into(),
+            dir.path().join("one").display().to_string(),
+            "--set".into(),
+            "train.total_timesteps=2048".into(),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&resume.stderr);
+    assert!(!resume.status.success());
+    assert!(stderr.contains("env.observation.path_guide"), "{stderr}");
+}

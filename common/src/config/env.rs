@@ -225,6 +225,19 @@ pub struct ObservationConfig {
     pub path_guide: bool,
     /// How far along the planned path the guide's direction points (m).
     pub path_lookahead_m: f64,
+    /// The planned path of the guide (and of `env.reward.progress = "path"`): 0 = the shortest
+    /// flyable path; λ > 0 = the coverage-aware planner's path with this λ (`planner.penalty_*`),
+    /// so the guide leads through coverage as the planner would (map and coverage knowledge: a
+    /// further departure; docs/env.md "Path guide").
+    pub path_guide_lambda: f64,
+}
+
+impl EnvConfig {
+    /// Whether each episode needs its planned path (`env.observation.path_guide` or
+    /// `env.reward.progress = "path"`).
+    pub fn needs_path(&self) -> bool {
+        self.observation.path_guide || self.reward.progress == Progress::Path
+    }
 }
 
 impl Default for ObservationConfig {
@@ -247,6 +260,7 @@ impl Default for ObservationConfig {
             site_ping_pong: true,
             path_guide: false,
             path_lookahead_m: 30.0,
+            path_guide_lambda: 0.0,
         }
     }
 }
@@ -518,6 +532,13 @@ impl ObservationConfig {
             ));
         }
         positive("env.observation.path_lookahead_m", o.path_lookahead_m)?;
+        within(
+            "env.observation.path_guide_lambda",
+            o.path_guide_lambda,
+            0.0,
+            1_000.0,
+            "",
+        )?;
         within(
             "env.observation.path_lookahead_m",
             o.path_lookahead_m,

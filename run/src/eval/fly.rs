@@ -17,7 +17,6 @@ use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
-use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
 use std::path::Path;
@@ -40,10 +39,16 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .map(|h| parse_hindsight(h, window))
         .collect::<Result<Vec<_>, RunError>>()?;
     let (world, rsrp) = world_and_cache(cfg, quiet)?;
-    let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    if methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_))) {
-        planner.with_coverage(rsrp.as_ref(), RsrpThresholds::from_config(&cfg.radio));
-    }
+    // Coverage classes for the coverage-aware planner, and for a policy guided along its path.
+    let coverage = methods.iter().any(|m| match &m.kind {
+        Kind::Coverage(_) => true,
+        Kind::Policy(p) => p
+            .observation
+            .as_ref()
+            .is_some_and(|o| o.path_guide && o.path_guide_lambda > 0.0),
+        _ => false,
+    });
+    let planner = crate::scenario::planner(cfg, &world, &rsrp, coverage);
     let (file, pairs) = read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
@@ -254,7 +259,7 @@ fn fly_one(
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let episode = p.episode(false);
+    let episode = crate::scenario::episode(cfg, planner, p)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
