@@ -149,7 +149,7 @@ impl ObsLayout {
             push(
                 PATH_GUIDE,
                 4,
-                "unit direction to the point path_lookahead_m along the planned path beyond its nearest point (zeros at the destination), then the path distance to go / goal_scale_m",
+                "unit direction to the point path_lookahead_m along the planned path beyond the UAV's tracked place on it (zeros at the destination), then the path distance to go / goal_scale_m",
             );
         }
         push(

@@ -379,13 +379,6 @@ impl PolicyWeights {
                     ));
                 }
             }
-            let len = crate::obs::ObsLayout::new(o, self.n_sites).len();
-            if len != self.obs_dim {
-                return Err(format!(
-                    "the recorded observation is {len} values long for {} sites, the policy reads {}",
-                    self.n_sites, self.obs_dim
-                ));
-            }
         }
         let trunk = self.trunk_dim();
         if trunk == 0 || trunk > self.obs_dim {
@@ -401,7 +394,7 @@ impl PolicyWeights {
                 let hidden = self.actor.layers.last().map(|l| l.n_in).unwrap_or(0);
                 h.check(hidden)?;
                 let tail = self.obs_dim - trunk;
-                if self.n_sites == 0 || tail != self.n_sites * h.features {
+                if self.n_sites == 0 || self.n_sites.checked_mul(h.features) != Some(tail) {
                     return Err(format!(
                         "site head: {tail} feature values for {} sites of {} features",
                         self.n_sites, h.features
@@ -423,6 +416,28 @@ impl PolicyWeights {
         }
         if !s.mean.iter().chain(&s.var).all(|v| v.is_finite()) || s.var.iter().any(|v| *v < 0.0) {
             return Err("obs_norm: non-finite or negative statistics".into());
+        }
+        if let Some(o) = &self.observation {
+            // After the shape checks, which bound obs_dim and n_sites by the weights' real sizes.
+            // A policy without site outputs (A3) does not know M: any M the record allows.
+            let len = |m: usize| crate::obs::ObsLayout::new(o, m).len();
+            let fits = if self.n_sites > 0 {
+                len(self.n_sites) == self.obs_dim
+            } else {
+                let (base, per) = (len(0), len(1) - len(0));
+                self.obs_dim >= base && per > 0 && (self.obs_dim - base) % per == 0
+            };
+            if !fits {
+                return Err(format!(
+                    "the recorded observation does not give {} values for {} sites",
+                    self.obs_dim,
+                    if self.n_sites > 0 {
+                        self.n_sites.to_string()
+                    } else {
+                        "any number of".into()
+                    }
+                ));
+            }
         }
         if !(self.obs_norm.clip.is_finite() && self.obs_norm.clip > 0.0) {
             return Err(format!(

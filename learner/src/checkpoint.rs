@@ -620,6 +620,29 @@ mod tests {
         );
     }
 
+    /// A policy without site outputs (the A3 base method: `n_sites` = 0, the observation still
+    /// M sites long) records its observation and loads; a record of another length is refused.
+    #[test]
+    fn an_a3_policy_records_its_observation_and_loads() {
+        let mut cfg = small();
+        cfg.env.association = dupac_common::config::Association::A3;
+        cfg.env.observation.path_guide = true;
+        let obs_dim = ObsLayout::new(&cfg.env.observation, 4).len();
+        let p = Learner::new(cfg.clone(), obs_dim, 0, &Device::flex()).policy();
+        assert_eq!(p.n_sites, 0);
+        assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("policy.bin");
+        save_policy(&path, &p).expect("save");
+        assert_eq!(load_policy(&path).expect("an A3 policy loads"), p);
+        let mut other = p.clone();
+        if let Some(o) = other.observation.as_mut() {
+            o.path_guide = false;
+        }
+        let e = other.validate().expect_err("4 values fewer");
+        assert!(e.contains("does not give"), "{e}");
+    }
+
     #[test]
     fn a_format_2_checkpoint_takes_its_observation_from_its_configuration_when_certain() {
         let mut cfg = small();

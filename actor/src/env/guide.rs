@@ -4,10 +4,11 @@
 //!
 //! The UAV's place on the path is *tracked*: each step it is the point of the path nearest to
 //! the UAV among those within `window_m` of arc length of the previous place. A nearest point
-//! over the whole path would jump to a later leg across a building (the distance to go would
-//! then never exceed the straight-line distance, which is what the guide is to correct); the
-//! window keeps the place moving along the path, and a window at least as long as a step keeps
-//! up with a UAV that flies beside it. The distance to go is the distance to that place plus the
+//! over the whole path would jump to a later leg across a building, and the distance to go
+//! would drop by the path between, paying for path not flown; the window keeps the place moving
+//! along the path, and a window at least as long as a step keeps up with a UAV that flies
+//! beside it. While the place catches up with a UAV ahead of it (a corner cut), the distance to
+//! go falls by at most one window per step. The distance to go is the distance to that place plus the
 //! path beyond it: the path's remaining length on the path, 0 at the destination.
 
 use dupac_common::geometry::{Point, Vector};
@@ -129,7 +130,7 @@ impl PathGuide {
             to_go_m: nearest.0 + (total - nearest.1),
         };
         if best.to_go_m.is_infinite() {
-            // The window is off the path (a non-finite or far start): the path's end.
+            // The window is off the path (a start beyond it): the place clamped onto the path.
             let s_m = from_s_m.clamp(0.0, total);
             best = GuideFix {
                 s_m,

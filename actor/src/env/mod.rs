@@ -82,8 +82,9 @@ pub struct Episode {
     pub destination_m: Point,
     /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
     pub shortest_m: f64,
-    /// The planned shortest path from source to destination, for `env.observation.path_guide`
-    /// and `env.reward.progress = "path"` (required by them, unused otherwise).
+    /// The planned path from source to destination (the shortest, or the coverage-aware one
+    /// with `env.observation.path_guide_lambda` > 0), for `env.observation.path_guide` and
+    /// `env.reward.progress = "path"` (required by them, unused otherwise).
     pub guide: Option<Arc<PathGuide>>,
 }
 
@@ -380,10 +381,8 @@ impl Env {
         if !(episode.shortest_m.is_finite() && episode.shortest_m > 0.0) {
             return Err(EnvError::BadShortest(episode.shortest_m));
         }
-        let needs_guide =
-            self.cfg.observation.path_guide || self.cfg.reward.progress == Progress::Path;
         match &episode.guide {
-            None if needs_guide => return Err(EnvError::NoGuide),
+            None if self.cfg.needs_path() => return Err(EnvError::NoGuide),
             Some(g) => {
                 let (from, to) = g.ends_m();
                 if dist(from, episode.source_m) > 1e-6 || dist(to, episode.destination_m) > 1e-6 {

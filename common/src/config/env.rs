@@ -122,10 +122,11 @@ pub struct RewardConfig {
     pub route_connectivity_weight: f64,
     /// What the progress Δd of Eq. (8) measures: `straight` = the decrease of the straight-line
     /// distance to the destination (the paper), `path` = the decrease of the distance still to
-    /// fly along the episode's planned shortest path (from the nearest point of the path, plus
-    /// the path beyond it), which does not pay for flying into a courtyard that points at the
-    /// goal. A departure (issue 15; docs/env.md "Path guide"); both sum to about the same over
-    /// an episode that reaches the goal.
+    /// fly along the episode's planned path (`env.observation.path_guide_lambda`): the distance
+    /// to the UAV's tracked place on it plus the path beyond, which does not pay for flying into
+    /// a courtyard that points at the goal. A departure (issue 15; docs/env.md "Path guide").
+    /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
+    /// `path` to about the planned path's length.
     pub progress: Progress,
 }
 
@@ -217,8 +218,9 @@ pub struct ObservationConfig {
     /// `env.reward.ping_pong_reward` (issue 15).
     pub site_ping_pong: bool,
     /// Observe the episode's planned path (`path_guide`, 4 values after the goal fields): the
-    /// unit direction to the point `path_lookahead_m` further along the shortest flyable path
-    /// from where the UAV is nearest to it, and the path distance still to fly / `goal_scale_m`.
+    /// unit direction to the point `path_lookahead_m` further along the planned path
+    /// (`path_guide_lambda`) than the UAV's tracked place on it, and the path distance still to
+    /// fly / `goal_scale_m`.
     /// Map knowledge the paper's UAV does not have (its sensors see 50 m): a departure against
     /// the timeouts of a reactive policy stuck behind a building (issue 15; docs/env.md "Path
     /// guide"). Off by default.

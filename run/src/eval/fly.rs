@@ -43,9 +43,8 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     let coverage = methods.iter().any(|m| match &m.kind {
         Kind::Coverage(_) => true,
         Kind::Policy(p) => p
-            .observation
-            .as_ref()
-            .is_some_and(|o| o.path_guide && o.path_guide_lambda > 0.0),
+            .configure(cfg)
+            .is_ok_and(|c| c.env.needs_path() && c.env.observation.path_guide_lambda > 0.0),
         _ => false,
     });
     let planner = crate::scenario::planner(cfg, &world, &rsrp, coverage);
