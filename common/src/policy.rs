@@ -425,7 +425,7 @@ impl PolicyWeights {
                 len(self.n_sites) == self.obs_dim
             } else {
                 let (base, per) = (len(0), len(1) - len(0));
-                self.obs_dim >= base && per > 0 && (self.obs_dim - base) % per == 0
+                self.obs_dim >= base && per > 0 && (self.obs_dim - base).is_multiple_of(per)
             };
             if !fits {
                 return Err(format!(
