@@ -402,7 +402,7 @@ impl Env {
         self.distance_to_goal_m = dist(self.position_m, episode.destination_m);
         self.path_s_m = 0.0;
         self.path_to_go_m = self.distance_to_goal_m;
-        if let Some(g) = &episode.guide {
+        if let Some(g) = episode.guide.as_ref().filter(|_| self.cfg.needs_path()) {
             let fix = g.fix(self.position_m, 0.0, self.guide_window_m());
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
@@ -612,7 +612,9 @@ impl Env {
         let path_prev = self.path_to_go_m;
         self.path_to_go_m = self.distance_to_goal_m;
         let window_m = self.guide_window_m();
-        if let Some(g) = self.episode.as_ref().and_then(|e| e.guide.as_ref()) {
+        // Tracked only when used: pool pairs carry their shortest path whether guided or not.
+        let guide = self.episode.as_ref().and_then(|e| e.guide.as_ref());
+        if let Some(g) = guide.filter(|_| self.cfg.needs_path()) {
             let fix = g.fix(to, self.path_s_m, window_m);
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
