@@ -78,6 +78,10 @@ pub struct Pair {
     /// λ of the coverage-aware planner that planned `path` (0: the shortest path).
     #[serde(skip)]
     pub path_lambda: f64,
+    /// Clearance (m) `path` was asked for: the planner's that planned it, or the guide
+    /// planner's whose attempt fell back ([`plan_path`]).
+    #[serde(skip)]
+    pub path_clearance_m: f64,
 }
 
 impl Pair {
@@ -104,28 +108,55 @@ impl Pair {
     }
 }
 
-/// Plans `pair`'s guide path unless it has one of `lambda` already: the shortest path
-/// (`lambda` = 0) or the coverage-aware one ([`Planner::coverage_aware`], which needs
-/// [`Planner::with_coverage`]).
-pub fn plan_path(planner: &Planner, pair: &mut Pair, lambda: f64) -> Result<(), PlanError> {
-    if pair.path.is_some() && pair.path_lambda == lambda {
-        return Ok(());
+/// Plans `pair`'s guide path with `guide` unless it has one of `lambda` and `guide`'s clearance
+/// already: the shortest path (`lambda` = 0) or the coverage-aware one
+/// ([`Planner::coverage_aware`], which needs [`Planner::with_coverage`]). When `guide` finds
+/// none (its clearance closes a gap the pair's own path passes), `fallback` — the planner that
+/// drew and checked the pair — plans it instead; returns whether it did.
+pub fn plan_path(
+    guide: &Planner,
+    fallback: &Planner,
+    pair: &mut Pair,
+    lambda: f64,
+) -> Result<bool, PlanError> {
+    let clearance_m = guide.free_space().clearance_m();
+    if pair.path.is_some() && pair.path_lambda == lambda && pair.path_clearance_m == clearance_m {
+        return Ok(false);
     }
-    let path = if lambda > 0.0 {
-        planner.coverage_aware(pair.source_m, pair.destination_m, lambda)?
-    } else {
-        planner.shortest(pair.source_m, pair.destination_m)?
+    let plan = |planner: &Planner| {
+        if lambda > 0.0 {
+            planner.coverage_aware(pair.source_m, pair.destination_m, lambda)
+        } else {
+            planner.shortest(pair.source_m, pair.destination_m)
+        }
+    };
+    let (path, fell_back) = match plan(guide) {
+        Ok(p) => (p, false),
+        Err(e) if std::ptr::eq(guide, fallback) => return Err(e),
+        Err(_) => (plan(fallback)?, true),
     };
     pair.path = PathGuide::new(&path.waypoints_m).map(Arc::new);
     pair.path_lambda = lambda;
-    Ok(())
+    pair.path_clearance_m = clearance_m;
+    Ok(fell_back)
 }
 
-/// [`plan_path`] for every pair, in parallel; the first failure names its pair.
-pub fn attach_paths(planner: &Planner, pairs: &mut [Pair], lambda: f64) -> Result<(), String> {
+/// [`plan_path`] for every pair, in parallel: the number of pairs `fallback` planned; the first
+/// failure names its pair.
+pub fn attach_paths(
+    guide: &Planner,
+    fallback: &Planner,
+    pairs: &mut [Pair],
+    lambda: f64,
+) -> Result<usize, String> {
     pairs
         .par_iter_mut()
-        .try_for_each(|p| plan_path(planner, p, lambda).map_err(|e| format!("pair {}: {e}", p.id)))
+        .map(|p| {
+            plan_path(guide, fallback, p, lambda)
+                .map(usize::from)
+                .map_err(|e| format!("pair {}: {e}", p.id))
+        })
+        .try_reduce(|| 0, |a, b| Ok(a + b))
 }
 
 /// What a user's pairs file may contain: [`Pair`] with `id`, `shortest_m` and `straight_m`
@@ -306,6 +337,7 @@ fn candidate(
                 bin_m,
                 path: PathGuide::new(&path.waypoints_m).map(Arc::new),
                 path_lambda: 0.0,
+                path_clearance_m: planner.free_space().clearance_m(),
             });
         }
     }
@@ -554,6 +586,7 @@ fn validate(
         bin_m: input.bin_m,
         path: planned,
         path_lambda: 0.0,
+        path_clearance_m: planner.free_space().clearance_m(),
     })
 }
 

@@ -21,7 +21,8 @@ use std::collections::BTreeMap;
 /// 4: the per-step site fields of [`EnvTrajectory`] (`env.site_every_step`).
 /// 5: [`PolicyWeights::observation`] in the weights message.
 /// 6: the path guide's keys in that observation (`env.observation.path_guide`).
-pub const SCHEMA_VERSION: u32 = 6;
+/// 7: its planned path's clearance (`env.observation.path_guide_clearance_m`).
+pub const SCHEMA_VERSION: u32 = 7;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

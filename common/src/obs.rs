@@ -8,9 +8,9 @@ use std::ops::Range;
 /// Version of the observation layout; bump on any change of order, scaling or meaning.
 /// 2: the goal direction field (`goal_direction`) and the geofence in the sensors
 /// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
-/// The optional `path_guide` field (2026-11-26, off by default) did not bump it: a layout
-/// without it is unchanged, and one with it is 4 values longer and recorded in the policy
-/// (`env.observation.path_guide`, policy file format 4).
+/// The optional `path_guide` field (2026-11-26; on by default since that evening) did not bump
+/// it: a layout without it is unchanged, and one with it is 4 values longer and recorded in the
+/// policy (`env.observation.path_guide`, policy file format 4 and later).
 pub const OBS_VERSION: u32 = 3;
 
 /// Features per site in the `site_features` field, in this order (fixed physical scales, not
@@ -240,16 +240,25 @@ mod tests {
     #[test]
     fn default_layout_is_the_documented_one() {
         let l = ObsLayout::new(&ObservationConfig::default(), 30);
-        // 3 + 3 + 3 + 1 + 3 + 1 + 3 + 26 + 30 + 30 + 1, then 30 × 11 site features (the ping-pong
-        // flag on by default)
-        assert_eq!(l.len(), 104 + 330);
-        assert_eq!(l.trunk_len(), 104);
-        assert_eq!(l.range(field::SITE_FEATURES), Some(104..434));
+        // 3 + 3 + 3 + 1 + 3 + 4 + 1 + 3 + 26 + 30 + 30 + 1, then 30 × 11 site features (the
+        // path guide and the ping-pong flag on by default)
+        assert_eq!(l.len(), 108 + 330);
+        assert_eq!(l.trunk_len(), 108);
+        assert_eq!(l.range(field::SITE_FEATURES), Some(108..438));
         assert_eq!(l.range(field::POSITION), Some(0..3));
         assert_eq!(l.range(field::GOAL_DIRECTION), Some(10..13));
-        assert_eq!(l.range(field::SENSOR_FAN), Some(17..43));
-        assert_eq!(l.range(field::SERVING_ONE_HOT), Some(43..73));
-        assert_eq!(l.range(field::RSRP_SERVING), Some(103..104));
+        assert_eq!(l.range(field::PATH_GUIDE), Some(13..17));
+        assert_eq!(l.range(field::SENSOR_FAN), Some(21..47));
+        assert_eq!(l.range(field::SERVING_ONE_HOT), Some(47..77));
+        assert_eq!(l.range(field::RSRP_SERVING), Some(107..108));
+        // Without the guide, the layout of observation version 3 before it.
+        let unguided = ObservationConfig {
+            path_guide: false,
+            ..Default::default()
+        };
+        let u = ObsLayout::new(&unguided, 30);
+        assert_eq!((u.len(), u.trunk_len()), (104 + 330, 104));
+        assert_eq!(u.range(field::SENSOR_FAN), Some(17..43));
         // Fields tile the vector without gaps.
         let mut at = 0;
         for f in l.fields() {
@@ -267,6 +276,7 @@ mod tests {
             rsrp_all: false,
             rsrp_serving: false,
             site_features: false,
+            path_guide: false,
             ..Default::default()
         };
         let l = ObsLayout::new(&cfg, 5);

@@ -2,7 +2,7 @@
 //! defaults depart from it (docs/env.md): the file must load and say exactly that.
 
 use dupac_common::config::{
-    ActionClip, Config, NearestObstacle, SensorScale, SiteGradient, SiteHead,
+    ActionClip, Config, NearestObstacle, Progress, SensorScale, SiteGradient, SiteHead,
 };
 use std::path::Path;
 
@@ -21,6 +21,7 @@ fn spec_env_toml_is_the_spec_environment() {
     assert_eq!(o.sensor_scale, SensorScale::Linear);
     assert_eq!(o.nearest_obstacle, NearestObstacle::Fan);
     assert!(!o.geofence && !o.goal_direction);
+    assert!(!o.path_guide && e.reward.progress == Progress::Straight);
     // Everything else is the default: the file changes only the departures.
     let mut spec = Config::default();
     spec.env.action_clip = ActionClip::Cube;
@@ -32,6 +33,8 @@ fn spec_env_toml_is_the_spec_environment() {
     spec.env.observation.nearest_obstacle = NearestObstacle::Fan;
     spec.env.observation.geofence = false;
     spec.env.observation.goal_direction = false;
+    spec.env.observation.path_guide = false;
+    spec.env.reward.progress = Progress::Straight;
     assert_eq!(cfg, spec);
 }
 
@@ -52,5 +55,8 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.env.observation.site_features = false;
     paper.ppo.site_head = SiteHead::Slots;
     paper.ppo.site_gradient = SiteGradient::Sampled;
+    // The path guide (a default since 2026-11-26) off: the paper's UAV has no map.
+    paper.env.observation.path_guide = false;
+    paper.env.reward.progress = Progress::Straight;
     assert_eq!(cfg, paper);
 }

@@ -21,14 +21,17 @@ use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
 /// Format 3 records the policy's observation ([`PolicyWeights::observation`]), format 4 with
-/// the path guide's keys; formats 2 and 3 are still read ([`legacy`]).
-const CHECKPOINT_VERSION: u32 = 4;
+/// the path guide's keys, format 5 with the guide's clearance; formats 2 to 4 are still read
+/// ([`legacy`]).
+const CHECKPOINT_VERSION: u32 = 5;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 4;
+const POLICY_VERSION: u32 = 5;
 /// 2026-11-24 to 2026-11-26, read without the observation.
 const FORMAT_2: u32 = 2;
 /// 2026-11-26, the observation without the path guide.
 const FORMAT_3: u32 = 3;
+/// 2026-11-26, the path guide without its clearance (it was `planner.clearance_m`).
+const FORMAT_4: u32 = 4;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -73,15 +76,36 @@ struct CheckpointFile {
 /// Files of earlier formats (bincode is not self-describing, so each old layout is spelled out
 /// once here and converted): format 2 without [`PolicyWeights::observation`], format 3 with the
 /// observation as it was before the path guide (`env.observation.path_guide`,
-/// `path_lookahead_m`, `path_guide_lambda`). The tests write old files with these types too.
+/// `path_lookahead_m`, `path_guide_lambda`), format 4 before the guide's own clearance
+/// (`path_guide_clearance_m`; it used `planner.clearance_m`, which 0 says). The tests write old
+/// files with these types too.
 mod legacy {
     use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale};
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
     use serde::Deserialize;
 
-    /// Keys of `[env.observation]` added after file format 3, whose absence means what a run
-    /// written before them did (their default: the feature off).
-    const ADDED_AFTER_FORMAT_3: [&str; 3] = ["path_guide", "path_lookahead_m", "path_guide_lambda"];
+    /// Keys of `[env.observation]` added after file format 3, with what their absence means: what
+    /// a run written before them did (the guide off; its clearance `planner.clearance_m`, 0). Not
+    /// today's defaults, which turn the guide on.
+    fn added_after_format_3() -> [(&'static str, toml::Value); 4] {
+        let off = ObservationConfig::default();
+        [
+            ("path_guide", toml::Value::Boolean(false)),
+            ("path_lookahead_m", toml::Value::Float(off.path_lookahead_m)),
+            ("path_guide_lambda", toml::Value::Float(0.0)),
+            ("path_guide_clearance_m", toml::Value::Float(0.0)),
+        ]
+    }
+
+    /// Today's observation with the guide as a file of format 3 or older meant it: off.
+    fn guide_off() -> ObservationConfig {
+        ObservationConfig {
+            path_guide: false,
+            path_guide_lambda: 0.0,
+            path_guide_clearance_m: 0.0,
+            ..ObservationConfig::default()
+        }
+    }
 
     /// `env.observation` as format 3 recorded it.
     #[derive(Deserialize)]
@@ -122,7 +146,30 @@ mod legacy {
                 site_features: self.site_features,
                 site_trend: self.site_trend,
                 site_ping_pong: self.site_ping_pong,
-                ..ObservationConfig::default()
+                ..guide_off()
+            }
+        }
+    }
+
+    /// `env.observation` as format 4 recorded it: format 3's and the guide's first three keys.
+    #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
+    pub(super) struct ObservationV4 {
+        pub(super) v3: ObservationV3,
+        pub(super) path_guide: bool,
+        pub(super) path_lookahead_m: f64,
+        pub(super) path_guide_lambda: f64,
+    }
+
+    impl ObservationV4 {
+        /// The guide's path planned with `planner.clearance_m`, as format 4's was (0).
+        pub(super) fn upgrade(self) -> ObservationConfig {
+            ObservationConfig {
+                path_guide: self.path_guide,
+                path_lookahead_m: self.path_lookahead_m,
+                path_guide_lambda: self.path_guide_lambda,
+                path_guide_clearance_m: 0.0,
+                ..self.v3.upgrade()
             }
         }
     }
@@ -148,6 +195,7 @@ mod legacy {
 
     pub(super) type PolicyWeightsV2 = PolicyWeightsOld<()>;
     pub(super) type PolicyWeightsV3 = PolicyWeightsOld<Option<ObservationV3>>;
+    pub(super) type PolicyWeightsV4 = PolicyWeightsOld<Option<ObservationV4>>;
 
     impl<O> PolicyWeightsOld<O> {
         /// The policy, with `observation`.
@@ -171,6 +219,13 @@ mod legacy {
     impl PolicyWeightsV3 {
         pub(super) fn upgrade(mut self) -> PolicyWeights {
             let o = self.observation.take().map(ObservationV3::upgrade);
+            self.with(o)
+        }
+    }
+
+    impl PolicyWeightsV4 {
+        pub(super) fn upgrade(mut self) -> PolicyWeights {
+            let o = self.observation.take().map(ObservationV4::upgrade);
             self.with(o)
         }
     }
@@ -200,24 +255,30 @@ mod legacy {
     pub(super) type CheckpointMetaV2 = CheckpointMetaOld<PolicyWeightsV2>;
     pub(super) type CheckpointFileV2 = CheckpointFileOld<PolicyWeightsV2>;
     pub(super) type CheckpointFileV3 = CheckpointFileOld<PolicyWeightsV3>;
+    pub(super) type CheckpointFileV4 = CheckpointFileOld<PolicyWeightsV4>;
 
     /// The observation a run's configuration (TOML) gives, when that is certain: every key of
     /// today's `[env.observation]` written in it (a key added since — a feature that did not
     /// exist then — would otherwise take today's default), those added after format 3 apart
-    /// (their absence means off, as it did), and the values valid. `None` else.
+    /// (their absence means what it did then: [`added_after_format_3`]), and the values valid.
+    /// `None` else.
     pub(super) fn observation_of(config_toml: &str) -> Option<ObservationConfig> {
         let table: toml::Table = toml::from_str(config_toml).ok()?;
-        let written = table.get("env")?.get("observation")?.as_table()?;
+        let mut written = table.get("env")?.get("observation")?.as_table()?.clone();
+        let added = added_after_format_3();
         let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
         if !today
             .as_table()?
             .keys()
-            .filter(|k| !ADDED_AFTER_FORMAT_3.contains(&k.as_str()))
+            .filter(|k| !added.iter().any(|(a, _)| a == k))
             .all(|k| written.contains_key(k))
         {
             return None;
         }
-        let o: ObservationConfig = written.clone().try_into().ok()?;
+        for (k, then) in added {
+            written.entry(k).or_insert(then);
+        }
+        let o: ObservationConfig = written.try_into().ok()?;
         o.validate().ok()?;
         Some(o)
     }
@@ -285,6 +346,17 @@ fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, Checkpo
             codec::decode::<legacy::CheckpointFileV3>(
                 CHECKPOINT_MAGIC,
                 FORMAT_3,
+                bytes,
+                MAX_FILE_BYTES,
+                what,
+            )
+            .map(|c| c.upgrade(|p, _| p.upgrade()))
+            .map_err(CheckpointError::from)
+        }
+        Err(CodecError::Version { got: FORMAT_4, .. }) => {
+            codec::decode::<legacy::CheckpointFileV4>(
+                CHECKPOINT_MAGIC,
+                FORMAT_4,
                 bytes,
                 MAX_FILE_BYTES,
                 what,
@@ -427,6 +499,16 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
                 )?
                 .upgrade()
             }
+            Err(CodecError::Version { got: FORMAT_4, .. }) => {
+                codec::decode::<legacy::PolicyWeightsV4>(
+                    POLICY_MAGIC,
+                    FORMAT_4,
+                    &bytes,
+                    MAX_FILE_BYTES,
+                    &what,
+                )?
+                .upgrade()
+            }
             r => r.map_err(older_format)?,
         }
     };
@@ -442,7 +524,8 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 #[cfg(test)]
 mod tests {
     use super::legacy::{
-        CheckpointFileV2, CheckpointMetaV2, ObservationV3, PolicyWeightsOld, PolicyWeightsV2,
+        CheckpointFileV2, CheckpointMetaV2, ObservationV3, ObservationV4, PolicyWeightsOld,
+        PolicyWeightsV2,
     };
     use super::*;
     use crate::learner::Learner;
@@ -516,6 +599,30 @@ mod tests {
         }
     }
 
+    /// `p` as file format 4 wrote it (the path guide without its clearance).
+    fn v4(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV4>> {
+        let o = p.observation.clone();
+        let v3 = v3(p);
+        PolicyWeightsOld {
+            version: v3.version,
+            obs_version: v3.obs_version,
+            obs_dim: v3.obs_dim,
+            n_sites: v3.n_sites,
+            actor: v3.actor,
+            critic: v3.critic,
+            site_head: v3.site_head,
+            log_std: v3.log_std,
+            obs_norm: v3.obs_norm,
+            reward_scaler: v3.reward_scaler,
+            observation: v3.observation.zip(o).map(|(v3, o)| ObservationV4 {
+                v3,
+                path_guide: o.path_guide,
+                path_lookahead_m: o.path_lookahead_m,
+                path_guide_lambda: o.path_guide_lambda,
+            }),
+        }
+    }
+
     /// A format-2 checkpoint of `p` whose configuration is `config_toml`, loaded.
     fn load_v2_checkpoint(p: &PolicyWeights, config_toml: String) -> LoadedCheckpoint {
         let file = CheckpointFileV2 {
@@ -551,6 +658,11 @@ mod tests {
         cfg.env.reward.ping_pong_reward = 0.0;
         cfg.env.observation.site_trend = true;
         cfg.env.site_every_step = false;
+        // Unguided, as a file of format 3 or older reads (the guide off, λ 0, clearance 0).
+        cfg.env.observation.path_guide = false;
+        cfg.env.observation.path_guide_lambda = 0.0;
+        cfg.env.observation.path_guide_clearance_m = 0.0;
+        cfg.env.reward.progress = dupac_common::config::Progress::Straight;
         cfg.validate().expect("valid");
         let p = learner(&cfg).policy();
         assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
@@ -609,6 +721,21 @@ mod tests {
         let ck = load_checkpoint(&ck_path).expect("a format-3 checkpoint loads");
         assert_eq!(ck.meta.policy, p);
         assert_eq!(ck.meta.update, 2);
+
+        // Format 4 (the guide without its clearance) loads, its guide planned with
+        // `planner.clearance_m` (0) as it was — a guided policy too.
+        let mut guided_cfg = small();
+        guided_cfg.env.observation.path_guide_clearance_m = 5.0;
+        let guided = learner(&guided_cfg).policy();
+        assert!(guided.observation.as_ref().is_some_and(|o| o.path_guide));
+        let bytes = codec::encode(POLICY_MAGIC, FORMAT_4, &v4(&guided), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let v4_policy = load_policy(&path).expect("a format-4 policy loads");
+        let mut want = guided.clone();
+        if let Some(o) = want.observation.as_mut() {
+            o.path_guide_clearance_m = 0.0;
+        }
+        assert_eq!(v4_policy, want);
 
         // Format 1 is refused by name.
         let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");
@@ -670,6 +797,25 @@ mod tests {
             .replace("rsrp_scale_db = 17.0", "rsrp_scale_db = -1.0");
         let ck = load_v2_checkpoint(&p, bad);
         assert_eq!(ck.meta.policy.observation, None);
+        // Written before the path guide existed: its absent keys mean the guide off (λ 0,
+        // `planner.clearance_m`), as it was then, not today's defaults (on).
+        let mut unguided = cfg.clone();
+        unguided.env.observation.path_guide = false;
+        unguided.env.observation.path_guide_lambda = 0.0;
+        unguided.env.observation.path_guide_clearance_m = 0.0;
+        unguided.env.reward.progress = dupac_common::config::Progress::Straight;
+        let pu = learner(&unguided).policy();
+        let before_guide: String = unguided
+            .to_toml_string()
+            .lines()
+            .filter(|l| !(l.starts_with("path_guide") || l.starts_with("path_lookahead_m")))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let ck = load_v2_checkpoint(&pu, before_guide);
+        assert_eq!(
+            ck.meta.policy.observation.as_ref(),
+            Some(&unguided.env.observation)
+        );
     }
 
     #[test]

@@ -37,53 +37,163 @@ pub fn world_and_cache(
     Ok((world, Arc::new(cache)))
 }
 
-/// The planner of the world's city, with the per-voxel coverage classes
-/// ([`Planner::with_coverage`]) when `coverage` or when `cfg`'s episodes are guided along the
-/// coverage-aware path (`env.observation.path_guide_lambda` > 0).
-pub fn planner<'w>(
-    cfg: &Config,
-    world: &'w RadioWorld,
-    rsrp: &SharedRsrp,
-    coverage: bool,
-) -> Planner<'w> {
-    let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
-    if coverage || (cfg.env.needs_path() && cfg.env.observation.path_guide_lambda > 0.0) {
-        planner.with_coverage(rsrp.as_ref(), RsrpThresholds::from_config(&cfg.radio));
+/// The clearance (m) of the path `cfg`'s episodes are guided along:
+/// `env.observation.path_guide_clearance_m`, or `planner.clearance_m` where that is 0.
+pub fn guide_clearance_m(cfg: &Config) -> f64 {
+    match cfg.env.observation.path_guide_clearance_m {
+        c if c > 0.0 => c,
+        _ => cfg.planner.clearance_m,
     }
-    planner
+}
+
+/// The planners of a process over the world's city: `pairs`, with `planner.clearance_m`, draws
+/// and checks the pairs and plans the planner methods; one guide planner per other guide
+/// clearance in use ([`guide_clearance_m`]) plans the episodes' guide paths (docs/env.md "Path
+/// guide"). The per-voxel coverage classes ([`Planner::with_coverage`]) are computed once, on
+/// the first planner that needs them, and shared with the others.
+pub struct Planners<'w> {
+    /// `planner.clearance_m`: the pairs, their checks, the planner methods.
+    pub pairs: Planner<'w>,
+    /// (clearance (m), planner) for each guide clearance other than `pairs`'s.
+    guides: Vec<(f64, Planner<'w>)>,
+}
+
+impl<'w> Planners<'w> {
+    /// The planners for `cfg`'s episodes and for those of `flown` (the configurations policies
+    /// are flown with, [`dupac_common::policy::PolicyWeights::configure`]); `coverage`: the
+    /// pairs' planner needs the classes too (the coverage-aware planner methods).
+    pub fn new(
+        cfg: &Config,
+        flown: &[Config],
+        world: &'w RadioWorld,
+        rsrp: &SharedRsrp,
+        coverage: bool,
+    ) -> Self {
+        let pairs_clearance_m = cfg.planner.clearance_m;
+        // (clearance, whether a coverage-aware guide plans with it), the pairs' first.
+        let mut want: Vec<(f64, bool)> = vec![(pairs_clearance_m, coverage)];
+        for c in std::iter::once(cfg).chain(flown) {
+            if !c.env.needs_path() {
+                continue;
+            }
+            let (clearance_m, cov) = (
+                guide_clearance_m(c),
+                c.env.observation.path_guide_lambda > 0.0,
+            );
+            match want.iter_mut().find(|(x, _)| *x == clearance_m) {
+                Some(w) => w.1 |= cov,
+                None => want.push((clearance_m, cov)),
+            }
+        }
+        let mut built: Vec<(f64, bool, Planner<'w>)> = want
+            .into_iter()
+            .map(|(clearance_m, cov)| {
+                let pc = dupac_common::config::PlannerConfig {
+                    clearance_m,
+                    ..cfg.planner.clone()
+                };
+                (clearance_m, cov, Planner::new(&world.city, &cfg.env, &pc))
+            })
+            .collect();
+        if let Some(k) = built.iter().position(|b| b.1) {
+            let thresholds = RsrpThresholds::from_config(&cfg.radio);
+            built[k].2.with_coverage(rsrp.as_ref(), thresholds);
+            let need: Vec<usize> = (0..built.len()).filter(|&j| j != k && built[j].1).collect();
+            for j in need {
+                let (to, from) = if j < k {
+                    let (a, b) = built.split_at_mut(k);
+                    (&mut a[j].2, &b[0].2)
+                } else {
+                    let (a, b) = built.split_at_mut(j);
+                    (&mut b[0].2, &a[k].2)
+                };
+                if !to.share_coverage(from) {
+                    to.with_coverage(rsrp.as_ref(), thresholds);
+                }
+            }
+        }
+        let mut it = built.into_iter().map(|(c, _, p)| (c, p));
+        let (_, pairs) = it.next().expect("the pairs' planner is built first");
+        Planners {
+            pairs,
+            guides: it.collect(),
+        }
+    }
+
+    /// The planner of `cfg`'s guide paths (its [`guide_clearance_m`]); refused when these
+    /// planners were not built for it.
+    pub fn guide(&self, cfg: &Config) -> Result<&Planner<'w>, RunError> {
+        let clearance_m = guide_clearance_m(cfg);
+        if clearance_m == self.pairs.free_space().clearance_m() {
+            return Ok(&self.pairs);
+        }
+        self.guides
+            .iter()
+            .find(|(c, _)| *c == clearance_m)
+            .map(|(_, p)| p)
+            .ok_or_else(|| {
+                RunError::Refused(format!(
+                    "no guide planner of clearance {clearance_m} m was built (env.observation.path_guide_clearance_m)"
+                ))
+            })
+    }
 }
 
 /// Gives every pair the planned path `cfg`'s episodes are guided along (docs/env.md "Path
-/// guide"); nothing when they need none.
-pub fn guide_pairs(cfg: &Config, planner: &Planner, pairs: &mut [Pair]) -> Result<(), RunError> {
+/// guide"); nothing when they need none. A pair the guide's clearance cannot join is guided
+/// along the path of the pairs' clearance, and the count is logged.
+pub fn guide_pairs(cfg: &Config, planners: &Planners, pairs: &mut [Pair]) -> Result<(), RunError> {
     if !cfg.env.needs_path() {
         return Ok(());
     }
-    attach_paths(planner, pairs, cfg.env.observation.path_guide_lambda)
-        .map_err(|e| RunError::Refused(format!("planning the episodes' guide paths: {e}")))
+    let guide = planners.guide(cfg)?;
+    let fell_back = attach_paths(
+        guide,
+        &planners.pairs,
+        pairs,
+        cfg.env.observation.path_guide_lambda,
+    )
+    .map_err(|e| RunError::Refused(format!("planning the episodes' guide paths: {e}")))?;
+    if fell_back > 0 {
+        tracing::warn!(
+            pairs = fell_back,
+            of = pairs.len(),
+            guide_clearance_m = guide_clearance_m(cfg),
+            planner_clearance_m = cfg.planner.clearance_m,
+            "no guide path with the guide's clearance: these pairs are guided along the path of planner.clearance_m"
+        );
+    }
+    Ok(())
 }
 
-/// The episode of `p` as `cfg`'s environment flies it: with the guide path of `cfg`'s λ,
-/// planned now when `p` has another (a policy is flown with the observation it recorded, which
-/// may ask for another guide than the pairs were given).
-pub fn episode(cfg: &Config, planner: &Planner, p: &Pair) -> Result<Episode, RunError> {
+/// The episode of `p` as `cfg`'s environment flies it: with the guide path of `cfg`'s λ and
+/// clearance, planned now when `p` has another (a policy is flown with the observation it
+/// recorded, which may ask for another guide than the pairs were given).
+pub fn episode(cfg: &Config, planners: &Planners, p: &Pair) -> Result<Episode, RunError> {
     let lambda = cfg.env.observation.path_guide_lambda;
-    if !cfg.env.needs_path() || (p.path.is_some() && p.path_lambda == lambda) {
+    let has =
+        p.path.is_some() && p.path_lambda == lambda && p.path_clearance_m == guide_clearance_m(cfg);
+    if !cfg.env.needs_path() || has {
         return Ok(p.episode(false));
     }
     let mut q = p.clone();
-    plan_path(planner, &mut q, lambda)
+    plan_path(planners.guide(cfg)?, &planners.pairs, &mut q, lambda)
         .map_err(|e| RunError::Refused(format!("pair {}: planning its guide path: {e}", p.id)))?;
     Ok(q.episode(false))
 }
 
 /// The held-out evaluation pairs: `pairs.eval_file` when it exists, else generated and written
 /// there; guided as `cfg`'s episodes are ([`guide_pairs`]).
-pub fn held_out_pairs(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Vec<Pair>, RunError> {
+pub fn held_out_pairs(
+    cfg: &Config,
+    planners: &Planners,
+    quiet: bool,
+) -> Result<Vec<Pair>, RunError> {
     let file = &cfg.pairs.eval_file;
+    let planner = &planners.pairs;
     if file.exists() {
         let mut pairs = read_pairs_jsonl(file, planner, &cfg.pairs)?;
-        guide_pairs(cfg, planner, &mut pairs)?;
+        guide_pairs(cfg, planners, &mut pairs)?;
         return Ok(pairs);
     }
     let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
@@ -91,7 +201,7 @@ pub fn held_out_pairs(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Ve
     let mut pairs = eval_pairs(planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
     pb.finish_and_clear();
     write_pairs_jsonl(file, &pairs)?;
-    guide_pairs(cfg, planner, &mut pairs)?;
+    guide_pairs(cfg, planners, &mut pairs)?;
     eprintln!("wrote {} held-out pairs to {}", pairs.len(), file.display());
     Ok(pairs)
 }
@@ -101,16 +211,16 @@ pub fn held_out_pairs(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Ve
 pub fn read_eval_pairs(
     cfg: &Config,
     file: Option<&PathBuf>,
-    planner: &Planner,
+    planners: &Planners,
 ) -> Result<(PathBuf, Vec<Pair>), RunError> {
     let file = file.cloned().unwrap_or_else(|| cfg.pairs.eval_file.clone());
-    let mut pairs = read_pairs_jsonl(&file, planner, &cfg.pairs).context_with(|| {
+    let mut pairs = read_pairs_jsonl(&file, &planners.pairs, &cfg.pairs).context_with(|| {
         format!(
             "reading pairs {} (make them with `dupac pairs`)",
             file.display()
         )
     })?;
-    guide_pairs(cfg, planner, &mut pairs)?;
+    guide_pairs(cfg, planners, &mut pairs)?;
     Ok((file, pairs))
 }
 
@@ -124,10 +234,10 @@ pub fn spread(pairs: &[Pair], n: usize) -> Vec<Pair> {
 
 /// The training pool (`train.pool_size` pairs from `train.seed`), guided as `cfg`'s episodes
 /// are ([`guide_pairs`]).
-pub fn make_pool(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Vec<Pair>, RunError> {
+pub fn make_pool(cfg: &Config, planners: &Planners, quiet: bool) -> Result<Vec<Pair>, RunError> {
     let pb = progress_bar(cfg.train.pool_size as u64, "training pairs", quiet);
     let mut pool = training_pool(
-        planner,
+        &planners.pairs,
         &cfg.pairs,
         &cfg.env,
         cfg.train.pool_size,
@@ -141,6 +251,6 @@ pub fn make_pool(cfg: &Config, planner: &Planner, quiet: bool) -> Result<Vec<Pai
                 .into(),
         ));
     }
-    guide_pairs(cfg, planner, &mut pool)?;
+    guide_pairs(cfg, planners, &mut pool)?;
     Ok(pool)
 }

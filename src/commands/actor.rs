@@ -41,15 +41,15 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let cfg = super::run_args::resolve_config(global, args.association, None)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
-    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
+    let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
     let pool = match &args.pool {
         Some(p) => {
-            let mut pool = read_pairs_jsonl(p, &planner, &cfg.pairs)
+            let mut pool = read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
                 .with_context(|| format!("--pool {}", p.display()))?;
-            dupac_run::scenario::guide_pairs(&cfg, &planner, &mut pool)?;
+            dupac_run::scenario::guide_pairs(&cfg, &planners, &mut pool)?;
             pool
         }
-        None => make_pool(&cfg, &planner, global.quiet)?,
+        None => make_pool(&cfg, &planners, global.quiet)?,
     };
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let opts = ActorOptions {

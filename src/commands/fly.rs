@@ -112,8 +112,8 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         Some(wr) => wr,
         None => world_and_cache(&cfg, global.quiet)?,
     };
-    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
-    let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planner)?;
+    let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
+    let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planners)?;
     let p = pairs.get(args.pair).ok_or_else(|| {
         anyhow!(
             "{}: --pair {} but the file has {} pairs",
@@ -142,7 +142,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
 
     // The shortest flyable path flown with A3, for comparison.
-    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planner, p)?;
+    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planners.pairs, p)?;
 
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
     let r0 = env_rsrp_at(rsrp.as_ref(), &world, p.source_m);

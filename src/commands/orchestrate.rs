@@ -35,12 +35,17 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
 
     // Everything the children would otherwise each compute (and race on): built once here.
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
-    let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
-    held_out_pairs(&cfg, &planner, global.quiet)?;
+    // The pairs only: their files carry no guide path (each actor plans its pool's), so none is
+    // planned here (an unguided configuration: no coverage classes either).
+    let mut unguided = cfg.clone();
+    unguided.env.observation.path_guide = false;
+    unguided.env.reward.progress = dupac_common::config::Progress::Straight;
+    let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+    held_out_pairs(&unguided, &planners, global.quiet)?;
     let pool_path = out.join("train_pool.jsonl");
-    let pool = make_pool(&cfg, &planner, global.quiet)?;
+    let pool = make_pool(&unguided, &planners, global.quiet)?;
     write_pairs_jsonl(&pool_path, &pool)?;
-    drop((planner, pool));
+    drop((planners, pool));
     drop(world);
 
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -45,19 +45,19 @@ impl Training {
         let device = device(run.device)?;
         let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
         let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
-        let planner = dupac_run::scenario::planner(&cfg, &world, &rsrp, false);
+        let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
         let eval_set = spread(
-            &held_out_pairs(&cfg, &planner, global.quiet)?,
+            &held_out_pairs(&cfg, &planners, global.quiet)?,
             cfg.train.eval_pairs,
         );
         let local = match local {
             true => {
-                let pool = Arc::new(make_pool(&cfg, &planner, global.quiet)?);
+                let pool = Arc::new(make_pool(&cfg, &planners, global.quiet)?);
                 Some(LocalWorkers::new(&cfg, &world, &rsrp, &pool)?)
             }
             false => None,
         };
-        drop(planner);
+        drop(planners);
         let mut learner = Learner::new(cfg.clone(), obs_dim, n_sites, &device);
         if let Some(ck) = &checkpoint {
             learner.restore(&device, ck)?;

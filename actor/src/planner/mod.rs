@@ -39,7 +39,7 @@ use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use rayon::prelude::*;
 use search::{Scratch, SearchSpec};
 use smooth::CostField;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// A flyable path: straight segments between waypoints (m, local ENU frame).
 #[derive(Debug, Clone, PartialEq)]
@@ -139,7 +139,7 @@ pub struct Planner<'a> {
     city: &'a City,
     free: FreeSpace,
     /// Per-voxel class code of the best site's RSRP (see [`Planner::with_coverage`]).
-    classes: Option<Vec<u8>>,
+    classes: Option<Arc<Vec<u8>>>,
     /// Penalty per metre by class code (excellent 0, `penalty_mediocre`, `penalty_poor`).
     penalties: [f64; 3],
     scratch: Mutex<Vec<Scratch>>,
@@ -261,7 +261,32 @@ impl<'a> Planner<'a> {
                     *o = class_code(thresholds.classify(best));
                 }
             });
-        self.classes = Some(classes);
+        self.classes = Some(Arc::new(classes));
+    }
+
+    /// Takes `other`'s coverage classes ([`Planner::with_coverage`]) without computing them again
+    /// when both planners share one lattice (the same city, band and voxel: the lattice does not
+    /// depend on the clearance); `false` (nothing taken) otherwise or when `other` has none.
+    pub fn share_coverage(&mut self, other: &Planner) -> bool {
+        let (a, b) = (&self.free, &other.free);
+        let n = a.num_voxels();
+        let same = a.dims() == b.dims()
+            && n == b.num_voxels()
+            && n > 0
+            && a.centre_m(0) == b.centre_m(0)
+            && a.centre_m((n - 1) as u32) == b.centre_m((n - 1) as u32);
+        match &other.classes {
+            Some(c) if same => {
+                self.classes = Some(c.clone());
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Whether the coverage classes are here ([`Planner::with_coverage`]).
+    pub fn has_coverage(&self) -> bool {
+        self.classes.is_some()
     }
 
     /// Fractions of lattice points per class `[excellent, mediocre, poor]` among the free ones,
@@ -292,7 +317,11 @@ impl<'a> Planner<'a> {
         if !(lambda.is_finite() && lambda >= 0.0) {
             return Err(PlanError::BadLambda(lambda));
         }
-        let classes = self.classes.as_deref().ok_or(PlanError::NoCoverage)?;
+        let classes = self
+            .classes
+            .as_deref()
+            .map(Vec::as_slice)
+            .ok_or(PlanError::NoCoverage)?;
         if lambda == 0.0 {
             return self.plan(source_m, destination_m, None);
         }

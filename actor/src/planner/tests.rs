@@ -317,7 +317,7 @@ fn coverage_aware_never_costs_more_than_shortest() {
         let aware = p.coverage_aware(s, t, lambda).expect("coverage-aware");
         check_path(&p, &aware, s, t);
         fly_like_env(&c, &aware);
-        let classes = p.classes.as_deref().expect("classes");
+        let classes = p.classes.as_deref().expect("classes").as_slice();
         let field = CostField::new(
             p.free_space(),
             Some((classes, p.penalties.map(|q| 1.0 + lambda * q))),

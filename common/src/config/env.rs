@@ -135,9 +135,9 @@ pub struct RewardConfig {
 #[serde(rename_all = "snake_case")]
 pub enum Progress {
     /// Straight-line distance to the destination (paper Eq. 8).
-    #[default]
     Straight,
-    /// Distance still to fly along the episode's planned shortest path.
+    /// Distance still to fly along the episode's planned path (the default since 2026-11-26).
+    #[default]
     Path,
 }
 
@@ -154,7 +154,7 @@ impl Default for RewardConfig {
             ping_pong_reward: -8.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
-            progress: Progress::Straight,
+            progress: Progress::Path,
         }
     }
 }
@@ -223,15 +223,24 @@ pub struct ObservationConfig {
     /// fly / `goal_scale_m`.
     /// Map knowledge the paper's UAV does not have (its sensors see 50 m): a departure against
     /// the timeouts of a reactive policy stuck behind a building (issue 15; docs/env.md "Path
-    /// guide"). Off by default.
+    /// guide"). On by default since 2026-11-26, by the rule written before its runs
+    /// (`results/issue15/guide/RULE.md`); `docs/paper_dupac.toml` turns it off.
     pub path_guide: bool,
     /// How far along the planned path the guide's direction points (m).
     pub path_lookahead_m: f64,
     /// The planned path of the guide (and of `env.reward.progress = "path"`): 0 = the shortest
     /// flyable path; λ > 0 = the coverage-aware planner's path with this λ (`planner.penalty_*`),
     /// so the guide leads through coverage as the planner would (map and coverage knowledge: a
-    /// further departure; docs/env.md "Path guide").
+    /// further departure; docs/env.md "Path guide"). Default 1.
     pub path_guide_lambda: f64,
+    /// Clearance (m) from the building mesh of the guide's planned path: the planner is built
+    /// with this clearance for the guide alone (`planner.clearance_m`, 1.5 m, keeps drawing the
+    /// pairs and planning the planner methods). 0 = `planner.clearance_m` (what file format 4
+    /// recorded, and how its policies are flown). A pair whose guide cannot be planned with it
+    /// is guided along the path planned with `planner.clearance_m` instead (counted in the log).
+    /// Default 5 m: paths that pass buildings at 1.5 m taught the policy to squeeze past them
+    /// and doubled the collisions (issue 15; docs/env.md "Path guide").
+    pub path_guide_clearance_m: f64,
 }
 
 impl EnvConfig {
@@ -260,9 +269,10 @@ impl Default for ObservationConfig {
             site_features: true,
             site_trend: false,
             site_ping_pong: true,
-            path_guide: false,
+            path_guide: true,
             path_lookahead_m: 30.0,
-            path_guide_lambda: 0.0,
+            path_guide_lambda: 1.0,
+            path_guide_clearance_m: 5.0,
         }
     }
 }
@@ -542,6 +552,13 @@ impl ObservationConfig {
             "",
         )?;
         within(
+            "env.observation.path_guide_clearance_m",
+            o.path_guide_clearance_m,
+            0.0,
+            100.0,
+            "m (0 = planner.clearance_m)",
+        )?;
+        within(
             "env.observation.path_lookahead_m",
             o.path_lookahead_m,
             0.0,
@@ -584,6 +601,13 @@ impl PlannerConfig {
         positive("planner.voxel_m", pl.voxel_m)?;
         if !(pl.clearance_m.is_finite() && pl.clearance_m >= e.uav_radius_m) {
             return Err(bad("planner.clearance_m", "must be >= env.uav_radius_m"));
+        }
+        let g = e.observation.path_guide_clearance_m;
+        if g != 0.0 && g < e.uav_radius_m {
+            return Err(bad(
+                "env.observation.path_guide_clearance_m",
+                "must be 0 (planner.clearance_m) or >= env.uav_radius_m",
+            ));
         }
         for (k, v) in [
             ("planner.lambda", pl.lambda),

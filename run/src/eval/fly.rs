@@ -5,14 +5,13 @@ use super::records::{RecordsFile, write_records};
 use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight, refused, select};
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
-use crate::scenario::{SharedRsrp, read_eval_pairs, world_and_cache};
+use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
 use dupac_actor::env::{Env, Outcome};
 use dupac_actor::eval::{
     FlightRecord, NOISE_PER_RE_DBM, StepRecord, hindsight_association, sinr_db,
 };
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::planner::Planner;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, Config};
@@ -39,16 +38,19 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .map(|h| parse_hindsight(h, window))
         .collect::<Result<Vec<_>, RunError>>()?;
     let (world, rsrp) = world_and_cache(cfg, quiet)?;
-    // Coverage classes for the coverage-aware planner, and for a policy guided along its path.
-    let coverage = methods.iter().any(|m| match &m.kind {
-        Kind::Coverage(_) => true,
-        Kind::Policy(p) => p
-            .configure(cfg)
-            .is_ok_and(|c| c.env.needs_path() && c.env.observation.path_guide_lambda > 0.0),
-        _ => false,
-    });
-    let planner = crate::scenario::planner(cfg, &world, &rsrp, coverage);
-    let (file, pairs) = read_eval_pairs(cfg, args.pairs.as_ref(), &planner)?;
+    // Coverage classes for the coverage-aware planner; the guide planners of the policies'
+    // flown configurations (a policy is flown guided as it was trained).
+    let coverage = methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_)));
+    let flown: Vec<Config> = methods
+        .iter()
+        .filter_map(|m| match &m.kind {
+            Kind::Policy(p) => p.configure(cfg).ok(),
+            _ => None,
+        })
+        .collect();
+    let planners = crate::scenario::Planners::new(cfg, &flown, &world, &rsrp, coverage);
+    let planner = &planners.pairs;
+    let (file, pairs) = read_eval_pairs(cfg, args.pairs.as_ref(), &planners)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         return Err(refused!("{}: no pairs", file.display()));
@@ -155,7 +157,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             .par_iter()
             .zip(&shortest)
             .map(|(p, sp)| {
-                let r = fly_one(&mcfg, &world, &rsrp, &planner, method, p, sp.as_deref());
+                let r = fly_one(&mcfg, &world, &rsrp, &planners, method, p, sp.as_deref());
                 pb.inc(1);
                 r
             })
@@ -165,7 +167,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         // best-RSRP oracle choosing the site, so the report separates route from association.
         let replays = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
-                let ctx = (cfg, &world, &rsrp, &planner);
+                let ctx = (cfg, &world, &rsrp, &planners);
                 replay_associations(ctx, method, &pairs, &flights, &hindsight)?
             }
             _ => Vec::new(),
@@ -197,7 +199,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
 /// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
 /// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
 fn replay_associations(
-    (cfg, world, rsrp, planner): (&Config, &Arc<RadioWorld>, &SharedRsrp, &Planner),
+    (cfg, world, rsrp, planners): (&Config, &Arc<RadioWorld>, &SharedRsrp, &Planners),
     method: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
@@ -238,7 +240,7 @@ fn replay_associations(
                         .iter()
                         .map(|s| Point::from(s.position_m.map(f64::from)))
                         .collect();
-                    fly_one(&rcfg, world, rsrp, planner, &replay, p, Some(&w))
+                    fly_one(&rcfg, world, rsrp, planners, &replay, p, Some(&w))
                 })
                 .collect::<Result<Vec<_>, RunError>>()?;
             Ok((label, v))
@@ -251,14 +253,14 @@ fn fly_one(
     cfg: &Config,
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
-    planner: &Planner,
+    planners: &Planners,
     method: &Method,
     p: &Pair,
     // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let episode = crate::scenario::episode(cfg, planner, p)?;
+    let episode = crate::scenario::episode(cfg, planners, p)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
@@ -287,7 +289,8 @@ fn fly_one(
             .steps
         }
         Kind::Coverage(l) => {
-            let path = planner
+            let path = planners
+                .pairs
                 .coverage_aware(p.source_m, p.destination_m, *l)
                 .context_with(|| format!("pair {}: coverage-aware path (λ = {l})", p.id))?;
             fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
