@@ -1,11 +1,13 @@
 //! Environment steps per second per core on the default Midtown scenario with the cached radio
-//! map and the full sensor fan (issue 3 target ≥ 50 k steps/s/core, goal ≥ 100 k).
+//! map and the full sensor fan (issue 3 target ≥ 50 k steps/s/core, goal ≥ 100 k). Each episode
+//! has its shortest flyable path as its guide (the path guide is on by default since
+//! 2026-11-26: the step tracks the UAV's place on it and observes it).
 //!
 //! Run: `cargo bench --bench env` (from the repository root; builds `out/cache/rsrp.bin` once
 //! if it is missing, ≈ 30 s).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use dupac_actor::env::{Action, Env, Episode};
+use dupac_actor::env::{Action, Env, Episode, PathGuide};
 use dupac_common::geometry::Point;
 use dupac_common::{Config, SiteId};
 use dupac_radio::cache::RsrpCache;
@@ -31,12 +33,18 @@ fn benches(c: &mut Criterion) {
             return p;
         }
     };
-    let episodes: Vec<Episode> = (0..64)
-        .map(|_| {
-            let (s, d) = (free(), free());
-            Episode::new(s, d, 800.0)
-        })
-        .collect();
+    let planner = dupac_actor::planner::Planner::new(&world.city, &cfg.env, &cfg.planner);
+    let mut episodes: Vec<Episode> = Vec::new();
+    while episodes.len() < 64 {
+        let (s, d) = (free(), free());
+        if let Ok(path) = planner.shortest(s, d) {
+            episodes.push(Episode {
+                guide: PathGuide::new(&path.waypoints_m).map(Arc::new),
+                ..Episode::new(s, d, path.length_m)
+            });
+        }
+    }
+    drop(planner);
 
     for (name, radio) in [("cache", true), ("exact", false)] {
         let rsrp: Arc<dyn dupac_radio::cache::RsrpSource + Send + Sync> =

@@ -51,8 +51,17 @@ fn site(id: u16, xyz: Point) -> Site {
 
 /// 400 m square; a 60 m block at x ∈ [50, 70]; a 1 m thin part at x ∈ [−50, −49], y ∈ [−20, 20],
 /// 0–100 m; two sites.
+/// Today's defaults with the path guide off and the paper's straight-line progress: these tests
+/// fly hand-made episodes without a planned path (the guide has its own test below).
+fn unguided() -> Config {
+    let mut cfg = Config::default();
+    cfg.env.observation.path_guide = false;
+    cfg.env.reward.progress = dupac_common::config::Progress::Straight;
+    cfg
+}
+
 fn world() -> Arc<RadioWorld> {
-    let cfg = Config::default();
+    let cfg = unguided();
     let city = City::from_buildings(
         "test",
         Bounds2::new(-200.0, -200.0, 200.0, 200.0),
@@ -83,7 +92,7 @@ fn paper_reward(cfg: &mut Config) {
 }
 
 fn env_with(assoc: Association, f: fn(usize, Point) -> f64) -> Env {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = assoc;
     paper_reward(&mut cfg);
     Env::new(&cfg, world(), Arc::new(Field(f, 2))).expect("env")
@@ -167,7 +176,7 @@ fn collision_with_a_wall_stops_at_contact_and_terminates() {
     let s = last.expect("must hit the wall at x = 50");
     assert_eq!(s.info.outcome, Some(Outcome::Collision));
     assert!(!s.truncated);
-    assert_eq!(s.reward, Config::default().env.reward.collision_reward);
+    assert_eq!(s.reward, unguided().env.reward.collision_reward);
     assert!(
         (s.info.position_m[0] - 49.5).abs() < 1e-3,
         "{:?}",
@@ -237,7 +246,7 @@ fn altitude_band_is_a_clamp_and_leaving_the_area_terminates() {
     let s = e.step(&mv(-1.0, 0.0, 0.0, 0)).expect("step");
     assert_eq!(s.info.outcome, Some(Outcome::OutOfBounds));
     assert!(s.terminated);
-    assert_eq!(s.reward, Config::default().env.reward.out_of_bounds_reward);
+    assert_eq!(s.reward, unguided().env.reward.out_of_bounds_reward);
 }
 
 #[test]
@@ -321,7 +330,7 @@ fn the_minimum_time_of_stay_leaves_no_ping_pong() {
     // 20.8 m/s) each handover comes ≥ 22 steps after the last, later choices are ignored
     // meanwhile, and no handover is a ping-pong (window 1 s). Without it, every step hands over.
     let run = |mts_s: f64| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.association = Association::Learned;
         cfg.env.min_time_of_stay_s = mts_s;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
@@ -378,7 +387,7 @@ fn handovers_and_ping_pongs_are_counted() {
 #[test]
 fn same_episode_and_actions_give_a_bit_identical_trajectory() {
     let w = world();
-    let cfg = Config::default();
+    let cfg = unguided();
     let run = |src: Point| {
         let mut e = Env::new(&cfg, w.clone(), w.clone()).expect("env");
         e.reset(7, ep(src, Point::new(0.0, 150.0, 60.0)))
@@ -478,7 +487,7 @@ fn bad_input_is_an_error_not_a_panic() {
 fn observation_layout_holds_what_it_documents() {
     // The spec's sensors (linear scale, c_t from the fan) for the values below; the defaults'
     // exact nearest surface and log scale are checked at the end.
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
     cfg.env.observation.nearest_obstacle = dupac_common::config::NearestObstacle::Fan;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
@@ -545,7 +554,7 @@ fn observation_layout_holds_what_it_documents() {
 #[test]
 fn ball_clip_caps_every_move_at_max_step_while_cube_clips_per_axis() {
     let run = |clip: ActionClip, a: Vector| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.action_clip = clip;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
         e.reset(
@@ -578,7 +587,7 @@ fn ball_clip_caps_every_move_at_max_step_while_cube_clips_per_axis() {
 
 #[test]
 fn goal_direction_is_the_unit_vector_to_the_destination() {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.observation.goal_direction = true;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
     e.reset(
@@ -615,7 +624,7 @@ fn goal_direction_is_the_unit_vector_to_the_destination() {
 #[test]
 fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     let make = |repeat: u32| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.action_repeat = repeat;
         cfg.env.action_clip = ActionClip::Ball;
         Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env")
@@ -696,7 +705,7 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
             -90.0 + 0.5 * p[1]
         }
     };
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     cfg.env.observation.site_trend = true;
     let per_site = site_features_per_site(&cfg.env.observation);
@@ -739,7 +748,7 @@ fn site_trend_is_the_rsrp_change_over_one_decision() {
     .expect("reset");
     assert_eq!(trend(&e), [0.0, 0.0]);
     // Without the key the layout is today's: 11 features per site (with the ping-pong flag).
-    let plain = Env::new(&Config::default(), world(), Arc::new(Field(field, 2))).expect("env");
+    let plain = Env::new(&unguided(), world(), Arc::new(Field(field, 2))).expect("env");
     assert_eq!(plain.layout().len() + 2, e.layout().len());
 }
 
@@ -748,7 +757,7 @@ fn geofence_makes_the_area_edge_a_sensed_wall() {
     use dupac_common::config::NearestObstacle;
     use dupac_common::obs::SENSOR_DIRECTIONS;
     let sensed = |fence: bool, nearest: NearestObstacle| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.observation.geofence = fence;
         cfg.env.observation.nearest_obstacle = nearest;
         cfg.env.observation.sensor_scale = dupac_common::config::SensorScale::Linear;
@@ -806,7 +815,7 @@ const CROSSING: fn(usize, Point) -> f64 = |s, p| {
 /// ping-pong cost and its feature.
 #[test]
 fn site_rewards_are_what_each_site_would_have_given() {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     assert!(cfg.env.reward.ping_pong_reward < 0.0 && cfg.env.observation.site_ping_pong);
     site_rewards_match_their_counterfactuals(&cfg);
@@ -819,7 +828,7 @@ fn site_rewards_are_what_each_site_would_have_given() {
 /// its first step (or never applied) while the stay lasts, and every site's reward says so.
 #[test]
 fn site_rewards_follow_the_minimum_time_of_stay() {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     cfg.env.min_time_of_stay_s = 0.3;
     site_rewards_match_their_counterfactuals(&cfg);
@@ -829,7 +838,7 @@ fn site_rewards_follow_the_minimum_time_of_stay() {
 /// one by the margin, and every site's reward follows the refusals (the counterfactual replay).
 #[test]
 fn site_rewards_follow_the_handover_margin() {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     cfg.env.handover_margin_db = 5.0;
     site_rewards_match_their_counterfactuals(&cfg);
@@ -844,7 +853,7 @@ fn site_rewards_follow_the_handover_margin() {
 #[test]
 fn the_handover_margin_holds_the_serving_site_until_the_choice_leads_by_it() {
     let run = |margin_db: f64, choose: fn(u32) -> u16| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.association = Association::Learned;
         cfg.env.handover_margin_db = margin_db;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
@@ -932,7 +941,7 @@ fn site_rewards_match_their_counterfactuals(cfg: &Config) {
 #[test]
 fn handover_cost_site_regret_and_route_terms() {
     let make = |f: fn(&mut Config)| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.association = Association::Learned;
         paper_reward(&mut cfg);
         f(&mut cfg);
@@ -964,7 +973,7 @@ fn handover_cost_site_regret_and_route_terms() {
     let mut e = make(|c| c.env.reward.route_connectivity_weight = 0.5);
     let r = e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").reward;
     assert!((r - 10.0).abs() < 1e-9, "{r}");
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     paper_reward(&mut cfg);
     cfg.env.reward.route_connectivity_weight = 0.5;
@@ -984,7 +993,7 @@ fn handover_cost_site_regret_and_route_terms() {
 #[test]
 fn the_environment_flags_and_the_evaluation_recount_agree() {
     let cfg = {
-        let mut c = Config::default();
+        let mut c = unguided();
         c.env.association = Association::Learned;
         c
     };
@@ -1111,7 +1120,7 @@ fn step_site_rewards_match_their_counterfactuals(cfg: &Config, min_handovers: us
 
 #[test]
 fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::Learned;
     cfg.env.site_every_step = true;
     // Without the ping-pong cost and its feature first (the default has both: last below).
@@ -1144,7 +1153,7 @@ fn a_ping_pong_is_charged_and_marked_in_the_site_features() {
     // Site 0 serves at the start; 1, back to 0 (a ping-pong), then 0 held past the window.
     let seq: Vec<u16> = [1, 0].into_iter().chain([0; 25]).collect();
     let run = |ping_pong_reward: f64| {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.association = Association::Learned;
         cfg.env.observation.site_ping_pong = true;
         cfg.env.reward.ping_pong_reward = ping_pong_reward;
@@ -1201,7 +1210,7 @@ fn a_ping_pong_is_charged_and_marked_in_the_site_features() {
 fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
     let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0));
     for (every, assoc) in [(false, Association::Learned), (true, Association::A3)] {
-        let mut cfg = Config::default();
+        let mut cfg = unguided();
         cfg.env.association = assoc;
         cfg.env.site_every_step = every;
         let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
@@ -1222,7 +1231,7 @@ fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
 fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
     use dupac_actor::env::PathGuide;
     use dupac_common::config::Progress;
-    let mut cfg = Config::default();
+    let mut cfg = unguided();
     cfg.env.association = Association::A3;
     paper_reward(&mut cfg);
     cfg.env.observation.path_guide = true;

@@ -39,6 +39,12 @@ fn config(association: Association, updates: u64) -> Config {
     cfg.train.pool_size = 200;
     cfg.ppo.num_minibatches = 4;
     cfg.ppo.hidden = vec![64, 64];
+    // Unguided (the path guide, a default since 2026-11-26, off; the paper's straight-line
+    // progress): the bounds below were measured so, and the pool's pairs here carry only the
+    // sampler's shortest paths. A guided run is trained by tests/it `train.rs`
+    // (`a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided`).
+    cfg.env.observation.path_guide = false;
+    cfg.env.reward.progress = dupac_common::config::Progress::Straight;
     cfg.validate().expect("valid test config");
     cfg
 }

@@ -145,24 +145,16 @@ fn a_site_chosen_every_step_trains_over_zenoh_and_flies() {
     );
 }
 
-/// The path guide (issue 15, docs/env.md "Path guide"): a run guided along the coverage-aware
-/// path with the path progress trains (in one process, and over Zenoh, where the actors plan the
+/// The path guide (issue 15, docs/env.md "Path guide"), on by default since 2026-11-26: a run of
+/// the defaults, guided along the coverage-aware path planned with the guide's 5 m clearance and
+/// paid the path progress, trains (in one process, and over Zenoh, where the actors plan the
 /// pool's paths themselves); its policy records the guide, so `dupac eval` and `dupac fly` fly it
-/// guided without being told; a policy without the guide is refused where one is needed.
+/// guided without being told; resuming it without the guide is refused by key.
 #[test]
 fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
     let dir = tempfile::tempdir().expect("tmp");
     let common = small_run_args(dir.path());
-    let guided = [
-        "--set",
-        "env.observation.path_guide=true",
-        "--set",
-        "env.observation.path_guide_lambda=1",
-        "--set",
-        "env.reward.progress=path",
-        "--set",
-        "train.total_timesteps=1024",
-    ];
+    let budget = ["--set", "train.total_timesteps=1024"];
     for (name, single) in [("one", true), ("zenoh", false)] {
         let out = dir.path().join(name);
         let mut a: Vec<String> = vec!["train".into(), "-q".into()];
@@ -170,7 +162,7 @@ fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
             a.push("--single-process".into());
         }
         a.extend(["--out".into(), out.display().to_string()]);
-        a.extend(guided.iter().map(|s| s.to_string()));
+        a.extend(budget.iter().map(|s| s.to_string()));
         let train = dupac_output(&common, &a);
         assert!(
             train.status.success(),
@@ -228,6 +220,8 @@ fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
             dir.path().join("one").display().to_string(),
             "--set".into(),
             "train.total_timesteps=2048".into(),
+            "--set".into(),
+            "env.observation.path_guide=false".into(),
         ],
     );
     let stderr = String::from_utf8_lossy(&resume.stderr);

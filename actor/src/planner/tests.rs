@@ -501,3 +501,96 @@ fn midtown_timing() {
         t0.elapsed().as_secs_f64()
     );
 }
+
+/// The guide's own clearance (`env.observation.path_guide_clearance_m`): a pair whose only way is
+/// a gap narrower than twice the guide's clearance gets the path of the pairs' planner instead
+/// (`plan_path` says so) and keeps it; without another planner the failure is the error; a pair
+/// with room is guided along the guide planner's own path.
+#[test]
+fn a_guide_that_cannot_pass_a_gap_falls_back_to_the_pairs_clearance() {
+    use crate::pairs::{Pair, plan_path};
+    // Two full-height walls across x = 0 leave a 9 m gap at |y| < 4.5.
+    let c = city(vec![
+        boxb("south", -2.0, -120.0, 2.0, -4.5, 0.0, 200.0),
+        boxb("north", -2.0, 4.5, 2.0, 120.0, 0.0, 200.0),
+    ]);
+    let pairs = planner(&c);
+    let cfg = Config::default();
+    let wide = PlannerConfig {
+        clearance_m: 5.0,
+        ..cfg.planner.clone()
+    };
+    let guide = Planner::new(&c, &cfg.env, &wide);
+    let (s, t) = (Point::new(-40.0, 0.0, 50.0), Point::new(40.0, 0.0, 50.0));
+    assert!(
+        guide.shortest(s, t).is_err(),
+        "a 9 m gap with 5 m clearance"
+    );
+    let through = pairs.shortest(s, t).expect("1.5 m passes the gap");
+    let mut pair = Pair {
+        id: 0,
+        source_m: s,
+        destination_m: t,
+        shortest_m: through.length_m,
+        straight_m: 80.0,
+        bin_m: None,
+        path: None,
+        path_lambda: 0.0,
+        path_clearance_m: 0.0,
+    };
+    assert!(plan_path(&guide, &pairs, &mut pair, 0.0).expect("falls back"));
+    assert_eq!(pair.path_clearance_m, 5.0);
+    let got = pair.path.as_ref().expect("a path").length_m();
+    assert!((got - through.length_m).abs() < 1e-6, "{got}");
+    assert!(!plan_path(&guide, &pairs, &mut pair, 0.0).expect("kept, not planned again"));
+    let mut bare = Pair {
+        path: None,
+        ..pair.clone()
+    };
+    assert!(plan_path(&guide, &guide, &mut bare, 0.0).is_err());
+    // A pair on one side of the walls has room for 5 m and gets the guide's own path.
+    let (a, b) = (
+        Point::new(-60.0, -40.0, 50.0),
+        Point::new(-20.0, 40.0, 50.0),
+    );
+    let mut open = Pair {
+        source_m: a,
+        destination_m: b,
+        path: None,
+        ..pair.clone()
+    };
+    assert!(!plan_path(&guide, &pairs, &mut open, 0.0).expect("the guide plans it"));
+    assert_eq!(open.path_clearance_m, 5.0);
+}
+
+/// A guide planner of another clearance takes the coverage classes computed once by another on
+/// the same lattice (`Planner::share_coverage`) and plans the same coverage-aware path as with
+/// its own; a planner of another lattice (voxel) does not take them.
+#[test]
+fn coverage_classes_are_shared_between_clearances_of_one_lattice() {
+    let c = city(vec![corner()]);
+    let mut first = planner(&c);
+    first.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let cfg = Config::default();
+    let wide = PlannerConfig {
+        clearance_m: 5.0,
+        ..cfg.planner.clone()
+    };
+    let mut shared = Planner::new(&c, &cfg.env, &wide);
+    assert!(!shared.has_coverage());
+    assert!(shared.share_coverage(&first));
+    let mut own = Planner::new(&c, &cfg.env, &wide);
+    own.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let (s, t) = (Point::new(-80.0, 0.0, 50.0), Point::new(80.0, 0.0, 50.0));
+    assert_eq!(
+        shared.coverage_aware(s, t, 10.0).expect("shared classes"),
+        own.coverage_aware(s, t, 10.0).expect("own classes")
+    );
+    let coarse = PlannerConfig {
+        voxel_m: 10.0,
+        ..cfg.planner.clone()
+    };
+    let mut other = Planner::new(&c, &cfg.env, &coarse);
+    assert!(!other.share_coverage(&first));
+    assert!(!other.has_coverage());
+}
