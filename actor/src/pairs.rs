@@ -141,8 +141,8 @@ pub fn plan_path(
     Ok(fell_back)
 }
 
-/// [`plan_path`] for every pair, in parallel: the number of pairs `fallback` planned; the first
-/// failure names its pair.
+/// [`plan_path`] for every pair, in parallel: the number of pairs `fallback` planned; a failure
+/// (one of them, if several) names its pair.
 pub fn attach_paths(
     guide: &Planner,
     fallback: &Planner,

@@ -49,8 +49,6 @@ fn site(id: u16, xyz: Point) -> Site {
     }
 }
 
-/// 400 m square; a 60 m block at x ∈ [50, 70]; a 1 m thin part at x ∈ [−50, −49], y ∈ [−20, 20],
-/// 0–100 m; two sites.
 /// Today's defaults with the path guide off and the paper's straight-line progress: these tests
 /// fly hand-made episodes without a planned path (the guide has its own test below).
 fn unguided() -> Config {
@@ -60,6 +58,8 @@ fn unguided() -> Config {
     cfg
 }
 
+/// 400 m square; a 60 m block at x ∈ [50, 70]; a 1 m thin part at x ∈ [−50, −49], y ∈ [−20, 20],
+/// 0–100 m; two sites.
 fn world() -> Arc<RadioWorld> {
     let cfg = unguided();
     let city = City::from_buildings(

@@ -461,8 +461,8 @@ impl PolicyWeights {
 
     /// `cfg` with `env.observation` set to the observation this policy was trained on, checked
     /// on its own ([`ObservationConfig::validate`]; a file is untrusted input): what `dupac eval`
-    /// and `dupac fly` fly it with, whatever the configuration says. `cfg` unchanged for a
-    /// policy of an older file format, which records none. The error names the invalid key
+    /// and `dupac fly` fly it with, whatever the configuration says. For a policy of an older
+    /// file format, which records none, `cfg` with the path guide off (it predates the guide). The error names the invalid key
     /// (a loaded policy has passed [`PolicyWeights::validate`] already; this also guards one
     /// built in code). Only the observation is taken: the training-time rules that tie it to
     /// the reward (a ping-pong cost needs its feature) are not about flying. One rule is about
@@ -471,12 +471,20 @@ impl PolicyWeights {
     /// flown so.
     pub fn configure(&self, cfg: &Config) -> Result<Config, String> {
         let mut c = cfg.clone();
-        if let Some(o) = &self.observation {
-            o.validate()
-                .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
-            c.env.observation = o.clone();
-            if o.site_trend {
-                c.env.site_every_step = false;
+        match &self.observation {
+            Some(o) => {
+                o.validate()
+                    .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
+                c.env.observation = o.clone();
+                if o.site_trend {
+                    c.env.site_every_step = false;
+                }
+            }
+            None => {
+                // Written before the observation was recorded (file format 2), so before the
+                // path guide existed (format 4): flown unguided, whatever today's default.
+                c.env.observation.path_guide = false;
+                c.env.reward.progress = crate::config::Progress::Straight;
             }
         }
         Ok(c)

@@ -34,6 +34,8 @@ fn spec_env_toml_is_the_spec_environment() {
     spec.env.observation.geofence = false;
     spec.env.observation.goal_direction = false;
     spec.env.observation.path_guide = false;
+    spec.env.observation.path_guide_lambda = 0.0;
+    spec.env.observation.path_guide_clearance_m = 0.0;
     spec.env.reward.progress = Progress::Straight;
     assert_eq!(cfg, spec);
 }
@@ -56,7 +58,10 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.ppo.site_head = SiteHead::Slots;
     paper.ppo.site_gradient = SiteGradient::Sampled;
     // The path guide (a default since 2026-11-26) off: the paper's UAV has no map.
+    // λ and the clearance as files before the guide read (0), so an older run resumes with it.
     paper.env.observation.path_guide = false;
+    paper.env.observation.path_guide_lambda = 0.0;
+    paper.env.observation.path_guide_clearance_m = 0.0;
     paper.env.reward.progress = Progress::Straight;
     assert_eq!(cfg, paper);
 }

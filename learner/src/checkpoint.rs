@@ -686,6 +686,13 @@ mod tests {
         std::fs::write(&path, bytes).expect("write");
         let old = load_policy(&path).expect("a format-2 policy loads");
         assert_eq!(old.observation, None);
+        // It predates the path guide: flown unguided under today's (guided) defaults.
+        let flown = old.configure(&Config::default()).expect("configure");
+        assert!(!flown.env.observation.path_guide);
+        assert_eq!(
+            flown.env.reward.progress,
+            dupac_common::config::Progress::Straight
+        );
         assert_eq!(
             PolicyWeights {
                 observation: None,
@@ -745,6 +752,22 @@ mod tests {
             e.contains("older DUPAC") && e.contains("file format 1"),
             "{e}"
         );
+    }
+
+    /// Format 4's observation is today's without its last key: its bincode is today's less the
+    /// 8 bytes of `path_guide_clearance_m` (an f64, the last field), so a format-4 file reads
+    /// field by field as it was written.
+    #[test]
+    fn format_4s_observation_is_todays_less_the_guide_clearance() {
+        let p = learner(&small()).policy();
+        let today = p.observation.clone().expect("recorded");
+        let old = v4(&p).observation.expect("recorded");
+        let enc = |bytes: Vec<u8>| bytes[12..].to_vec();
+        let a = enc(codec::encode(b"TESTTEST", 1, &today, "t").expect("encode"));
+        let b = enc(codec::encode(b"TESTTEST", 1, &old, "t").expect("encode"));
+        assert_eq!(a.len(), b.len() + 8);
+        assert_eq!(a[..b.len()], b[..]);
+        assert_eq!(a[b.len()..], today.path_guide_clearance_m.to_le_bytes());
     }
 
     /// A policy without site outputs (the A3 base method: `n_sites` = 0, the observation still

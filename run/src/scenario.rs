@@ -39,18 +39,43 @@ pub fn world_and_cache(
 
 /// The clearance (m) of the path `cfg`'s episodes are guided along:
 /// `env.observation.path_guide_clearance_m`, or `planner.clearance_m` where that is 0.
+/// Never below `env.uav_radius_m`, as the planner itself ([`Planner::new`]) would raise it.
 pub fn guide_clearance_m(cfg: &Config) -> f64 {
-    match cfg.env.observation.path_guide_clearance_m {
+    let c = match cfg.env.observation.path_guide_clearance_m {
         c if c > 0.0 => c,
         _ => cfg.planner.clearance_m,
+    };
+    c.max(cfg.env.uav_radius_m)
+}
+
+/// The planners [`Planners::new`] builds for `cfg` and `flown`: (clearance (m), whether it needs
+/// the coverage classes), the pairs' (`planner.clearance_m`) first. The pairs' planner is every
+/// guide's fallback ([`plan_path`]), so it needs the classes whenever a coverage-aware guide
+/// (λ > 0) is planned, whatever its clearance.
+pub fn planner_needs(cfg: &Config, flown: &[Config], coverage: bool) -> Vec<(f64, bool)> {
+    let mut want: Vec<(f64, bool)> = vec![(cfg.planner.clearance_m, coverage)];
+    for c in std::iter::once(cfg).chain(flown) {
+        if !c.env.needs_path() {
+            continue;
+        }
+        let (clearance_m, cov) = (
+            guide_clearance_m(c),
+            c.env.observation.path_guide_lambda > 0.0,
+        );
+        want[0].1 |= cov;
+        match want.iter_mut().find(|(x, _)| *x == clearance_m) {
+            Some(w) => w.1 |= cov,
+            None => want.push((clearance_m, cov)),
+        }
     }
+    want
 }
 
 /// The planners of a process over the world's city: `pairs`, with `planner.clearance_m`, draws
 /// and checks the pairs and plans the planner methods; one guide planner per other guide
 /// clearance in use ([`guide_clearance_m`]) plans the episodes' guide paths (docs/env.md "Path
 /// guide"). The per-voxel coverage classes ([`Planner::with_coverage`]) are computed once, on
-/// the first planner that needs them, and shared with the others.
+/// the first planner that needs them, and shared with the others ([`planner_needs`]).
 pub struct Planners<'w> {
     /// `planner.clearance_m`: the pairs, their checks, the planner methods.
     pub pairs: Planner<'w>,
@@ -69,22 +94,7 @@ impl<'w> Planners<'w> {
         rsrp: &SharedRsrp,
         coverage: bool,
     ) -> Self {
-        let pairs_clearance_m = cfg.planner.clearance_m;
-        // (clearance, whether a coverage-aware guide plans with it), the pairs' first.
-        let mut want: Vec<(f64, bool)> = vec![(pairs_clearance_m, coverage)];
-        for c in std::iter::once(cfg).chain(flown) {
-            if !c.env.needs_path() {
-                continue;
-            }
-            let (clearance_m, cov) = (
-                guide_clearance_m(c),
-                c.env.observation.path_guide_lambda > 0.0,
-            );
-            match want.iter_mut().find(|(x, _)| *x == clearance_m) {
-                Some(w) => w.1 |= cov,
-                None => want.push((clearance_m, cov)),
-            }
-        }
+        let want = planner_needs(cfg, flown, coverage);
         let mut built: Vec<(f64, bool, Planner<'w>)> = want
             .into_iter()
             .map(|(clearance_m, cov)| {
@@ -253,4 +263,36 @@ pub fn make_pool(cfg: &Config, planners: &Planners, quiet: bool) -> Result<Vec<P
     }
     guide_pairs(cfg, planners, &mut pool)?;
     Ok(pool)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Under today's defaults (a λ = 1 guide planned with 5 m) the pairs' planner (1.5 m), the
+    /// guide's fallback, needs the coverage classes too, or a pair the guide cannot join would
+    /// stop the run (`PlanError::NoCoverage`) instead of falling back.
+    #[test]
+    fn the_fallback_planner_gets_the_classes_a_coverage_aware_guide_needs() {
+        let cfg = Config::default();
+        assert_eq!(
+            planner_needs(&cfg, &[], false),
+            vec![(1.5, true), (5.0, true)]
+        );
+        // Unguided: the pairs' planner only, classes only when asked for.
+        let mut off = cfg.clone();
+        off.env.observation.path_guide = false;
+        off.env.reward.progress = dupac_common::config::Progress::Straight;
+        assert_eq!(planner_needs(&off, &[], false), vec![(1.5, false)]);
+        assert_eq!(planner_needs(&off, &[], true), vec![(1.5, true)]);
+        // A flown policy's guide of the shortest path at 0 (= planner.clearance_m): no classes.
+        let mut shortest = cfg.clone();
+        shortest.env.observation.path_guide_lambda = 0.0;
+        shortest.env.observation.path_guide_clearance_m = 0.0;
+        assert_eq!(planner_needs(&off, &[shortest], false), vec![(1.5, false)]);
+        // A clearance below the UAV's radius is the radius, as the planner makes it.
+        let mut thin = cfg.clone();
+        thin.env.observation.path_guide_clearance_m = 0.1;
+        assert_eq!(guide_clearance_m(&thin), thin.env.uav_radius_m);
+    }
 }

@@ -51,6 +51,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         }
         None => make_pool(&cfg, &planners, global.quiet)?,
     };
+    drop(planners);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let opts = ActorOptions {
         id: ActorId(args.id.unwrap_or(std::process::id())),

@@ -173,6 +173,21 @@ fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
         assert!(r.len() >= 4, "{name}: {} rows", r.len());
     }
     let policy = dir.path().join("one").join("policy.bin");
+    // Flown under a configuration without the guide: the policy's record decides (unguided, its
+    // observation would be 4 values short and refused).
+    let mut unguided = common.clone();
+    unguided.extend(
+        [
+            "--set",
+            "env.observation.path_guide=false",
+            "--set",
+            "env.observation.path_guide_clearance_m=0",
+            "--set",
+            "env.reward.progress=straight",
+        ]
+        .map(String::from),
+    );
+    let common = unguided;
     let eval = dupac_output(
         &common,
         &[

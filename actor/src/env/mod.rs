@@ -83,8 +83,10 @@ pub struct Episode {
     /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
     pub shortest_m: f64,
     /// The planned path from source to destination (the shortest, or the coverage-aware one
-    /// with `env.observation.path_guide_lambda` > 0), for `env.observation.path_guide` and
-    /// `env.reward.progress = "path"` (required by them, unused otherwise).
+    /// with `env.observation.path_guide_lambda` > 0, planned with
+    /// `env.observation.path_guide_clearance_m` from the buildings), for
+    /// `env.observation.path_guide` and `env.reward.progress = "path"` (required by them,
+    /// unused otherwise).
     pub guide: Option<Arc<PathGuide>>,
 }
 

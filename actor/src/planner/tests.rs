@@ -561,6 +561,23 @@ fn a_guide_that_cannot_pass_a_gap_falls_back_to_the_pairs_clearance() {
     };
     assert!(!plan_path(&guide, &pairs, &mut open, 0.0).expect("the guide plans it"));
     assert_eq!(open.path_clearance_m, 5.0);
+    // A coverage-aware guide (λ = 1) falls back to a coverage-aware path, so the fallback
+    // needs the classes too: without them the pair is an error, with them (shared) it is
+    // guided through the gap.
+    let mut pairs = pairs;
+    let mut guide = guide;
+    guide.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let mut aware = Pair {
+        path: None,
+        ..pair.clone()
+    };
+    assert_eq!(
+        plan_path(&guide, &pairs, &mut aware, 1.0).expect_err("no classes on the fallback"),
+        PlanError::NoCoverage
+    );
+    assert!(pairs.share_coverage(&guide));
+    assert!(plan_path(&guide, &pairs, &mut aware, 1.0).expect("falls back, coverage-aware"));
+    assert_eq!((aware.path_lambda, aware.path_clearance_m), (1.0, 5.0));
 }
 
 /// A guide planner of another clearance takes the coverage classes computed once by another on
