@@ -224,9 +224,13 @@ fn a_policy_is_flown_with_the_observation_it_records() {
         "{e}"
     );
     assert_eq!(p.check_observation(&trend), Ok(()));
-    // An older file records none: flown with the configuration's, checked by length elsewhere.
+    // An older file (format 2) records none: flown with the configuration's, checked by length
+    // elsewhere, without the path guide, which it predates.
     p.observation = None;
-    assert_eq!(p.configure(&cfg).expect("flown"), cfg);
+    let mut unguided = cfg.clone();
+    unguided.env.observation.path_guide = false;
+    unguided.env.reward.progress = dupac_common::config::Progress::Straight;
+    assert_eq!(p.configure(&cfg).expect("flown"), unguided);
     assert_eq!(p.check_observation(&cfg.env.observation), Ok(()));
     // A hostile record is refused by its key, by validation and by `configure`.
     trend.rsrp_scale_db = f64::NAN;
