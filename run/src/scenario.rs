@@ -48,6 +48,17 @@ pub fn guide_clearance_m(cfg: &Config) -> f64 {
     c.max(cfg.env.uav_radius_m)
 }
 
+/// `cfg` without the path guide (`env.observation.path_guide` off, the straight-line
+/// progress): for flights that observe nothing and whose reward is not reported (scripted
+/// planners, replays) and for pairs that are written without their paths, so no guide is
+/// planned for them.
+pub fn unguided(cfg: &Config) -> Config {
+    let mut c = cfg.clone();
+    c.env.observation.path_guide = false;
+    c.env.reward.progress = dupac_common::config::Progress::Straight;
+    c
+}
+
 /// The planners [`Planners::new`] builds for `cfg` and `flown`: (clearance (m), whether it needs
 /// the coverage classes), the pairs' (`planner.clearance_m`) first. The pairs' planner is every
 /// guide's fallback ([`plan_path`]), so it needs the classes whenever a coverage-aware guide

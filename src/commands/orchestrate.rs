@@ -37,9 +37,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     // The pairs only: their files carry no guide path (each actor plans its pool's), so none is
     // planned here (an unguided configuration: no coverage classes either).
-    let mut unguided = cfg.clone();
-    unguided.env.observation.path_guide = false;
-    unguided.env.reward.progress = dupac_common::config::Progress::Straight;
+    let unguided = dupac_run::scenario::unguided(&cfg);
     let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
     held_out_pairs(&unguided, &planners, global.quiet)?;
     let pool_path = out.join("train_pool.jsonl");

@@ -48,9 +48,17 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             _ => None,
         })
         .collect();
-    let planners = crate::scenario::Planners::new(cfg, &flown, &world, &rsrp, coverage);
+    // The planner methods and the replays fly unguided (they observe nothing, their reward is
+    // not reported); the pairs are guided once, as the first guided policy flies them (another
+    // policy's guide, if different, is planned per flight: `scenario::episode`).
+    let unguided_cfg = crate::scenario::unguided(cfg);
+    let planners = crate::scenario::Planners::new(&unguided_cfg, &flown, &world, &rsrp, coverage);
     let planner = &planners.pairs;
-    let (file, pairs) = read_eval_pairs(cfg, args.pairs.as_ref(), &planners)?;
+    let guide_cfg = flown
+        .iter()
+        .find(|c| c.env.needs_path())
+        .unwrap_or(&unguided_cfg);
+    let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), &planners)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         return Err(refused!("{}: no pairs", file.display()));
@@ -86,7 +94,10 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     };
     std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
     for method in &methods {
-        let mut mcfg = cfg.clone();
+        let mut mcfg = match &method.kind {
+            Kind::Policy(_) => cfg.clone(),
+            _ => unguided_cfg.clone(),
+        };
         mcfg.env.association = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
             Kind::Policy(_) | Kind::Coverage(_) => Association::A3,
@@ -216,7 +227,7 @@ fn replay_associations(
         .into_iter()
         .chain(hindsight)
         .map(|(kind, suffix)| {
-            let mut rcfg = cfg.clone();
+            let mut rcfg = crate::scenario::unguided(cfg);
             rcfg.env.association = match kind {
                 Kind::Replay(a) => a,
                 _ => Association::Learned,
