@@ -69,6 +69,32 @@ fn benches(c: &mut Criterion) {
         }
         g.finish();
     }
+
+    // The peer in the same run: the same episodes without their path, the guide off and the
+    // straight-line progress (the unguided defaults until 2026-11-26 evening).
+    let mut unguided_cfg = cfg.clone();
+    unguided_cfg.env.observation.path_guide = false;
+    unguided_cfg.env.reward.progress = dupac_common::config::Progress::Straight;
+    let unguided: Vec<Episode> = episodes
+        .iter()
+        .map(|e| Episode {
+            guide: None,
+            ..e.clone()
+        })
+        .collect();
+    let mut env = Env::new(&unguided_cfg, world.clone(), cache.clone()).expect("env");
+    let mut k = 0usize;
+    env.reset(0, unguided[0].clone()).expect("reset");
+    let mut g = c.benchmark_group("env");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("step_cache_full_fan_unguided", |b| {
+        b.iter(|| fly_on(&mut env, &mut k, &unguided, false))
+    });
+    g.throughput(Throughput::Elements(u64::from(cfg.env.action_repeat)));
+    g.bench_function("act_cache_decision_unguided", |b| {
+        b.iter(|| fly_on(&mut env, &mut k, &unguided, true))
+    });
+    g.finish();
 }
 
 /// One step (or, with `decide`, one decision) straight at the goal, cycling through the sites;
