@@ -132,6 +132,9 @@ pub fn plan_path(
     };
     let (path, fell_back) = match plan(guide) {
         Ok(p) => (p, false),
+        // Only a path the guide's clearance cannot fly falls back: a guide planner built wrong
+        // (no coverage classes, a bad λ) is an error, not a pair to count.
+        Err(e @ (PlanError::NoCoverage | PlanError::BadLambda(_))) => return Err(e),
         Err(e) if std::ptr::eq(guide, fallback) => return Err(e),
         Err(_) => (plan(fallback)?, true),
     };

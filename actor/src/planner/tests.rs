@@ -566,6 +566,17 @@ fn a_guide_that_cannot_pass_a_gap_falls_back_to_the_pairs_clearance() {
     // guided through the gap.
     let mut pairs = pairs;
     let mut guide = guide;
+    // A guide planner without the classes is an error, even where the fallback could plan.
+    let mut ready = planner(&c);
+    ready.with_coverage(&PoorPatch, RsrpThresholds::default());
+    let mut unready = Pair {
+        path: None,
+        ..pair.clone()
+    };
+    assert_eq!(
+        plan_path(&guide, &ready, &mut unready, 1.0).expect_err("the guide has no classes"),
+        PlanError::NoCoverage
+    );
     guide.with_coverage(&PoorPatch, RsrpThresholds::default());
     let mut aware = Pair {
         path: None,
