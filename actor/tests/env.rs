@@ -55,6 +55,7 @@ fn unguided() -> Config {
     let mut cfg = Config::default();
     cfg.env.observation.path_guide = false;
     cfg.env.reward.progress = dupac_common::config::Progress::Straight;
+    cfg.env.reward.guide_deviation_weight = 0.0;
     cfg
 }
 
@@ -1294,4 +1295,47 @@ fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
             .range(field::PATH_GUIDE)
             .is_none()
     );
+}
+
+/// The path-keeping cost (`env.reward.guide_deviation_weight`, issue 15): per step,
+/// −μ1 · κ_g · (metres off the planned path beyond the free band); nothing within the band; an
+/// episode without a path is refused when the cost alone needs one.
+#[test]
+fn the_path_keeping_cost_charges_the_metres_off_the_path_beyond_the_free_band() {
+    use dupac_actor::env::PathGuide;
+    use dupac_common::config::Progress;
+    let mut cfg = unguided();
+    cfg.env.association = Association::A3;
+    paper_reward(&mut cfg);
+    cfg.env.reward.guide_deviation_weight = 0.5;
+    cfg.env.reward.guide_deviation_free_m = 2.0;
+    let (src, dst) = (Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    // Straight progress, no guide in the observation: the cost alone needs the path.
+    assert_eq!(cfg.env.reward.progress, Progress::Straight);
+    assert_eq!(e.reset(1, ep(src, dst)).unwrap_err(), EnvError::NoGuide);
+    let guided = Episode {
+        guide: Some(Arc::new(PathGuide::new(&[src, dst]).expect("path"))),
+        ..ep(src, dst)
+    };
+    let mut free = cfg.clone();
+    free.env.reward.guide_deviation_weight = 0.0;
+    let mut f = Env::new(&free, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    e.reset(1, guided.clone()).expect("reset");
+    f.reset(1, guided).expect("reset");
+    // West, square to the path, one metre a step: 1, 2, 3, 4 m off.
+    let west = Action {
+        move_: Vector::new(-1.0, 0.0, 0.0),
+        site: SiteId(0),
+    };
+    let mu1 = cfg.env.reward.mu1;
+    for off_m in [1.0, 2.0, 3.0, 4.0] {
+        let (s, t) = (e.step(&west).expect("step"), f.step(&west).expect("step"));
+        let cost = t.reward - s.reward;
+        let want = mu1 * 0.5 * (off_m - 2.0_f64).max(0.0);
+        assert!((cost - want).abs() < 1e-9, "{off_m} m off: {cost} ≠ {want}");
+    }
+    let mut bad = cfg.clone();
+    bad.env.reward.guide_deviation_weight = -1.0;
+    assert!(bad.validate().is_err());
 }

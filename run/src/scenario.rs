@@ -56,6 +56,7 @@ pub fn unguided(cfg: &Config) -> Config {
     let mut c = cfg.clone();
     c.env.observation.path_guide = false;
     c.env.reward.progress = dupac_common::config::Progress::Straight;
+    c.env.reward.guide_deviation_weight = 0.0;
     c
 }
 

@@ -28,6 +28,8 @@ pub struct GuideFix {
     pub s_m: f64,
     /// Distance to go (m): to that place plus the path beyond it.
     pub to_go_m: f64,
+    /// Distance from the point to that place (m): how far off the path it flies.
+    pub off_m: f64,
 }
 
 impl PathGuide {
@@ -98,6 +100,7 @@ impl PathGuide {
             return GuideFix {
                 s_m: 0.0,
                 to_go_m: d,
+                off_m: d,
             };
         }
         // (distance to the path, arc length) of the nearest point within the window.
@@ -128,13 +131,16 @@ impl PathGuide {
         let mut best = GuideFix {
             s_m: nearest.1,
             to_go_m: nearest.0 + (total - nearest.1),
+            off_m: nearest.0,
         };
         if best.to_go_m.is_infinite() {
             // The window is off the path (a start beyond it): the place clamped onto the path.
             let s_m = from_s_m.clamp(0.0, total);
+            let off_m = (p_m - self.point_at(s_m)).norm();
             best = GuideFix {
                 s_m,
-                to_go_m: (p_m - self.point_at(s_m)).norm() + (total - s_m),
+                to_go_m: off_m + (total - s_m),
+                off_m,
             };
         }
         best
@@ -173,7 +179,9 @@ mod tests {
         assert!((g.fix(p(0.0, 0.0), 0.0, 10.0).to_go_m - 200.0).abs() < 1e-9);
         assert!((g.fix(p(100.0, 100.0), 200.0, 10.0).to_go_m).abs() < 1e-9);
         // 10 m off the first leg at x = 40: 10 + 160.
-        assert!((g.fix(p(40.0, -10.0), 40.0, 10.0).to_go_m - 170.0).abs() < 1e-9);
+        let beside = g.fix(p(40.0, -10.0), 40.0, 10.0);
+        assert!((beside.to_go_m - 170.0).abs() < 1e-9);
+        assert!((beside.off_m - 10.0).abs() < 1e-9, "{beside:?}");
         // Inside the corner, near the second leg: a whole-path nearest point would say 80 m to
         // go (40 to the second leg, 40 beyond); tracked from the start it is still on the first.
         let f = g.fix(p(60.0, 60.0), 50.0, 10.0);

@@ -55,9 +55,10 @@ pub enum EnvError {
         "a site chosen every step needs env.site_every_step, the learned association and env.observation.site_features"
     )]
     SiteEveryStepUnavailable,
-    /// `env.observation.path_guide` or `env.reward.progress = "path"` without a planned path.
+    /// `env.observation.path_guide`, `env.reward.progress = "path"` or
+    /// `env.reward.guide_deviation_weight` > 0 without a planned path.
     #[error(
-        "env.observation.path_guide and env.reward.progress = \"path\" need the episode's planned path, and this episode has none"
+        "env.observation.path_guide, env.reward.progress = \"path\" and env.reward.guide_deviation_weight > 0 need the episode's planned path, and this episode has none"
     )]
     NoGuide,
     /// The planned path does not join the episode's endpoints.
@@ -616,9 +617,12 @@ impl Env {
         let window_m = self.guide_window_m();
         // Tracked only when used: pool pairs carry their shortest path whether guided or not.
         let guide = self.episode.as_ref().and_then(|e| e.guide.as_ref());
+        // How far off the planned path the UAV now flies (m; 0 when untracked).
+        let mut off_path_m = 0.0;
         if let Some(g) = guide.filter(|_| self.cfg.needs_path()) {
             let fix = g.fix(to, self.path_s_m, window_m);
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
+            off_path_m = fix.off_m;
         }
         let progress_m = match self.cfg.reward.progress {
             Progress::Straight => d_prev - self.distance_to_goal_m,
@@ -681,6 +685,13 @@ impl Env {
                 RsrpClass::Poor => self.route_penalty[1],
             };
             common -= r.mu1 * r.route_connectivity_weight * penalty * step_length_m;
+        }
+        if r.guide_deviation_weight > 0.0 {
+            // The path-keeping cost: per step, per metre off the planned path beyond the free
+            // band (docs/env.md "Path guide").
+            common -= r.mu1
+                * r.guide_deviation_weight
+                * (off_path_m - r.guide_deviation_free_m).max(0.0);
         }
         if outcome.is_none() && self.distance_to_goal_m <= self.cfg.goal_radius_m {
             outcome = Some(Outcome::Goal);

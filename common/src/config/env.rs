@@ -128,6 +128,17 @@ pub struct RewardConfig {
     /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
     /// `path` to about the planned path's length.
     pub progress: Progress,
+    /// κ_g, the path-keeping cost: per step, −μ1 · κ_g · max(0, off − `guide_deviation_free_m`),
+    /// with `off` the distance (m) from the UAV to its tracked place on the episode's planned
+    /// path (`env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
+    /// buildings). 0 = off (the paper has no path). A departure (issue 15; docs/env.md "Path
+    /// guide"): under `progress = "path"` leaving the path costs only the progress it undoes,
+    /// which flying back repays, so nothing keeps the UAV on the path's clearance; the
+    /// collisions left under the guide were the UAV drifting 6–8 m off it beside a building.
+    /// Needs the planned path.
+    pub guide_deviation_weight: f64,
+    /// The free band of the path-keeping cost (m): no cost within this distance of the path.
+    pub guide_deviation_free_m: f64,
 }
 
 /// The distance whose decrease is the progress Δd of Eq. (8) ([`RewardConfig::progress`]).
@@ -155,6 +166,8 @@ impl Default for RewardConfig {
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
             progress: Progress::Path,
+            guide_deviation_weight: 0.0,
+            guide_deviation_free_m: 2.0,
         }
     }
 }
@@ -244,10 +257,12 @@ pub struct ObservationConfig {
 }
 
 impl EnvConfig {
-    /// Whether each episode needs its planned path (`env.observation.path_guide` or
-    /// `env.reward.progress = "path"`).
+    /// Whether each episode needs its planned path (`env.observation.path_guide`,
+    /// `env.reward.progress = "path"` or `env.reward.guide_deviation_weight` > 0).
     pub fn needs_path(&self) -> bool {
-        self.observation.path_guide || self.reward.progress == Progress::Path
+        self.observation.path_guide
+            || self.reward.progress == Progress::Path
+            || self.reward.guide_deviation_weight > 0.0
     }
 }
 
@@ -492,6 +507,8 @@ impl EnvConfig {
                 "env.reward.route_connectivity_weight",
                 rw.route_connectivity_weight,
             ),
+            ("env.reward.guide_deviation_weight", rw.guide_deviation_weight),
+            ("env.reward.guide_deviation_free_m", rw.guide_deviation_free_m),
         ] {
             if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
                 return Err(bad(k, format!("must be in [0, 1000], got {v}")));
