@@ -485,6 +485,7 @@ impl PolicyWeights {
                 // path guide existed (format 4): flown unguided, whatever today's default.
                 c.env.observation.path_guide = false;
                 c.env.reward.progress = crate::config::Progress::Straight;
+                c.env.reward.guide_deviation_weight = 0.0;
             }
         }
         Ok(c)

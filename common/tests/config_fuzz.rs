@@ -273,6 +273,8 @@ fn out_of_range_values_are_rejected_naming_the_key() {
         ("env", "handover_margin_db", "100.0"),
         ("env.reward", "ping_pong_reward", "1.0"),
         ("env.reward", "ping_pong_reward", "-1e9"),
+        ("env.reward", "guide_deviation_weight", "-1.0"),
+        ("env.reward", "guide_deviation_free_m", "nan"),
     ];
     for (section, leaf, value) in cases {
         let key = format!("{section}.{leaf}");

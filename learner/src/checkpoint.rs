@@ -693,6 +693,11 @@ mod tests {
             flown.env.reward.progress,
             dupac_common::config::Progress::Straight
         );
+        // Nor charged for leaving a path it never had.
+        let mut keeping = Config::default();
+        keeping.env.reward.guide_deviation_weight = 0.2;
+        let flown = old.configure(&keeping).expect("configure");
+        assert!(!flown.env.needs_path());
         assert_eq!(
             PolicyWeights {
                 observation: None,

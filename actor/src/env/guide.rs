@@ -28,7 +28,9 @@ pub struct GuideFix {
     pub s_m: f64,
     /// Distance to go (m): to that place plus the path beyond it.
     pub to_go_m: f64,
-    /// Distance from the point to that place (m): how far off the path it flies.
+    /// Distance (3D, m) from the point to that place: how far off the path it flies, measured
+    /// to the tracked place (so it includes the lag along the path while the place catches up
+    /// with a UAV that cut a corner), not to the nearest point of the whole path.
     pub off_m: f64,
 }
 
@@ -205,6 +207,16 @@ mod tests {
             assert!(w[1].s_m >= w[0].s_m - 1e-9, "{w:?}");
             assert!((w[1].to_go_m - w[0].to_go_m).abs() <= 5.0 + 1e-9, "{w:?}");
         }
+    }
+
+    #[test]
+    fn a_one_point_path_is_its_own_place() {
+        let g = PathGuide::new(&[p(0.0, 0.0)]).unwrap();
+        let f = g.fix(p(3.0, 4.0), 0.0, 10.0);
+        assert!(
+            (f.off_m - 5.0).abs() < 1e-9 && (f.to_go_m - 5.0).abs() < 1e-9,
+            "{f:?}"
+        );
     }
 
     #[test]

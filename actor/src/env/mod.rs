@@ -86,8 +86,8 @@ pub struct Episode {
     /// The planned path from source to destination (the shortest, or the coverage-aware one
     /// with `env.observation.path_guide_lambda` > 0, planned with
     /// `env.observation.path_guide_clearance_m` from the buildings), for
-    /// `env.observation.path_guide` and `env.reward.progress = "path"` (required by them,
-    /// unused otherwise).
+    /// `env.observation.path_guide`, `env.reward.progress = "path"` and
+    /// `env.reward.guide_deviation_weight` > 0 (required by them, unused otherwise).
     pub guide: Option<Arc<PathGuide>>,
 }
 
@@ -689,9 +689,8 @@ impl Env {
         if r.guide_deviation_weight > 0.0 {
             // The path-keeping cost: per step, per metre off the planned path beyond the free
             // band (docs/env.md "Path guide").
-            common -= r.mu1
-                * r.guide_deviation_weight
-                * (off_path_m - r.guide_deviation_free_m).max(0.0);
+            common -=
+                r.mu1 * r.guide_deviation_weight * (off_path_m - r.guide_deviation_free_m).max(0.0);
         }
         if outcome.is_none() && self.distance_to_goal_m <= self.cfg.goal_radius_m {
             outcome = Some(Outcome::Goal);

@@ -128,9 +128,9 @@ pub struct RewardConfig {
     /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
     /// `path` to about the planned path's length.
     pub progress: Progress,
-    /// κ_g, the path-keeping cost: per step, −μ1 · κ_g · max(0, off − `guide_deviation_free_m`),
-    /// with `off` the distance (m) from the UAV to its tracked place on the episode's planned
-    /// path (`env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
+    /// κ_g, the path-keeping cost: per step (not per metre flown), −μ1 · κ_g · max(0, off −
+    /// `guide_deviation_free_m`), with `off` the 3D distance (m) from the UAV to its tracked
+    /// place on the episode's planned path (`actor::env::GuideFix::off_m`) (`env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
     /// buildings). 0 = off (the paper has no path). A departure (issue 15; docs/env.md "Path
     /// guide"): under `progress = "path"` leaving the path costs only the progress it undoes,
     /// which flying back repays, so nothing keeps the UAV on the path's clearance; the
@@ -507,8 +507,14 @@ impl EnvConfig {
                 "env.reward.route_connectivity_weight",
                 rw.route_connectivity_weight,
             ),
-            ("env.reward.guide_deviation_weight", rw.guide_deviation_weight),
-            ("env.reward.guide_deviation_free_m", rw.guide_deviation_free_m),
+            (
+                "env.reward.guide_deviation_weight",
+                rw.guide_deviation_weight,
+            ),
+            (
+                "env.reward.guide_deviation_free_m",
+                rw.guide_deviation_free_m,
+            ),
         ] {
             if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
                 return Err(bad(k, format!("must be in [0, 1000], got {v}")));
