@@ -1262,7 +1262,7 @@ fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
     let r = e.layout().range(field::PATH_GUIDE).expect("the field");
     let scale = cfg.env.observation.goal_scale_m;
     let close = |a: f32, b: f64| (f64::from(a) - b).abs() < 1e-5;
-    // 30 m ahead on the first leg: due east, though the goal is due north.
+    // The look-ahead point on the first leg: due east, though the goal is due north.
     assert!(
         close(obs[r.start], 1.0) && close(obs[r.start + 1], 0.0),
         "{obs:?}"

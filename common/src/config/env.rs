@@ -239,7 +239,12 @@ pub struct ObservationConfig {
     /// guide"). On by default since 2026-11-26, by the rule written before its runs
     /// (`results/issue15/guide/RULE.md`); `docs/paper_dupac.toml` turns it off.
     pub path_guide: bool,
-    /// How far along the planned path the guide's direction points (m).
+    /// How far along the planned path the guide's direction points (m). 10 m by default since
+    /// 2026-11-27 (30 m before): a chord between points L/2 before and after a right-angle
+    /// corner of the path passes L/(2√2) inside it, 3.5 m for L = 10, what the guide's 5 m
+    /// clearance leaves the 1.5 m training sphere; with 30 m the observed direction cut a
+    /// corner through a roof the path keeps 5 m above (`results/issue15/keep/RULE.md`,
+    /// docs/results.md). Recorded in the policy: one trained with 30 m is flown with 30 m.
     pub path_lookahead_m: f64,
     /// The planned path of the guide (and of `env.reward.progress = "path"`): 0 = the shortest
     /// flyable path; λ > 0 = the coverage-aware planner's path with this λ (`planner.penalty_*`),
@@ -285,7 +290,7 @@ impl Default for ObservationConfig {
             site_trend: false,
             site_ping_pong: true,
             path_guide: true,
-            path_lookahead_m: 30.0,
+            path_lookahead_m: 10.0,
             path_guide_lambda: 1.0,
             path_guide_clearance_m: 5.0,
         }
