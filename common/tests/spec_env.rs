@@ -37,6 +37,7 @@ fn spec_env_toml_is_the_spec_environment() {
     spec.env.observation.path_guide = false;
     spec.env.observation.path_guide_lambda = 0.0;
     spec.env.observation.path_guide_clearance_m = 0.0;
+    spec.env.observation.path_lookahead_m = 30.0;
     spec.env.reward.progress = Progress::Straight;
     spec.env.reward.guide_deviation_weight = 0.0;
     assert_eq!(cfg, spec);
@@ -64,6 +65,7 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.env.observation.path_guide = false;
     paper.env.observation.path_guide_lambda = 0.0;
     paper.env.observation.path_guide_clearance_m = 0.0;
+    paper.env.observation.path_lookahead_m = 30.0;
     paper.env.reward.progress = Progress::Straight;
     paper.env.reward.guide_deviation_weight = 0.0;
     assert_eq!(cfg, paper);

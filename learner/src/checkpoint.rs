@@ -85,24 +85,27 @@ mod legacy {
     use serde::Deserialize;
 
     /// Keys of `[env.observation]` added after file format 3, with what their absence means: what
-    /// a run written before them did (the guide off; its clearance `planner.clearance_m`, 0). Not
-    /// today's defaults, which turn the guide on.
+    /// a run written before them did (the guide off; its clearance `planner.clearance_m`, 0; the
+    /// look-ahead 30 m, unused with the guide off but compared on resume). Not today's defaults,
+    /// which turn the guide on.
     fn added_after_format_3() -> [(&'static str, toml::Value); 4] {
-        let off = ObservationConfig::default();
         [
             ("path_guide", toml::Value::Boolean(false)),
-            ("path_lookahead_m", toml::Value::Float(off.path_lookahead_m)),
+            // 30 m, the look-ahead of every file that recorded it until 2026-11-27.
+            ("path_lookahead_m", toml::Value::Float(30.0)),
             ("path_guide_lambda", toml::Value::Float(0.0)),
             ("path_guide_clearance_m", toml::Value::Float(0.0)),
         ]
     }
 
-    /// Today's observation with the guide as a file of format 3 or older meant it: off.
+    /// Today's observation with the guide as a file of format 3 or older meant it: off (and the
+    /// look-ahead of those days, 30 m).
     fn guide_off() -> ObservationConfig {
         ObservationConfig {
             path_guide: false,
             path_guide_lambda: 0.0,
             path_guide_clearance_m: 0.0,
+            path_lookahead_m: 30.0,
             ..ObservationConfig::default()
         }
     }
@@ -831,6 +834,7 @@ mod tests {
         unguided.env.observation.path_guide = false;
         unguided.env.observation.path_guide_lambda = 0.0;
         unguided.env.observation.path_guide_clearance_m = 0.0;
+        unguided.env.observation.path_lookahead_m = 30.0;
         unguided.env.reward.progress = dupac_common::config::Progress::Straight;
         let pu = learner(&unguided).policy();
         let before_guide: String = unguided
