@@ -661,10 +661,12 @@ mod tests {
         cfg.env.reward.ping_pong_reward = 0.0;
         cfg.env.observation.site_trend = true;
         cfg.env.site_every_step = false;
-        // Unguided, as a file of format 3 or older reads (the guide off, λ 0, clearance 0).
+        // Unguided, as a file of format 3 or older reads (the guide off, λ 0, clearance 0, the
+        // look-ahead of those days, 30 m).
         cfg.env.observation.path_guide = false;
         cfg.env.observation.path_guide_lambda = 0.0;
         cfg.env.observation.path_guide_clearance_m = 0.0;
+        cfg.env.observation.path_lookahead_m = 30.0;
         cfg.env.reward.progress = dupac_common::config::Progress::Straight;
         cfg.validate().expect("valid");
         let p = learner(&cfg).policy();
