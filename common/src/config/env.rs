@@ -130,11 +130,13 @@ pub struct RewardConfig {
     pub progress: Progress,
     /// κ_g, the path-keeping cost: per step (not per metre flown), −μ1 · κ_g · max(0, off −
     /// `guide_deviation_free_m`), with `off` the 3D distance (m) from the UAV to its tracked
-    /// place on the episode's planned path (`actor::env::GuideFix::off_m`) (`env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
-    /// buildings). 0 = off (the paper has no path). A departure (issue 15; docs/env.md "Path
-    /// guide"): under `progress = "path"` leaving the path costs only the progress it undoes,
-    /// which flying back repays, so nothing keeps the UAV on the path's clearance; the
-    /// collisions left under the guide were the UAV drifting 6–8 m off it beside a building.
+    /// place on the episode's planned path (`actor::env::GuideFix::off_m`; the path of
+    /// `env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
+    /// buildings). 0 = off, the default (the paper has no path). A departure (issue 15;
+    /// docs/env.md "Path guide"): under `progress = "path"` leaving the path costs only the
+    /// progress it undoes, which flying back repays, so nothing keeps the UAV inside the
+    /// path's clearance. Tried at 0.2 with the 30 m look-ahead and not adopted: collisions
+    /// rose (`results/issue15/keep/RULE.md`, docs/results.md "The path-keeping cost").
     /// Needs the planned path.
     pub guide_deviation_weight: f64,
     /// The free band of the path-keeping cost (m): no cost within this distance of the path.
