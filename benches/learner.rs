@@ -14,6 +14,10 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 
+/// The allocator of the `dupac` binary (src/main.rs), so the update costs what it costs there.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 const OBS: usize = 101;
 const SITES: usize = 30;
 
@@ -118,5 +122,38 @@ fn benches(c: &mut Criterion) {
     g.finish();
 }
 
+/// One whole update of today's defaults (`Config::default()`: the 438-value observation, the
+/// equivariant site head over 30 sites, the all-sites gradient over per-step site rows,
+/// 4 epochs × 8 minibatches of 512) on 16 × 256 synthetic decisions, batch assembly included.
+fn default_update(c: &mut Criterion) {
+    let cfg = dupac_common::config::Config::default();
+    let (obs_dim, m) = dupac_learner::synthetic::shapes(&cfg, SITES);
+    let trajs = dupac_learner::synthetic::trajectories(&cfg, m, 16, 256, 7);
+    let mut l = dupac_learner::Learner::new(cfg, obs_dim, m, &Device::flex());
+    let n: usize = trajs.iter().map(|t| t.len()).sum();
+    let mut g = c.benchmark_group("ppo_update_default");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("update_4096", |b| {
+        b.iter(|| {
+            let p = l.policy();
+            let segs: Vec<dupac_learner::Segment<'_>> = trajs
+                .iter()
+                .map(|t| dupac_learner::Segment {
+                    actor: dupac_common::ActorId(0),
+                    behaviour_version: p.version,
+                    traj: t,
+                })
+                .collect();
+            black_box(
+                l.learn(&p, &segs, dupac_learner::Timings::default())
+                    .expect("finite"),
+            )
+        })
+    });
+    g.finish();
+}
+
 criterion_group!(learner, benches);
-criterion_main!(learner);
+criterion_group!(default_update_group, default_update);
+criterion_main!(learner, default_update_group);

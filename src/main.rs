@@ -9,6 +9,11 @@ use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// mimalloc: the learner's tensors of 0.1–2 MB are allocated and freed many times per
+/// minibatch, and glibc's malloc maps and unmaps each (Cargo.toml, BENCHMARKS.md).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// DUPAC: Deep UAV Path planning with Assured Connectivity in dense urban settings.
 #[derive(Parser, Debug)]
 #[command(name = "dupac", version, about, long_about = None)]

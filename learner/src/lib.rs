@@ -9,6 +9,7 @@ pub mod model;
 pub mod ppo;
 pub mod site_horizon;
 pub mod source;
+pub mod synthetic;
 
 pub use learner::{IterationReport, Learner, MetricsRow, Segment, Timings, TrainError};
 pub use source::{Collected, Progress, SourceError, Sourced, TrajectorySource};

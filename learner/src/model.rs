@@ -14,6 +14,7 @@ use burn::tensor::activation::log_softmax;
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use dupac_common::policy::{
     Dense as PlainDense, HALF_LN_2PI, MOVE_DIM, Mlp as PlainMlp, SiteHead as PlainSiteHead,
+    tanh_f32,
 };
 use rand::RngExt;
 
@@ -24,11 +25,31 @@ pub struct Dense {
     pub bias: Param<Tensor<1>>,
 }
 
-/// tanh as `1 − 2 / (exp(2·clamp(x, ±15)) + 1)`: about 2× faster through burn's CPU backend than
-/// its `tanh` (notes/burn-cpu.md), max |error| ≈ 2e-7; the actors' forward pass uses the same.
+/// The hidden layers' tanh. On burn's CPU backend (`flex`) the values are computed in one pass
+/// by [`tanh_f32`] (the actors' function) and the gradient is taken from that output: the
+/// layer returns the linearisation `y = x·d + (h − x·d)` with `h = tanh(x)` and `d = 1 − h²`
+/// held constant, whose value is `h` (to one rounding of `x·d`, |x·d| < 0.45) and whose
+/// derivative is exactly `d`. Two tracked element-wise passes forward and one backward, where
+/// burn's `tanh` (libm per element, recomputed in the backward pass) or any composition of its
+/// element-wise ops costs 4–7× as much (BENCHMARKS.md, learner section). On other devices
+/// (GPU backends, whose fused kernels do not need this) burn's `tanh`.
 pub fn fast_tanh<const D: usize>(x: Tensor<D>) -> Tensor<D> {
-    let e = x.clamp(-15.0, 15.0).mul_scalar(2.0).exp();
-    e.add_scalar(1.0).recip().mul_scalar(-2.0).add_scalar(1.0)
+    let device = x.device();
+    if device.clone().without_autodiff() != Device::flex() {
+        return burn::tensor::activation::tanh(x);
+    }
+    let dims = x.dims();
+    let values = tensor_to_vec(x.clone().without_autodiff());
+    let mut slope = vec![0.0f32; values.len()];
+    let mut offset = vec![0.0f32; values.len()];
+    for ((&v, d), c) in values.iter().zip(&mut slope).zip(&mut offset) {
+        let h = tanh_f32(v);
+        *d = 1.0 - h * h;
+        *c = h - v * *d;
+    }
+    let slope = Tensor::<D>::from_data(TensorData::new(slope, dims), &device);
+    let offset = Tensor::<D>::from_data(TensorData::new(offset, dims), &device);
+    x * slope + offset
 }
 
 impl Dense {
@@ -121,7 +142,10 @@ impl SiteHeadModule {
     }
 
     /// Logits `[B, n_sites]` from state embeddings `[B, E]` ([`SiteHeadModule::embedding`]) and
-    /// features `[B, n_sites·F]`.
+    /// features `[B, n_sites·F]`. The first layer of the MLP is applied split, as the actors do:
+    /// its embedding rows (and bias) once per state, `[B, H1]`, its feature rows as one matmul
+    /// over every (state, site) pair, `[B·n_sites, F] × [F, H1]`, the two added by broadcasting
+    /// over the sites; the rest of the MLP over the `B·n_sites` rows.
     pub fn logits_of_embedding(
         &self,
         emb: Tensor<2>,
@@ -130,12 +154,19 @@ impl SiteHeadModule {
     ) -> Tensor<2> {
         let [b, e] = emb.dims();
         let f = self.features;
-        let emb = emb
-            .unsqueeze_dim::<3>(1)
-            .expand([b, n_sites, e])
-            .reshape([b * n_sites, e]);
-        let x = Tensor::cat(vec![feats.reshape([b * n_sites, f]), emb], 1);
-        self.mlp.forward(x).reshape([b, n_sites])
+        let first = &self.mlp.layers[0];
+        let w = first.weight.val();
+        let h1 = w.dims()[1];
+        let state = emb.matmul(w.clone().narrow(0, f, e)) + first.bias.val().unsqueeze::<2>();
+        let pairs = feats
+            .reshape([b * n_sites, f])
+            .matmul(w.narrow(0, 0, f))
+            .reshape([b, n_sites, h1]);
+        let mut x = (pairs + state.unsqueeze_dim::<3>(1)).reshape([b * n_sites, h1]);
+        for l in &self.mlp.layers[1..] {
+            x = l.forward(fast_tanh(x));
+        }
+        x.reshape([b, n_sites])
     }
 }
 
@@ -243,11 +274,12 @@ impl ActorCritic {
     }
 
     /// Move means `[B, 3]` and site logits `[B, M]` of normalised observations `[B, obs_dim]`
-    /// (`None` without a site head), the trunk input, and the actor's last hidden activation
-    /// when the equivariant head reads it.
+    /// (`None` without a site head, or when `site_logits` is false), the trunk input, and the
+    /// actor's last hidden activation when the equivariant head reads it.
     fn heads(
         &self,
         obs: Tensor<2>,
+        site_logits: bool,
     ) -> (Tensor<2>, Option<Tensor<2>>, Tensor<2>, Option<Tensor<2>>) {
         let [_, d] = obs.dims();
         let trunk = obs.clone().narrow(1, 0, self.trunk_dim);
@@ -255,13 +287,15 @@ impl ActorCritic {
         match &self.site {
             Some(h) => {
                 let (mean, hidden) = self.actor.forward_with_hidden(trunk.clone());
-                let feats = obs.narrow(1, self.trunk_dim, d - self.trunk_dim);
-                let logits = h.logits(hidden.clone(), feats, m);
-                (mean, Some(logits), trunk, Some(hidden))
+                let logits = site_logits.then(|| {
+                    let feats = obs.narrow(1, self.trunk_dim, d - self.trunk_dim);
+                    h.logits(hidden.clone(), feats, m)
+                });
+                (mean, logits, trunk, Some(hidden))
             }
             None => {
                 let head = self.actor.forward(trunk.clone());
-                let logits = (m > 0).then(|| head.clone().narrow(1, MOVE_DIM, m));
+                let logits = (m > 0 && site_logits).then(|| head.clone().narrow(1, MOVE_DIM, m));
                 (head.narrow(1, 0, MOVE_DIM), logits, trunk, None)
             }
         }
@@ -270,8 +304,22 @@ impl ActorCritic {
     /// Log-probabilities, entropies and values of stored actions.
     /// `obs: [B, obs_dim]` (normalised), `moves: [B, 3]` (unclipped), `sites: [B]`.
     pub fn evaluate(&self, obs: Tensor<2>, moves: Tensor<2>, sites: Tensor<1, Int>) -> Evaluated {
+        self.evaluate_rows(obs, moves, Some(sites))
+    }
+
+    /// [`ActorCritic::evaluate`] without the site head over the observations' own site rows
+    /// (`sites: None`): the site parts are zeros and `site_logp` is `None`; the move, the value
+    /// and the actor's hidden activation as there. What the update needs when the site head
+    /// learns from per-step rows alone (`env.site_every_step` with the all-sites gradient), where
+    /// the decision rows' site logits would be computed and differentiated for nothing.
+    pub fn evaluate_rows(
+        &self,
+        obs: Tensor<2>,
+        moves: Tensor<2>,
+        sites: Option<Tensor<1, Int>>,
+    ) -> Evaluated {
         let [b, _] = obs.dims();
-        let (mean, logits, trunk, actor_hidden) = self.heads(obs);
+        let (mean, logits, trunk, actor_hidden) = self.heads(obs, sites.is_some());
         let log_std = self.log_std.val();
         let inv_std = log_std.clone().neg().exp().unsqueeze::<2>();
         let z = (moves - mean) * inv_std;
@@ -292,8 +340,8 @@ impl ActorCritic {
             .sum()
             .add_scalar((0.5 + HALF_LN_2PI) * MOVE_DIM as f64);
         let dev = trunk.device();
-        let (lp_site, entropy_site, site_logp) = match logits {
-            Some(logits) => {
+        let (lp_site, entropy_site, site_logp) = match (logits, sites) {
+            (Some(logits), Some(sites)) => {
                 let logp = log_softmax(logits, 1);
                 let lp_site = logp
                     .clone()
@@ -305,7 +353,7 @@ impl ActorCritic {
                     .neg();
                 (lp_site, ent, Some(logp))
             }
-            None => (
+            _ => (
                 Tensor::<1>::zeros([b], &dev),
                 Tensor::<1>::zeros([b], &dev),
                 None,

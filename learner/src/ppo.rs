@@ -322,6 +322,9 @@ impl Ppo {
                 let moves =
                     Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), &self.device);
                 let sites = Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), &self.device);
+                // The per-step rows alone teach the site head: the decision rows' site logits
+                // are not computed.
+                let sites = (!(all_sites && per_step)).then_some(sites);
                 let Evaluated {
                     logprob,
                     logprob_move,
@@ -331,16 +334,19 @@ impl Ppo {
                     value,
                     actor_hidden,
                     ..
-                } = self.model.evaluate(obs, moves, sites);
+                } = self.model.evaluate_rows(obs, moves, sites);
                 // Under the all-sites gradient the ratio and clip are the move's alone.
                 let logprob = if all_sites { logprob_move } else { logprob };
                 let oldlp = self.t1(oldlp);
                 let (pg_loss, ratio) =
                     policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
+                // Under per-step rows the site entropy reported is of those rows (no gradient).
+                let mut step_entropy = None;
                 let site_loss = match (&site_logp, all_sites) {
-                    (Some(_), true) if per_step => actor_hidden.map(|hidden| {
-                        self.step_site_loss(batch, idx, hidden, rng)
-                            .mul_scalar(self.cfg.site_coef)
+                    (_, true) if per_step => actor_hidden.map(|hidden| {
+                        let (loss, entropy) = self.step_site_loss(batch, idx, hidden, rng);
+                        step_entropy = Some(entropy);
+                        loss.mul_scalar(self.cfg.site_coef)
                     }),
                     (Some(logp), true) => {
                         let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
@@ -389,7 +395,7 @@ impl Ppo {
                 let pg_v = f64::from(pg_loss.into_scalar::<f32>());
                 let vl_v = f64::from(v_loss.into_scalar::<f32>());
                 let em_v = f64::from(ent_move.into_scalar::<f32>());
-                let es_v = f64::from(ent_site.into_scalar::<f32>());
+                let es_v = step_entropy.unwrap_or_else(|| f64::from(ent_site.into_scalar::<f32>()));
 
                 let grads = loss.backward();
                 let mut grads = GradientsParams::from_grads(grads, &self.model);
@@ -450,14 +456,15 @@ impl Ppo {
     /// (every step at 0); step j of decision i is scored by the site head from its own features
     /// with the actor's hidden activation `hidden[i]` of the decision's observation
     /// (`[idx.len(), H]`, as the actors score it), against that step's site advantages
-    /// ([`site_advantages`] of its rows).
+    /// ([`site_advantages`] of its rows). Returns the loss and the mean entropy of the rows'
+    /// site distributions (a diagnostic, no gradient).
     pub fn step_site_loss(
         &self,
         batch: &Batch,
         idx: &[usize],
         hidden: Tensor<2>,
         rng: &mut impl RngExt,
-    ) -> Tensor<1> {
+    ) -> (Tensor<1>, f64) {
         let m = batch.n_sites;
         let f = self.model.site_features() * m;
         let per = self.cfg.site_step_rows;
@@ -484,7 +491,10 @@ impl Ppo {
         let feats = Tensor::<2>::from_data(TensorData::new(feats, [k, f]), dev);
         let adv = Tensor::<2>::from_data(TensorData::new(adv, [k, m]), dev);
         let logp = self.model.step_site_logp(hidden, parent, feats);
-        all_sites_loss(logp, adv)
+        let p_logp = tensor_to_vec(logp.clone().detach());
+        let entropy =
+            -p_logp.iter().map(|&l| f64::from(l.exp() * l)).sum::<f64>() / k.max(1) as f64;
+        (all_sites_loss(logp, adv), entropy)
     }
 }
 

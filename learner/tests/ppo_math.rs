@@ -756,6 +756,7 @@ fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
     let hidden = ev.actor_hidden.expect("equivariant head");
     let got = ppo
         .step_site_loss(&batch, &idx, hidden, &mut rng)
+        .0
         .into_scalar::<f32>();
     // By hand: the rows in the minibatch's order, each through the plain forward.
     let rows: Vec<(usize, usize)> = idx
@@ -785,4 +786,41 @@ fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
         (f64::from(got) - want).abs() < 1e-5,
         "loss {got} vs by hand {want}"
     );
+}
+
+/// The hidden layers' tanh on the CPU: its values are the actors' `tanh_f32` (to one rounding
+/// of the linearisation) and its gradient is exactly `1 − h²` of those values; against burn's
+/// own `tanh`, values and gradients agree to 1e-6.
+#[test]
+fn the_cpu_tanh_has_the_actors_values_and_the_gradient_of_its_output() {
+    use dupac_common::policy::tanh_f32;
+    use dupac_learner::model::fast_tanh;
+    let device = Device::flex().autodiff();
+    let xs: Vec<f32> = (-1200..=1200).map(|i| i as f32 * 0.01).collect();
+    let n = xs.len();
+    let grad_of = |f: fn(Tensor<2>) -> Tensor<2>| {
+        let x = Tensor::<2>::from_data(TensorData::new(xs.clone(), [1, n]), &device).require_grad();
+        let y = f(x.clone());
+        let values = tensor_to_vec(y.clone());
+        let g = y.sum().backward();
+        (values, tensor_to_vec(x.grad(&g).expect("gradient")))
+    };
+    let (h, dh) = grad_of(fast_tanh::<2>);
+    let (h_burn, dh_burn) = grad_of(burn::tensor::activation::tanh::<2>);
+    for (k, &x) in xs.iter().enumerate() {
+        let want = tanh_f32(x);
+        assert!((h[k] - want).abs() <= 6e-8, "x = {x}: {} vs {want}", h[k]);
+        assert_eq!(
+            dh[k],
+            1.0 - want * want,
+            "x = {x}: the derivative of the output"
+        );
+        assert!((h[k] - h_burn[k]).abs() < 1e-6, "x = {x}");
+        assert!(
+            (dh[k] - dh_burn[k]).abs() < 1e-6,
+            "x = {x}: {} vs {}",
+            dh[k],
+            dh_burn[k]
+        );
+    }
 }

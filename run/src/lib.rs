@@ -8,6 +8,7 @@ pub mod error;
 pub mod eval;
 pub mod evaluate;
 pub mod flights;
+pub mod guide_cache;
 pub mod local;
 pub mod metrics_table;
 pub mod monitor;

@@ -2,6 +2,7 @@
 //! evaluation pairs and the training pool (spec/env.md "World", "Pairs").
 
 use crate::error::{Context, RunError};
+use crate::guide_cache::GuideCache;
 use crate::progress::progress_bar;
 use dupac_actor::env::Episode;
 use dupac_actor::pairs::{
@@ -164,9 +165,13 @@ impl<'w> Planners<'w> {
 /// Gives every pair the planned path `cfg`'s episodes are guided along (docs/env.md "Path
 /// guide"); nothing when they need none. A pair the guide's clearance cannot join is guided
 /// along the path of the pairs' clearance, and the count is logged.
-pub fn guide_pairs(cfg: &Config, planners: &Planners, pairs: &mut [Pair]) -> Result<(), RunError> {
+pub fn guide_pairs(
+    cfg: &Config,
+    planners: &Planners,
+    pairs: &mut [Pair],
+) -> Result<usize, RunError> {
     if !cfg.env.needs_path() {
-        return Ok(());
+        return Ok(0);
     }
     let guide = planners.guide(cfg)?;
     let fell_back = attach_paths(
@@ -185,7 +190,30 @@ pub fn guide_pairs(cfg: &Config, planners: &Planners, pairs: &mut [Pair]) -> Res
             "no guide path with the guide's clearance: these pairs are guided along the path of planner.clearance_m"
         );
     }
-    Ok(())
+    Ok(fell_back)
+}
+
+/// [`guide_pairs`] through the guide cache ([`GuideCache`]): the paths of these pairs under
+/// `cfg` are loaded when this host planned them before, else planned (with planners built here:
+/// the coverage classes are most of the cost) and cached. Returns whether they were loaded.
+pub fn guide_pairs_cached(
+    cfg: &Config,
+    world: &RadioWorld,
+    rsrp: &SharedRsrp,
+    pairs: &mut [Pair],
+) -> Result<bool, RunError> {
+    if !cfg.env.needs_path() || pairs.is_empty() {
+        return Ok(false);
+    }
+    let cache = GuideCache::new(cfg, world.fingerprint(), pairs);
+    if cache.load(pairs).is_some() {
+        tracing::info!(pairs = pairs.len(), file = %cache.path().display(), "guide paths loaded");
+        return Ok(true);
+    }
+    let planners = Planners::new(cfg, &[], world, rsrp, false);
+    let fell_back = guide_pairs(cfg, &planners, pairs)?;
+    cache.save(pairs, fell_back);
+    Ok(false)
 }
 
 /// The episode of `p` as `cfg`'s environment flies it: with the guide path of `cfg`'s λ and

@@ -8,7 +8,7 @@ use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_common::ActorId;
 use dupac_dist::actor::{ActorOptions, run_actor};
-use dupac_run::scenario::{make_pool, world_and_cache};
+use dupac_run::scenario::{guide_pairs_cached, make_pool, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -41,17 +41,17 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let cfg = super::run_args::resolve_config(global, args.association, None)?;
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
-    let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
-    let pool = match &args.pool {
-        Some(p) => {
-            let mut pool = read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
-                .with_context(|| format!("--pool {}", p.display()))?;
-            dupac_run::scenario::guide_pairs(&cfg, &planners, &mut pool)?;
-            pool
-        }
-        None => make_pool(&cfg, &planners, global.quiet)?,
+    // The pairs with a planner of their own clearance (no coverage classes); their guide paths
+    // from the host's guide cache, planned only when this host has not planned them yet.
+    let unguided = dupac_run::scenario::unguided(&cfg);
+    let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+    let mut pool = match &args.pool {
+        Some(p) => read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
+            .with_context(|| format!("--pool {}", p.display()))?,
+        None => make_pool(&unguided, &planners, global.quiet)?,
     };
     drop(planners);
+    guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let opts = ActorOptions {
         id: ActorId(args.id.unwrap_or(std::process::id())),

@@ -15,7 +15,7 @@ use dupac_actor::pairs::write_pairs_jsonl;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{StatsMsg, decode_msg};
 use dupac_run::run_dir::checkpoint_to_resume;
-use dupac_run::scenario::{held_out_pairs, make_pool, world_and_cache};
+use dupac_run::scenario::{guide_pairs_cached, held_out_pairs, make_pool, world_and_cache};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -35,15 +35,18 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
 
     // Everything the children would otherwise each compute (and race on): built once here.
     let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
-    // The pairs only: their files carry no guide path (each actor plans its pool's), so none is
-    // planned here (an unguided configuration: no coverage classes either).
+    // The pairs, drawn with a planner of their clearance (no coverage classes); then the
+    // pool's guide paths, planned once here into the host's guide cache (or found there), so
+    // the actors load them instead of each planning them.
     let unguided = dupac_run::scenario::unguided(&cfg);
     let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
     held_out_pairs(&unguided, &planners, global.quiet)?;
     let pool_path = out.join("train_pool.jsonl");
-    let pool = make_pool(&unguided, &planners, global.quiet)?;
+    let mut pool = make_pool(&unguided, &planners, global.quiet)?;
     write_pairs_jsonl(&pool_path, &pool)?;
-    drop((planners, pool));
+    drop(planners);
+    guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
+    drop(pool);
     drop(world);
 
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

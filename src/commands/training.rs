@@ -15,7 +15,9 @@ use dupac_run::evaluate::evaluate;
 use dupac_run::local::LocalWorkers;
 use dupac_run::progress::progress_bar;
 use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};
-use dupac_run::scenario::{SharedRsrp, held_out_pairs, make_pool, spread, world_and_cache};
+use dupac_run::scenario::{
+    SharedRsrp, guide_pairs_cached, held_out_pairs, make_pool, spread, world_and_cache,
+};
 use dupac_run::train_loop::{self, Finish, method_name, summary_line};
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -45,19 +47,27 @@ impl Training {
         let device = device(run.device)?;
         let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
         let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
-        let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
-        let eval_set = spread(
-            &held_out_pairs(&cfg, &planners, global.quiet)?,
+        // The pairs with a planner of their clearance (no coverage classes); the guide paths of
+        // the evaluated ones and of the pool through the host's guide cache.
+        let unguided = dupac_run::scenario::unguided(&cfg);
+        let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+        let mut eval_set = spread(
+            &held_out_pairs(&unguided, &planners, global.quiet)?,
             cfg.train.eval_pairs,
         );
-        let local = match local {
-            true => {
-                let pool = Arc::new(make_pool(&cfg, &planners, global.quiet)?);
-                Some(LocalWorkers::new(&cfg, &world, &rsrp, &pool)?)
-            }
+        let pool = match local {
+            true => Some(make_pool(&unguided, &planners, global.quiet)?),
             false => None,
         };
         drop(planners);
+        guide_pairs_cached(&cfg, &world, &rsrp, &mut eval_set)?;
+        let local = match pool {
+            Some(mut pool) => {
+                guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
+                Some(LocalWorkers::new(&cfg, &world, &rsrp, &Arc::new(pool))?)
+            }
+            None => None,
+        };
         let mut learner = Learner::new(cfg.clone(), obs_dim, n_sites, &device);
         if let Some(ck) = &checkpoint {
             learner.restore(&device, ck)?;

@@ -58,6 +58,11 @@ impl PathGuide {
         })
     }
 
+    /// The path's points (m), source first.
+    pub fn points_m(&self) -> &[Point] {
+        &self.points_m
+    }
+
     /// The path's first and last points (m).
     pub fn ends_m(&self) -> (Point, Point) {
         (self.points_m[0], self.points_m[self.points_m.len() - 1])
