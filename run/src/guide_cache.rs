@@ -63,10 +63,11 @@ impl GuideCache {
         h.write_f64(lambda);
         h.write_f64(clearance_m);
         h.write_u64(pairs.len() as u64);
+        // Endpoints to the millimetre: a pairs file read back (JSON) may differ in the last bit.
         for p in pairs {
             h.write_u64(p.id);
             for v in p.source_m.iter().chain(p.destination_m.iter()) {
-                h.write_f64(*v);
+                h.write_u64((v * 1e3).round() as i64 as u64);
             }
         }
         let key = h.finish();
