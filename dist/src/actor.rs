@@ -63,6 +63,53 @@ pub struct ActorOptions {
     pub threads: usize,
     /// Stop after this many chunks (0 = until the learner says stop).
     pub max_chunks: u64,
+    /// Recorded chunks sent in turn instead of stepping the environments ([`read_recording`]):
+    /// each under this actor's header as acted with the current version. An actor of unbounded
+    /// speed, for the learner's scaling bench (`benches/learner_scaling.sh`).
+    pub replay: Option<Arc<Vec<Vec<EnvTrajectory>>>>,
+    /// Where to write the trajectories of the chunks this actor sent, when it stops
+    /// ([`write_recording`]).
+    pub record: Option<std::path::PathBuf>,
+}
+
+const RECORDING_MAGIC: &[u8; 8] = b"DUPACREC";
+const RECORDING_VERSION: u32 = 1;
+/// Most bytes a recording may have, and may allocate when read.
+const RECORDING_MAX_BYTES: usize = 1 << 30;
+
+/// Writes recorded chunks' trajectories to `path` (atomically).
+pub fn write_recording(
+    path: &std::path::Path,
+    chunks: &[Vec<EnvTrajectory>],
+) -> Result<(), ActorError> {
+    let bytes = dupac_common::codec::encode(
+        RECORDING_MAGIC,
+        RECORDING_VERSION,
+        &chunks,
+        "recorded chunks",
+    )?;
+    dupac_common::codec::write_atomic(path, &bytes)?;
+    Ok(())
+}
+
+/// Reads chunks written by [`write_recording`]; at least one.
+pub fn read_recording(path: &std::path::Path) -> Result<Vec<Vec<EnvTrajectory>>, ActorError> {
+    let bytes = dupac_common::codec::read_limited(path, RECORDING_MAX_BYTES)?;
+    let chunks: Vec<Vec<EnvTrajectory>> = dupac_common::codec::decode_budgeted(
+        RECORDING_MAGIC,
+        RECORDING_VERSION,
+        &bytes,
+        RECORDING_MAX_BYTES,
+        RECORDING_MAX_BYTES,
+        &path.display().to_string(),
+    )?;
+    if chunks.is_empty() {
+        return Err(ActorError::Refused(format!(
+            "{}: a recording of no chunks",
+            path.display()
+        )));
+    }
+    Ok(chunks)
 }
 
 /// What an actor did, for its exit message.
@@ -336,6 +383,7 @@ pub fn run_actor(
         .collect::<Result<_, ActorError>>()?;
 
     let mut report = ActorReport::default();
+    let mut recorded: Vec<Vec<EnvTrajectory>> = Vec::new();
     let mut current: Option<Current> = None;
     let mut seq = 0u64;
     let mut episodes = 0u64;
@@ -455,12 +503,18 @@ pub fn run_actor(
         }
         let policy = cur.policy.clone();
         let steps = d.chunk_steps;
-        let trajectories: Vec<EnvTrajectory> = threads.install(|| {
-            workers
-                .par_iter_mut()
-                .map(|w| w.collect(&policy, steps))
-                .collect::<Result<_, _>>()
-        })?;
+        let trajectories: Vec<EnvTrajectory> = match &opts.replay {
+            Some(chunks) => chunks[(report.chunks_sent % chunks.len() as u64) as usize].clone(),
+            None => threads.install(|| {
+                workers
+                    .par_iter_mut()
+                    .map(|w| w.collect(&policy, steps))
+                    .collect::<Result<_, _>>()
+            })?,
+        };
+        if opts.record.is_some() {
+            recorded.push(trajectories.clone());
+        }
         let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
         header.sender_incarnation = sender_incarnation;
         header.seq = seq;
@@ -510,6 +564,9 @@ pub fn run_actor(
         }
     }
     let _ = wiring.session.close().wait();
+    if let Some(path) = &opts.record {
+        write_recording(path, &recorded)?;
+    }
     Ok(report)
 }
 

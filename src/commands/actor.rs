@@ -32,6 +32,14 @@ pub struct ActorArgs {
     /// `learned` (DUPAC) or `a3` (base method); must match the learner's.
     #[arg(long, value_enum)]
     pub association: Option<super::run_args::AssociationArg>,
+    /// Write the trajectories of the chunks sent to FILE when the actor stops (with
+    /// `--max-chunks`): a recording for `--replay`.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Send the chunks of a `--record` file in turn instead of stepping environments: an actor
+    /// of unbounded speed, for the learner's scaling bench (`benches/learner_scaling.sh`).
+    #[arg(long, value_name = "FILE", conflicts_with = "record")]
+    pub replay: Option<PathBuf>,
     #[command(flatten)]
     pub net: ConnectArgs,
 }
@@ -60,6 +68,14 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
             .unwrap_or(cfg.distributed.actor_envs.min(cores))
             .max(1),
         max_chunks: args.max_chunks,
+        replay: match &args.replay {
+            Some(p) => Some(Arc::new(
+                dupac_dist::actor::read_recording(p)
+                    .with_context(|| format!("--replay {}", p.display()))?,
+            )),
+            None => None,
+        },
+        record: args.record.clone(),
     };
     // Stopped before it could join (Ctrl-C or the orchestrator's SIGTERM at the end of a run):
     // leave cleanly, with the summary line of an actor that sent nothing.

@@ -7,7 +7,7 @@
 
 use super::children::{child, free_port, reap, signal};
 use super::net::{ConnectArgs, ModeArg, stop_flag};
-use super::run_args::{DeviceArg, TrainArgs, device, resolve_config};
+use super::run_args::{DeviceArg, HeldOutSeen, TrainArgs, device, resolve_config};
 use crate::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
@@ -121,6 +121,10 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let mut sub = None;
     let limit = dupac_common::msg::MsgLimits::small(&cfg);
     let mut forwarded = false;
+    // The held-out evaluations, from the run's metrics as the learner appends them.
+    let metrics_path = out.join("metrics.jsonl");
+    let mut metrics_read = std::fs::metadata(&metrics_path).map_or(0, |m| m.len());
+    let mut held_out = HeldOutSeen::default();
     let status = loop {
         if let Some(st) = learner.try_wait().context("waiting for the learner")? {
             break st;
@@ -157,9 +161,12 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
                 .iter()
                 .filter(|a| a.state == dupac_common::msg::ActorState::Alive)
                 .count();
+            metrics_read += held_out.see_new_lines(&metrics_path, metrics_read);
             pb.set_message(format!(
-                "v{} {:.0} sps {alive} actors",
-                st.update, st.env_steps_per_s
+                "v{} {:.0} sps {alive} actors{}",
+                st.update,
+                st.env_steps_per_s,
+                held_out.suffix()
             ));
         }
         for (k, a) in actors.iter_mut().enumerate() {

@@ -3,7 +3,7 @@
 //! (fresh or resumed) and the locked run directory; then the loop with a progress bar and the
 //! closing lines. They differ only in their trajectory source.
 
-use super::run_args::{RunArgs, device, progress_message, resolve_config};
+use super::run_args::{HeldOutSeen, RunArgs, device, progress_message, resolve_config};
 use crate::GlobalArgs;
 use anyhow::Result;
 use dupac_actor::env::Env;
@@ -105,6 +105,7 @@ impl Training {
         let learner = &mut self.learner;
         let total = learner.num_updates() * learner.batch_size() as u64;
         let pb = progress_bar(total, "timesteps", global.quiet);
+        let mut held_out = HeldOutSeen::default();
         pb.set_position(learner.global_step);
         let (cfg, world, rsrp, eval_set) = (&self.cfg, &self.world, &self.rsrp, &self.eval_set);
         let eval = |p: &_| evaluate(cfg, world, rsrp, p, eval_set);
@@ -116,7 +117,8 @@ impl Training {
             stop,
             &mut |l, row| {
                 pb.set_position(l.global_step);
-                pb.set_message(progress_message(row));
+                held_out.see(row);
+                pb.set_message(format!("{}{}", progress_message(row), held_out.suffix()));
                 if global.quiet {
                     // Without a progress bar (the children of `dupac train`, services): one
                     // line per update.

@@ -527,3 +527,30 @@ fn link_calculator_refuses_unphysical_and_undecodable_lines_one_by_one() {
         );
     }
 }
+
+/// A `--device` this build or machine cannot run is refused before anything starts, with the
+/// flag and the remedy named, not a panic (CI's build has no GPU backend).
+#[test]
+fn an_unavailable_device_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out_dir = dir.path().join("run");
+    let out_dir = out_dir.to_str().expect("utf-8");
+    for (command, device) in [
+        (&["train", "--single-process"][..], "cuda"),
+        (&["train"][..], "wgpu"),
+        (&["learner"][..], "cuda"),
+    ] {
+        let mut args = command.to_vec();
+        args.extend(["--device", device, "--out", out_dir]);
+        let out = dupac(&args, None);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} ran");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("--device {device}"))
+                && (err.contains(&format!("--features {device}"))
+                    || err.contains("found on this machine")),
+            "{args:?}: {err}"
+        );
+    }
+}
