@@ -7,8 +7,8 @@
 # First one real actor records 16 chunks (`dupac actor --record --max-chunks 16`); then for each
 # N a fresh learner runs UPDATES updates of 4 096 samples. Per N it prints: accepted samples/s
 # and updates/s in the steady state (updates 6..UPDATES, Δglobal_step / Δtime_s from the run's
-# metrics), the chunks the learner dropped (all reasons, `dist/dropped_*`), the learner's CPU
-# (user + system seconds over its wall-clock) and its peak resident memory.
+# metrics), the chunks the learner dropped (all reasons, `dist/dropped_*`) and the learner's peak
+# resident memory.
 #
 # Usage: benches/learner_scaling.sh [path/to/dupac] [--device cpu|cuda|wgpu]
 #        UPDATES=30 NS="1 2 4 8 16"
@@ -33,7 +33,7 @@ trap 'pkill -P $$ 2>/dev/null || true; rm -rf "$OUT"' EXIT
   --set train.checkpoint_every=100000 > "$OUT/config.toml"
 port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 learner() { # out-dir endpoint
-  /usr/bin/time -f "%U %S %e %M" -o "$1.time" \
+  /usr/bin/time -f "%M" -o "$1.time" \
     "$B" -q --config "$OUT/config.toml" learner --out "$1" --device "$DEVICE" \
     --mode router --listen "$2" --no-multicast-scouting > "$1.log" 2>&1
 }
@@ -52,7 +52,7 @@ actor 0 "$EP" --max-chunks 16 --record "$OUT/chunks.bin" > "$OUT/record-actor.lo
 pkill -INT -f -- "learner --out $OUT/record" || true
 wait $L 2>/dev/null || true
 echo "recorded $(du -h "$OUT/chunks.bin" | cut -f1) of chunks ($DEVICE learner, $U updates per N, $(nproc) cores)"
-printf "%4s %14s %10s %8s %14s %12s\n" N "samples/s" "updates/s" drops "learner CPU" "learner RSS"
+printf "%4s %14s %10s %8s %12s\n" N "samples/s" "updates/s" drops "learner RSS"
 
 for n in $NS; do
   EP="tcp/127.0.0.1:$(port)"
@@ -75,7 +75,7 @@ dt = b["time_s"] - a["time_s"]
 sps = (b["global_step"] - a["global_step"]) / dt
 ups = (b["update"] - a["update"]) / dt
 drops = sum(v for k, v in b.items() if k.startswith("dist/dropped_") and v)
-user, system, wall, rss_kb = (float(x) for x in open(sys.argv[2]).read().split()[-4:])
-print(f"{sys.argv[3]:>4} {sps:14.0f} {ups:10.2f} {drops:8.0f} {100 * (user + system) / wall:13.0f}% {rss_kb / 1024:10.0f} MB")
+rss_kb = float(open(sys.argv[2]).read().split()[-1])
+print(f"{sys.argv[3]:>4} {sps:14.0f} {ups:10.2f} {drops:8.0f} {rss_kb / 1024:9.0f} MB")
 PY
 done
