@@ -202,18 +202,34 @@ pub fn guide_pairs_cached(
     rsrp: &SharedRsrp,
     pairs: &mut [Pair],
 ) -> Result<bool, RunError> {
-    if !cfg.env.needs_path() || pairs.is_empty() {
-        return Ok(false);
+    Ok(guide_sets_cached(cfg, world, rsrp, &mut [pairs])? == 1)
+}
+
+/// [`guide_pairs_cached`] for several pair sets (each its own cache entry), the planners built at
+/// most once for those the cache misses. Returns how many sets were loaded.
+pub fn guide_sets_cached(
+    cfg: &Config,
+    world: &RadioWorld,
+    rsrp: &SharedRsrp,
+    sets: &mut [&mut [Pair]],
+) -> Result<usize, RunError> {
+    if !cfg.env.needs_path() {
+        return Ok(0);
     }
-    let cache = GuideCache::new(cfg, world.fingerprint(), pairs);
-    if cache.load(pairs).is_some() {
-        tracing::info!(pairs = pairs.len(), file = %cache.path().display(), "guide paths loaded");
-        return Ok(true);
+    let mut planners: Option<Planners> = None;
+    let mut loaded = 0;
+    for pairs in sets.iter_mut().filter(|p| !p.is_empty()) {
+        let cache = GuideCache::new(cfg, world.fingerprint(), pairs);
+        if cache.load(pairs).is_some() {
+            tracing::info!(pairs = pairs.len(), file = %cache.path().display(), "guide paths loaded");
+            loaded += 1;
+            continue;
+        }
+        let planners = planners.get_or_insert_with(|| Planners::new(cfg, &[], world, rsrp, false));
+        let fell_back = guide_pairs(cfg, planners, pairs)?;
+        cache.save(pairs, fell_back);
     }
-    let planners = Planners::new(cfg, &[], world, rsrp, false);
-    let fell_back = guide_pairs(cfg, &planners, pairs)?;
-    cache.save(pairs, fell_back);
-    Ok(false)
+    Ok(loaded)
 }
 
 /// The episode of `p` as `cfg`'s environment flies it: with the guide path of `cfg`'s λ and

@@ -16,7 +16,7 @@ use dupac_run::local::LocalWorkers;
 use dupac_run::progress::progress_bar;
 use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};
 use dupac_run::scenario::{
-    SharedRsrp, guide_pairs_cached, held_out_pairs, make_pool, spread, world_and_cache,
+    SharedRsrp, guide_sets_cached, held_out_pairs, make_pool, spread, world_and_cache,
 };
 use dupac_run::train_loop::{self, Finish, method_name, summary_line};
 use std::process::ExitCode;
@@ -60,13 +60,11 @@ impl Training {
             false => None,
         };
         drop(planners);
-        guide_pairs_cached(&cfg, &world, &rsrp, &mut eval_set)?;
-        let local = match pool {
-            Some(mut pool) => {
-                guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
-                Some(LocalWorkers::new(&cfg, &world, &rsrp, &Arc::new(pool))?)
-            }
-            None => None,
+        let mut pool = pool.unwrap_or_default();
+        guide_sets_cached(&cfg, &world, &rsrp, &mut [&mut eval_set, &mut pool])?;
+        let local = match local {
+            true => Some(LocalWorkers::new(&cfg, &world, &rsrp, &Arc::new(pool))?),
+            false => None,
         };
         let mut learner = Learner::new(cfg.clone(), obs_dim, n_sites, &device);
         if let Some(ck) = &checkpoint {
