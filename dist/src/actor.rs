@@ -3,12 +3,15 @@
 //! An actor joins a run, fetches the latest weights by query, announces itself with a
 //! liveliness token, steps `distributed.actor_envs` environments on its own thread pool (not on
 //! zenoh's runtime), and publishes one [`TrajectoryChunk`] per `distributed.chunk_steps` steps
-//! with `CongestionControl::Block` (the default `Drop` silently loses multi-MB messages).
+//! with `CongestionControl::Block` (the default `Drop` silently loses multi-MB messages) from a
+//! task of its network side ([`crate::netside`]): the environments step the next chunk while
+//! the last one is sent, and wait only when two are queued.
 //! Weights arrive on a ring channel of 1 (only the newest matters) and are swapped between
 //! chunks. The actor refuses weights whose configuration fingerprint differs from its own,
 //! waits while no learner is alive, and follows a restarted learner (a new incarnation's
 //! weights replace the old ones even with a lower version).
 
+use crate::netside::{Every, Latest, NetSide};
 use dupac_actor::env::{Env, EnvError};
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::{EnvTrajectory, RolloutError, Worker, stream_seed};
@@ -50,6 +53,9 @@ pub enum ActorError {
     #[error("cannot start the environment threads: {0}")]
     Threads(String),
 }
+
+/// Chunks queued for the network side before the environments wait: one being sent, one ready.
+const CHUNKS_IN_FLIGHT: usize = 2;
 
 fn z(e: impl std::fmt::Display) -> ActorError {
     ActorError::Zenoh(e.to_string())
@@ -168,8 +174,9 @@ struct Wiring {
     /// Actors of the run with a liveliness token (this one included).
     actors: Arc<Mutex<HashSet<String>>>,
     stop: Arc<AtomicBool>,
-    traj_pub: zenoh::pubsub::Publisher<'static>,
-    stats_pub: zenoh::pubsub::Publisher<'static>,
+    traj: Every,
+    stats: Latest,
+    net: NetSide,
     _token: zenoh::liveliness::LivelinessToken,
     _learner_sub: zenoh::pubsub::Subscriber<()>,
     _actors_sub: zenoh::pubsub::Subscriber<()>,
@@ -218,16 +225,27 @@ impl Wiring {
                 .wait()
                 .map_err(z)?
         };
-        let traj_pub = session
-            .declare_publisher(keys.traj(id))
-            .congestion_control(CongestionControl::Block)
-            .wait()
-            .map_err(z)?;
-        let stats_pub = session
-            .declare_publisher(keys.stats_actor(id))
-            .congestion_control(CongestionControl::Drop)
-            .wait()
-            .map_err(z)?;
+        let mut net = NetSide::new()
+            .map_err(|e| ActorError::Zenoh(format!("cannot start the network side: {e}")))?;
+        let traj = Every::start(
+            &mut net,
+            session
+                .declare_publisher(keys.traj(id))
+                .congestion_control(CongestionControl::Block)
+                .wait()
+                .map_err(z)?,
+            CHUNKS_IN_FLIGHT,
+            "trajectory chunk",
+        );
+        let stats = Latest::start(
+            &mut net,
+            session
+                .declare_publisher(keys.stats_actor(id))
+                .congestion_control(CongestionControl::Drop)
+                .wait()
+                .map_err(z)?,
+            "stats",
+        );
         let token = session
             .liveliness()
             .declare_token(keys.alive(role, &id.0.to_string()))
@@ -240,13 +258,28 @@ impl Wiring {
             learners,
             actors,
             stop,
-            traj_pub,
-            stats_pub,
+            traj,
+            stats,
+            net,
             _token: token,
             _learner_sub: learner_sub,
             _actors_sub: actors_sub,
             _ctrl_sub: ctrl_sub,
         })
+    }
+
+    /// Sends what is still queued, stops the network side and closes the session.
+    fn close(self) {
+        let Wiring {
+            session,
+            traj,
+            stats,
+            net,
+            ..
+        } = self;
+        drop((traj, stats));
+        net.finish(Duration::from_secs(5));
+        let _ = session.close().wait();
     }
 
     fn actors_alive(&self) -> usize {
@@ -529,8 +562,10 @@ pub fn run_actor(
             .iter()
             .map(|t| t.episodes.len() as u64)
             .sum::<u64>();
-        let bytes = encode_msg(&chunk)?;
-        wiring.traj_pub.put(bytes).wait().map_err(z)?;
+        wiring
+            .traj
+            .send(encode_msg(&chunk)?)
+            .map_err(ActorError::Zenoh)?;
         seq += 1;
         chunks_this_version += 1;
         report.chunks_sent += 1;
@@ -552,18 +587,12 @@ pub fn run_actor(
                 last_swap_latency_ms,
                 episodes,
             };
-            if let Err(e) = wiring
-                .stats_pub
-                .put(encode_msg(&StatsMsg::Actor(stats))?)
-                .wait()
-            {
-                tracing::warn!("stats not sent: {e}");
-            }
+            wiring.stats.set(encode_msg(&StatsMsg::Actor(stats))?);
             last_stats = Instant::now();
             steps_at_stats = report.env_steps;
         }
     }
-    let _ = wiring.session.close().wait();
+    wiring.close();
     if let Some(path) = &opts.record {
         write_recording(path, &recorded)?;
     }

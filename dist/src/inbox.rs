@@ -1,8 +1,8 @@
 //! The learner's inbox (issue 16): zenoh's receive callback queues raw trajectory messages
 //! under byte budgets per sender and in total ([`InboxBudget`]; over budget the sender's own
 //! oldest message goes, then the biggest holder's: `overflow`), without ever blocking; the
-//! decode thread ([`decode_loop`]) decodes each within its allocation budget, validates it,
-//! drops replays and queues it for PPO.
+//! decode task ([`decode_task`], on the node's network side) decodes each within its
+//! allocation budget, validates it, drops replays and queues it for PPO.
 
 use dupac_common::ActorId;
 use dupac_common::dedup::{SeqTracker, Verdict};
@@ -12,8 +12,8 @@ use dupac_common::msg::{
 };
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Condvar, Mutex};
-use std::time::{Duration, Instant};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Instant;
 
 /// A chunk that passed validation, waiting for the PPO loop.
 #[derive(Debug)]
@@ -68,7 +68,7 @@ impl InboxBudget {
     }
 }
 
-/// The queues between zenoh's receive callback, the decode thread and the PPO loop, with the
+/// The queues between zenoh's receive callback, the decode task and the PPO loop, with the
 /// bytes each sender holds in them.
 #[derive(Default)]
 pub(crate) struct Queues {
@@ -129,12 +129,13 @@ impl Queues {
     }
 }
 
-/// What the receive callback, the decode thread and the PPO loop share.
+/// What the receive callback, the decode task and the PPO loop share.
 pub(crate) struct Inbox {
     pub(crate) queues: Mutex<Queues>,
-    /// A decoded chunk is ready (PPO loop) / a raw message arrived (decode thread).
+    /// A decoded chunk is ready (PPO loop).
     pub(crate) ready: Condvar,
-    pub(crate) arrived: Condvar,
+    /// A raw message arrived, or the node closes (decode task).
+    pub(crate) arrived: tokio::sync::Notify,
     pub(crate) drops: Mutex<BTreeMap<DropReason, u64>>,
     pub(crate) budget: InboxBudget,
 }
@@ -144,7 +145,7 @@ impl Inbox {
         Inbox {
             queues: Mutex::default(),
             ready: Condvar::new(),
-            arrived: Condvar::new(),
+            arrived: tokio::sync::Notify::new(),
             drops: Mutex::default(),
             budget,
         }
@@ -199,12 +200,13 @@ impl Inbox {
     }
 }
 
-/// The decode thread: queued bytes → decode within the budget → validate → at-most-once →
-/// decoded queue. The message keeps its charge against its sender until the PPO loop takes it.
-pub(crate) fn decode_loop(
-    inbox: &Inbox,
-    closing: &AtomicBool,
-    expect: &ChunkExpect,
+/// The decode task (on the node's network side): queued bytes → decode within the budget →
+/// validate → at-most-once → decoded queue. The message keeps its charge against its sender
+/// until the PPO loop takes it. Ends when `closing` is set (and `arrived` notified).
+pub(crate) async fn decode_task(
+    inbox: Arc<Inbox>,
+    closing: Arc<AtomicBool>,
+    expect: ChunkExpect,
     limits: MsgLimits,
 ) {
     let mut seqs = SeqTracker::new();
@@ -213,15 +215,13 @@ pub(crate) fn decode_loop(
             let Ok(mut q) = inbox.queues.lock() else {
                 break;
             };
-            if q.raw.is_empty() {
-                q = match inbox.arrived.wait_timeout(q, Duration::from_millis(200)) {
-                    Ok((q, _)) => q,
-                    Err(_) => break,
-                };
-            }
             q.raw.pop_front()
         };
-        let Some(raw) = raw else { continue };
+        let Some(raw) = raw else {
+            // A notification sent since the queue was found empty is kept: none is lost.
+            inbox.arrived.notified().await;
+            continue;
+        };
         let refuse = |reason: DropReason| {
             inbox.drop_one(reason);
             if let Ok(mut q) = inbox.queues.lock() {
@@ -241,7 +241,7 @@ pub(crate) fn decode_loop(
             tracing::warn!(key = raw.key, actor = %chunk.header.actor, "chunk published on another actor's key");
             continue;
         }
-        if let Err(r) = validate_chunk(&chunk, expect) {
+        if let Err(r) = validate_chunk(&chunk, &expect) {
             refuse(r.reason);
             tracing::warn!(key = raw.key, "chunk rejected: {r}");
             continue;

@@ -4,7 +4,7 @@
 //!   `Block` sender gets its transport closed after 5 s): it drops messages over the chunk
 //!   limit unread and queues the rest under byte budgets per sender and in total
 //!   ([`InboxBudget`]; over budget, the sender's own oldest message goes, then the biggest
-//!   holder's: `overflow`). A decode thread decodes each within its allocation budget
+//!   holder's: `overflow`). A decode task decodes each within its allocation budget
 //!   ([`MsgLimits::chunk`], issue 16), validates it ([`dupac_common::msg::validate_chunk`]),
 //!   drops replays ([`SeqTracker`]: at most once per (actor, sender incarnation, seq)) and
 //!   queues it for PPO (at most `distributed.queue_chunks`).
@@ -15,8 +15,11 @@
 //!   queryable for actors that join late; a liveliness token announces the learner; a
 //!   liveliness subscriber tracks actors (joined, left, silent).
 //! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`.
+//! * Decoding, publishing and query replies are tasks on the node's network side
+//!   ([`crate::netside`]): the PPO loop hands over encoded weights and stats and goes on.
 
-use crate::inbox::{Inbox, InboxBudget, decode_loop};
+use crate::inbox::{Inbox, InboxBudget, decode_task};
+use crate::netside::{Latest, NetSide};
 use dupac_common::ActorId;
 use dupac_common::config::Config;
 use dupac_common::dedup::MAX_TRACKED_SENDERS;
@@ -149,14 +152,13 @@ pub struct LearnerNode {
     stats_every_s: f64,
     inbox: Arc<Inbox>,
     actors: ActorTable,
-    latest_weights: Arc<Mutex<Option<Vec<u8>>>>,
-    weights_pub: zenoh::pubsub::Publisher<'static>,
-    stats_pub: zenoh::pubsub::Publisher<'static>,
+    weights: Latest,
+    stats: Latest,
     _token: zenoh::liveliness::LivelinessToken,
     _queryable: zenoh::query::Queryable<()>,
     _alive_sub: zenoh::pubsub::Subscriber<()>,
     _traj_sub: zenoh::pubsub::Subscriber<()>,
-    receiver: Option<std::thread::JoinHandle<()>>,
+    net: NetSide,
     closing: Arc<AtomicBool>,
     accepted_chunks: u64,
     stats_seq: u64,
@@ -220,7 +222,9 @@ impl LearnerNode {
         let closing = Arc::new(AtomicBool::new(false));
         let actors: ActorTable = Arc::default();
 
-        // zenoh's callback only queues (bounded by the byte budgets); a thread decodes.
+        let mut net = NetSide::new()
+            .map_err(|e| NodeError::Zenoh(format!("cannot start the network side: {e}")))?;
+        // zenoh's callback only queues (bounded by the byte budgets); a task decodes.
         let sub = {
             let (inbox, keys) = (inbox.clone(), keys.clone());
             session
@@ -229,48 +233,62 @@ impl LearnerNode {
                 .wait()
                 .map_err(z)?
         };
-        let receiver = {
-            let (inbox, closing, expect) = (inbox.clone(), closing.clone(), expect.clone());
-            std::thread::Builder::new()
-                .name("dupac-recv".into())
-                .spawn(move || decode_loop(&inbox, &closing, &expect, limits))
-                .map_err(|e| NodeError::Zenoh(format!("cannot start the receive thread: {e}")))?
-        };
+        net.spawn(decode_task(
+            inbox.clone(),
+            closing.clone(),
+            expect.clone(),
+            limits,
+        ));
 
-        let latest_weights: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+        let weights = Latest::start(
+            &mut net,
+            session
+                .declare_publisher(keys.weights())
+                .congestion_control(CongestionControl::Block)
+                .priority(Priority::InteractiveHigh)
+                .wait()
+                .map_err(z)?,
+            "weights",
+        );
+        let stats = Latest::start(
+            &mut net,
+            session
+                .declare_publisher(keys.stats_learner())
+                .congestion_control(CongestionControl::Drop)
+                .wait()
+                .map_err(z)?,
+            "stats",
+        );
+        // Queries within the reply rate are passed to a task that replies with the newest
+        // weights; over the rate, or while a burst of them waits, they go unanswered.
         let queryable = {
-            let latest = latest_weights.clone();
-            let key = keys.weights();
             let rate = d.weights_replies_per_s;
             let bucket = Mutex::new(TokenBucket::new(rate, 2.0 * rate));
+            let burst = (2.0 * rate).ceil().clamp(1.0, 1024.0) as usize;
+            let (tx, mut rx) = tokio::sync::mpsc::channel::<zenoh::query::Query>(burst);
+            let (latest, key) = (weights.receiver(), keys.weights());
+            net.spawn(async move {
+                while let Some(query) = rx.recv().await {
+                    let bytes = latest.borrow().as_ref().map(|(_, b)| b.clone());
+                    if let Some(b) = bytes
+                        && let Err(e) = query.reply(key.clone(), b).await
+                    {
+                        tracing::warn!("weights query: cannot reply: {e}");
+                    }
+                }
+            });
             session
                 .declare_queryable(keys.weights())
                 .callback(move |query| {
-                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now())) {
-                        tracing::debug!("weights query left unanswered: over the reply rate");
-                        return;
-                    }
-                    let bytes = latest.lock().ok().and_then(|w| w.clone());
-                    if let Some(b) = bytes
-                        && let Err(e) = query.reply(key.clone(), b).wait()
+                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now()))
+                        || tx.try_send(query).is_err()
                     {
-                        tracing::warn!("weights query: cannot reply: {e}");
+                        tracing::debug!("weights query left unanswered: over the reply rate");
                     }
                 })
                 .wait()
                 .map_err(z)?
         };
-        let weights_pub = session
-            .declare_publisher(keys.weights())
-            .congestion_control(CongestionControl::Block)
-            .priority(Priority::InteractiveHigh)
-            .wait()
-            .map_err(z)?;
-        let stats_pub = session
-            .declare_publisher(keys.stats_learner())
-            .congestion_control(CongestionControl::Drop)
-            .wait()
-            .map_err(z)?;
         let token = session
             .liveliness()
             .declare_token(keys.alive(Role::Learner, &format!("{incarnation:016x}")))
@@ -318,14 +336,13 @@ impl LearnerNode {
             stats_every_s: d.stats_every_s,
             inbox,
             actors,
-            latest_weights,
-            weights_pub,
-            stats_pub,
+            weights,
+            stats,
             _token: token,
             _queryable: queryable,
             _alive_sub: alive_sub,
             _traj_sub: sub,
-            receiver: Some(receiver),
+            net,
             closing,
             accepted_chunks: 0,
             stats_seq: 0,
@@ -346,7 +363,8 @@ impl LearnerNode {
         h
     }
 
-    /// Publishes `policy` (and keeps it for the queryable). Returns the encoded size.
+    /// Publishes `policy` (and keeps it for the queryable): encodes it and hands it to the
+    /// network side, which publishes the newest weights it has. Returns the encoded size.
     pub fn publish_weights(&self, policy: &PolicyWeights) -> Result<usize, NodeError> {
         let msg = WeightsMsg {
             header: self.header(policy.version),
@@ -354,10 +372,7 @@ impl LearnerNode {
         };
         let bytes = encode_msg(&msg)?;
         let n = bytes.len();
-        if let Ok(mut w) = self.latest_weights.lock() {
-            *w = Some(bytes.clone());
-        }
-        self.weights_pub.put(bytes).wait().map_err(z)?;
+        self.weights.set(bytes);
         Ok(n)
     }
 
@@ -523,8 +538,8 @@ impl LearnerNode {
         self.last_stats = Instant::now();
         self.updates_at_last_stats = update;
         self.steps_at_last_stats = global_step;
-        let bytes = encode_msg(&StatsMsg::Learner(stats.clone()))?;
-        self.stats_pub.put(bytes).wait().map_err(z)?;
+        self.stats
+            .set(encode_msg(&StatsMsg::Learner(stats.clone()))?);
         Ok(stats)
     }
 
@@ -547,14 +562,25 @@ impl LearnerNode {
         self.last_stats.elapsed().as_secs_f64()
     }
 
-    /// Stops the receive thread and closes the session.
-    pub fn close(mut self) {
-        self.closing.store(true, Ordering::Relaxed);
-        self.inbox.arrived.notify_all();
-        let _ = self.session.close().wait();
-        if let Some(h) = self.receiver.take() {
-            let _ = h.join();
-        }
+    /// Publishes what is still queued (the last weights and stats), stops the network side's
+    /// tasks and closes the session.
+    pub fn close(self) {
+        let LearnerNode {
+            session,
+            inbox,
+            closing,
+            weights,
+            stats,
+            net,
+            _queryable,
+            ..
+        } = self;
+        closing.store(true, Ordering::Relaxed);
+        inbox.arrived.notify_one();
+        // Their senders gone, the publishing and replying tasks send what is left and end.
+        drop((weights, stats, _queryable));
+        net.finish(Duration::from_secs(5));
+        let _ = session.close().wait();
     }
 }
 

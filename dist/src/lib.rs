@@ -7,10 +7,12 @@
 //!   weights and statistics published; [`source`]: the node as a
 //!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
+//! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.
 
 pub mod actor;
 pub mod follow;
 pub mod inbox;
 pub mod learner;
 pub mod net;
+pub(crate) mod netside;
 pub mod source;

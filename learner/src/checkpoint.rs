@@ -21,17 +21,19 @@ use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
 /// Format 3 records the policy's observation ([`PolicyWeights::observation`]), format 4 with
-/// the path guide's keys, format 5 with the guide's clearance; formats 2 to 4 are still read
-/// ([`legacy`]).
-const CHECKPOINT_VERSION: u32 = 5;
+/// the path guide's keys, format 5 with the guide's clearance, format 6 with the source of the
+/// sites' line of sight; formats 2 to 5 are still read ([`legacy`]).
+const CHECKPOINT_VERSION: u32 = 6;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 5;
+const POLICY_VERSION: u32 = 6;
 /// 2026-11-24 to 2026-11-26, read without the observation.
 const FORMAT_2: u32 = 2;
 /// 2026-11-26, the observation without the path guide.
 const FORMAT_3: u32 = 3;
 /// 2026-11-26, the path guide without its clearance (it was `planner.clearance_m`).
 const FORMAT_4: u32 = 4;
+/// 2026-11-26 to 2026-11-27, the sites' line of sight always cast as rays.
+const FORMAT_5: u32 = 5;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -77,10 +79,10 @@ struct CheckpointFile {
 /// once here and converted): format 2 without [`PolicyWeights::observation`], format 3 with the
 /// observation as it was before the path guide (`env.observation.path_guide`,
 /// `path_lookahead_m`, `path_guide_lambda`), format 4 before the guide's own clearance
-/// (`path_guide_clearance_m`; it used `planner.clearance_m`, which 0 says). The tests write old
-/// files with these types too.
+/// (`path_guide_clearance_m`; it used `planner.clearance_m`, which 0 says), format 5 before
+/// `site_los` (rays). The tests write old files with these types too.
 mod legacy {
-    use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale};
+    use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale, SiteLos};
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
     use serde::Deserialize;
 
@@ -88,8 +90,9 @@ mod legacy {
     /// a run written before them did (the guide off; its clearance `planner.clearance_m`, 0; the
     /// look-ahead 30 m, unused with the guide off but compared on resume). Not today's defaults,
     /// which turn the guide on.
-    fn added_after_format_3() -> [(&'static str, toml::Value); 4] {
+    fn added_after_format_3() -> [(&'static str, toml::Value); 5] {
         [
+            ("site_los", toml::Value::String("ray".into())),
             ("path_guide", toml::Value::Boolean(false)),
             // 30 m, the look-ahead of every file that recorded it until 2026-11-27.
             ("path_lookahead_m", toml::Value::Float(30.0)),
@@ -99,9 +102,10 @@ mod legacy {
     }
 
     /// Today's observation with the guide as a file of format 3 or older meant it: off (and the
-    /// look-ahead of those days, 30 m).
+    /// look-ahead of those days, 30 m), the line of sight from rays.
     fn guide_off() -> ObservationConfig {
         ObservationConfig {
+            site_los: SiteLos::Ray,
             path_guide: false,
             path_guide_lambda: 0.0,
             path_guide_clearance_m: 0.0,
@@ -177,6 +181,24 @@ mod legacy {
         }
     }
 
+    /// `env.observation` as format 5 recorded it: format 4's and the guide's clearance.
+    #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
+    pub(super) struct ObservationV5 {
+        pub(super) v4: ObservationV4,
+        pub(super) path_guide_clearance_m: f64,
+    }
+
+    impl ObservationV5 {
+        /// The sites' line of sight from rays, as format 5's was.
+        pub(super) fn upgrade(self) -> ObservationConfig {
+            ObservationConfig {
+                path_guide_clearance_m: self.path_guide_clearance_m,
+                ..self.v4.upgrade()
+            }
+        }
+    }
+
     /// The policy of formats 2 and 3: `O` = `()` (format 2, none recorded) or
     /// `Option<ObservationV3>` (format 3).
     #[derive(Deserialize)]
@@ -199,6 +221,7 @@ mod legacy {
     pub(super) type PolicyWeightsV2 = PolicyWeightsOld<()>;
     pub(super) type PolicyWeightsV3 = PolicyWeightsOld<Option<ObservationV3>>;
     pub(super) type PolicyWeightsV4 = PolicyWeightsOld<Option<ObservationV4>>;
+    pub(super) type PolicyWeightsV5 = PolicyWeightsOld<Option<ObservationV5>>;
 
     impl<O> PolicyWeightsOld<O> {
         /// The policy, with `observation`.
@@ -233,6 +256,13 @@ mod legacy {
         }
     }
 
+    impl PolicyWeightsV5 {
+        pub(super) fn upgrade(mut self) -> PolicyWeights {
+            let o = self.observation.take().map(ObservationV5::upgrade);
+            self.with(o)
+        }
+    }
+
     #[derive(Deserialize)]
     #[cfg_attr(test, derive(serde::Serialize))]
     pub(super) struct CheckpointMetaOld<P> {
@@ -259,6 +289,7 @@ mod legacy {
     pub(super) type CheckpointFileV2 = CheckpointFileOld<PolicyWeightsV2>;
     pub(super) type CheckpointFileV3 = CheckpointFileOld<PolicyWeightsV3>;
     pub(super) type CheckpointFileV4 = CheckpointFileOld<PolicyWeightsV4>;
+    pub(super) type CheckpointFileV5 = CheckpointFileOld<PolicyWeightsV5>;
 
     /// The observation a run's configuration (TOML) gives, when that is certain: every key of
     /// today's `[env.observation]` written in it (a key added since — a feature that did not
@@ -325,7 +356,7 @@ mod legacy {
     }
 }
 
-/// Decodes a checkpoint file of this format or of formats 2 and 3.
+/// Decodes a checkpoint file of this format or of formats 2 to 5.
 fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, CheckpointError> {
     match codec::decode(
         CHECKPOINT_MAGIC,
@@ -360,6 +391,17 @@ fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, Checkpo
             codec::decode::<legacy::CheckpointFileV4>(
                 CHECKPOINT_MAGIC,
                 FORMAT_4,
+                bytes,
+                MAX_FILE_BYTES,
+                what,
+            )
+            .map(|c| c.upgrade(|p, _| p.upgrade()))
+            .map_err(CheckpointError::from)
+        }
+        Err(CodecError::Version { got: FORMAT_5, .. }) => {
+            codec::decode::<legacy::CheckpointFileV5>(
+                CHECKPOINT_MAGIC,
+                FORMAT_5,
                 bytes,
                 MAX_FILE_BYTES,
                 what,
@@ -512,6 +554,16 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
                 )?
                 .upgrade()
             }
+            Err(CodecError::Version { got: FORMAT_5, .. }) => {
+                codec::decode::<legacy::PolicyWeightsV5>(
+                    POLICY_MAGIC,
+                    FORMAT_5,
+                    &bytes,
+                    MAX_FILE_BYTES,
+                    &what,
+                )?
+                .upgrade()
+            }
             r => r.map_err(older_format)?,
         }
     };
@@ -527,12 +579,12 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 #[cfg(test)]
 mod tests {
     use super::legacy::{
-        CheckpointFileV2, CheckpointMetaV2, ObservationV3, ObservationV4, PolicyWeightsOld,
-        PolicyWeightsV2,
+        CheckpointFileV2, CheckpointMetaV2, ObservationV3, ObservationV4, ObservationV5,
+        PolicyWeightsOld, PolicyWeightsV2,
     };
     use super::*;
     use crate::learner::Learner;
-    use dupac_common::config::Config;
+    use dupac_common::config::{Config, SiteLos};
     use dupac_common::obs::ObsLayout;
 
     fn learner(cfg: &Config) -> Learner {
@@ -626,6 +678,28 @@ mod tests {
         }
     }
 
+    /// `p` as file format 5 wrote it (the sites' line of sight from rays, not recorded).
+    fn v5(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV5>> {
+        let o = p.observation.clone();
+        let v4 = v4(p);
+        PolicyWeightsOld {
+            version: v4.version,
+            obs_version: v4.obs_version,
+            obs_dim: v4.obs_dim,
+            n_sites: v4.n_sites,
+            actor: v4.actor,
+            critic: v4.critic,
+            site_head: v4.site_head,
+            log_std: v4.log_std,
+            obs_norm: v4.obs_norm,
+            reward_scaler: v4.reward_scaler,
+            observation: v4.observation.zip(o).map(|(v4, o)| ObservationV5 {
+                v4,
+                path_guide_clearance_m: o.path_guide_clearance_m,
+            }),
+        }
+    }
+
     /// A format-2 checkpoint of `p` whose configuration is `config_toml`, loaded.
     fn load_v2_checkpoint(p: &PolicyWeights, config_toml: String) -> LoadedCheckpoint {
         let file = CheckpointFileV2 {
@@ -668,6 +742,8 @@ mod tests {
         cfg.env.observation.path_guide_clearance_m = 0.0;
         cfg.env.observation.path_lookahead_m = 30.0;
         cfg.env.reward.progress = dupac_common::config::Progress::Straight;
+        // …and with the line of sight from rays, as every file of format 5 or older reads.
+        cfg.env.observation.site_los = SiteLos::Ray;
         cfg.validate().expect("valid");
         let p = learner(&cfg).policy();
         assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
@@ -743,6 +819,7 @@ mod tests {
         // `planner.clearance_m` (0) as it was — a guided policy too.
         let mut guided_cfg = small();
         guided_cfg.env.observation.path_guide_clearance_m = 5.0;
+        guided_cfg.env.observation.site_los = SiteLos::Ray;
         let guided = learner(&guided_cfg).policy();
         assert!(guided.observation.as_ref().is_some_and(|o| o.path_guide));
         let bytes = codec::encode(POLICY_MAGIC, FORMAT_4, &v4(&guided), "policy").expect("encode");
@@ -754,6 +831,16 @@ mod tests {
         }
         assert_eq!(v4_policy, want);
 
+        // Format 5 (before `site_los`) loads with the rays it was trained with, under today's
+        // default of the cache's line of sight.
+        let bytes = codec::encode(POLICY_MAGIC, FORMAT_5, &v5(&guided), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let v5_policy = load_policy(&path).expect("a format-5 policy loads");
+        assert_eq!(v5_policy, guided);
+        let flown = v5_policy.configure(&Config::default()).expect("configure");
+        assert_eq!(flown.env.observation.site_los, SiteLos::Ray);
+        assert_eq!(Config::default().env.observation.site_los, SiteLos::Cache);
+
         // Format 1 is refused by name.
         let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");
         std::fs::write(&path, bytes).expect("write");
@@ -764,20 +851,26 @@ mod tests {
         );
     }
 
-    /// Format 4's observation is today's without its last key: its bincode is today's less the
-    /// 8 bytes of `path_guide_clearance_m` (an f64, the last field), so a format-4 file reads
-    /// field by field as it was written.
+    /// Formats 4 and 5 are today's observation without its last keys: format 5's bincode is
+    /// today's less the last field (`site_los`, an enum), format 4's that less the 8 bytes of
+    /// `path_guide_clearance_m` (an f64), so each old file reads field by field as written.
     #[test]
-    fn format_4s_observation_is_todays_less_the_guide_clearance() {
+    fn formats_4_and_5s_observations_are_todays_less_their_last_keys() {
         let p = learner(&small()).policy();
         let today = p.observation.clone().expect("recorded");
-        let old = v4(&p).observation.expect("recorded");
         let enc = |bytes: Vec<u8>| bytes[12..].to_vec();
         let a = enc(codec::encode(b"TESTTEST", 1, &today, "t").expect("encode"));
-        let b = enc(codec::encode(b"TESTTEST", 1, &old, "t").expect("encode"));
-        assert_eq!(a.len(), b.len() + 8);
-        assert_eq!(a[..b.len()], b[..]);
-        assert_eq!(a[b.len()..], today.path_guide_clearance_m.to_le_bytes());
+        let old5 = v5(&p).observation.expect("recorded");
+        let old4 = v4(&p).observation.expect("recorded");
+        let b5 = enc(codec::encode(b"TESTTEST", 1, &old5, "t").expect("encode"));
+        let b4 = enc(codec::encode(b"TESTTEST", 1, &old4, "t").expect("encode"));
+        let site_los = enc(codec::encode(b"TESTTEST", 1, &today.site_los, "t").expect("encode"));
+        assert_eq!(a.len(), b5.len() + site_los.len());
+        assert_eq!(a[..b5.len()], b5[..]);
+        assert_eq!(a[b5.len()..], site_los[..]);
+        assert_eq!(b5.len(), b4.len() + 8);
+        assert_eq!(b5[..b4.len()], b4[..]);
+        assert_eq!(b5[b4.len()..], today.path_guide_clearance_m.to_le_bytes());
     }
 
     /// A policy without site outputs (the A3 base method: `n_sites` = 0, the observation still

@@ -10,9 +10,13 @@
 //! bytes 12..12+H  JSON [`CacheHeader`] (format version, world fingerprint, grid)
 //! zero padding to the next multiple of 64 bytes
 //! f32 RSRP (dBm) values, index ((iy·nx + ix)·nz + iz)·M + site
+//! zero padding to the next multiple of 64 bytes
+//! line of sight: ⌈M / 8⌉ bytes per grid point in the same point order, bit (site mod 8) of
+//! byte (site / 8) set when the site sees the point (spec/radio.md D9)
 //! ```
 //! The layout keeps the M values of one grid point contiguous, so an all-site query reads
-//! 8 runs of M floats. A header whose fingerprint differs from the world's marks the cache
+//! 8 runs of M floats. The line of sight is stored so that it can be observed at the cost of a
+//! lookup ([`RsrpSource::los_all`]) instead of a ray cast per site and step. A header whose fingerprint differs from the world's marks the cache
 //! stale; [`RsrpCache::open_or_build`] then rebuilds it (written to a temporary file, then
 //! renamed, so a reader never sees a half-written cache).
 
@@ -28,8 +32,8 @@ use std::path::{Path, PathBuf};
 
 /// File magic of the cache format.
 pub const CACHE_MAGIC: &[u8; 8] = b"DUPACRC\x01";
-/// Version of [`CacheHeader`] and the data layout.
-pub const CACHE_FORMAT_VERSION: u32 = 1;
+/// Version of [`CacheHeader`] and the data layout (2: with the line-of-sight block).
+pub const CACHE_FORMAT_VERSION: u32 = 2;
 /// Alignment of the data block (bytes).
 const DATA_ALIGN: usize = 64;
 
@@ -39,6 +43,13 @@ pub trait RsrpSource: Sync {
     fn num_sites(&self) -> usize;
     /// RSRP (dBm) of every site at `p_m`, into `out[0..M]`.
     fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]);
+    /// Line of sight of every site at `p_m` as this source knows it, into `out[0..M]`: 1 (LoS)
+    /// or 0 (NLoS) where it is decided at `p_m`, a value between where the source interpolates
+    /// (the cache: between grid points, as its RSRP). Returns false, leaving `out` alone, when
+    /// the source does not know it (the caller casts the rays).
+    fn los_all(&self, _p_m: Point, _out: &mut [f64]) -> bool {
+        false
+    }
 }
 
 impl RsrpSource for RadioWorld {
@@ -47,6 +58,13 @@ impl RsrpSource for RadioWorld {
     }
     fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
         RadioWorld::rsrp_all_dbm(self, p_m, out)
+    }
+    /// A ray per site (exact).
+    fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {
+        for (i, o) in out.iter_mut().enumerate().take(self.sites.len()) {
+            *o = f64::from(u8::from(self.los(SiteId(i as u16), p_m)));
+        }
+        true
     }
 }
 
@@ -93,8 +111,16 @@ impl GridSpec {
         self.nx.saturating_mul(self.ny).saturating_mul(self.nz)
     }
 
-    /// Bytes of a cache of this grid for `n_sites` sites (saturating).
+    /// Bytes of a cache of this grid for `n_sites` sites (saturating): the RSRP block, its
+    /// padding and the line-of-sight block.
     pub fn bytes(&self, n_sites: usize) -> usize {
+        self.rsrp_bytes(n_sites)
+            .saturating_add(DATA_ALIGN)
+            .saturating_add(self.points().saturating_mul(los_bytes_per_point(n_sites)))
+    }
+
+    /// Bytes of the RSRP block (saturating).
+    fn rsrp_bytes(&self, n_sites: usize) -> usize {
         self.points()
             .saturating_mul(n_sites)
             .saturating_mul(size_of::<f32>())
@@ -124,9 +150,21 @@ pub struct CacheHeader {
     pub layout: String,
 }
 
+/// Bytes of line-of-sight bits per grid point for `n_sites` sites.
+pub fn los_bytes_per_point(n_sites: usize) -> usize {
+    n_sites.div_ceil(8)
+}
+
+/// Offset of the line-of-sight block after an RSRP block of `rsrp_bytes` starting at the aligned
+/// `data_offset`.
+fn los_offset(data_offset: usize, rsrp_bytes: usize) -> usize {
+    (data_offset + rsrp_bytes).div_ceil(DATA_ALIGN) * DATA_ALIGN
+}
+
 enum Storage {
     Mapped(Mmap),
-    Owned(Vec<f32>),
+    /// Built in memory, not yet saved (boxed: the mapped case is the common one).
+    Owned(Box<(Vec<f32>, Vec<u8>)>),
 }
 
 /// A loaded (memory-mapped) RSRP cache.
@@ -134,6 +172,7 @@ pub struct RsrpCache {
     header: CacheHeader,
     storage: Storage,
     data_offset: usize,
+    los_offset: usize,
     path: Option<PathBuf>,
 }
 
@@ -163,7 +202,8 @@ impl RsrpCache {
             world_fingerprint: format!("{:016x}", world.fingerprint()),
             n_sites: world.num_sites(),
             grid,
-            layout: "f32 little-endian RSRP dBm, index ((iy*nx + ix)*nz + iz)*n_sites + site"
+            layout: "f32 little-endian RSRP dBm, index ((iy*nx + ix)*nz + iz)*n_sites + site; \
+                     then line of sight, ceil(n_sites/8) bytes per point, bit site%8 of byte site/8"
                 .into(),
         }
     }
@@ -172,18 +212,23 @@ impl RsrpCache {
     /// `progress(rows_done)` is called once per finished row of `nx·nz` points.
     pub fn build(world: &RadioWorld, grid: GridSpec, progress: &(dyn Fn(u64) + Sync)) -> RsrpCache {
         let m = world.num_sites();
-        let row_len = grid.nx * grid.nz * m;
-        let mut data = vec![0f32; grid.points() * m];
-        data.par_chunks_mut(row_len)
+        let lb = los_bytes_per_point(m);
+        let row_points = grid.nx * grid.nz;
+        let mut rsrp = vec![0f32; grid.points() * m];
+        let mut los = vec![0u8; grid.points() * lb];
+        rsrp.par_chunks_mut(row_points * m)
+            .zip(los.par_chunks_mut(row_points * lb))
             .enumerate()
-            .for_each(|(iy, row)| {
-                let mut all = vec![0f64; m];
+            .for_each(|(iy, (row, los_row))| {
                 for ix in 0..grid.nx {
                     for iz in 0..grid.nz {
-                        world.rsrp_all_dbm(grid.point_m(ix, iy, iz), &mut all);
-                        let at = (ix * grid.nz + iz) * m;
-                        for (o, v) in row[at..at + m].iter_mut().zip(&all) {
-                            *o = *v as f32;
+                        let p = grid.point_m(ix, iy, iz);
+                        let at = ix * grid.nz + iz;
+                        let bits = &mut los_row[at * lb..(at + 1) * lb];
+                        for (s, o) in row[at * m..(at + 1) * m].iter_mut().enumerate() {
+                            let (rsrp_dbm, site_los) = world.rsrp_los(SiteId(s as u16), p);
+                            *o = rsrp_dbm as f32;
+                            bits[s / 8] |= u8::from(site_los) << (s % 8);
                         }
                     }
                 }
@@ -191,8 +236,9 @@ impl RsrpCache {
             });
         RsrpCache {
             header: Self::expected_header(world, grid),
-            storage: Storage::Owned(data),
+            storage: Storage::Owned(Box::new((rsrp, los))),
             data_offset: 0,
+            los_offset: 0,
             path: None,
         }
     }
@@ -223,6 +269,9 @@ impl RsrpCache {
                 }
                 w.write_all(&bytes)?;
             }
+            let used = used + pad + self.values().len() * 4;
+            w.write_all(&vec![0u8; (DATA_ALIGN - used % DATA_ALIGN) % DATA_ALIGN])?;
+            w.write_all(self.los_bits())?;
             Ok(())
         })
         .map_err(|e| RadioError::io(path, std::io::Error::other(e.to_string())))
@@ -269,23 +318,24 @@ impl RsrpCache {
             return Ok(Opened::Stale(reason.into()));
         }
         let data_offset = (12 + hlen).div_ceil(DATA_ALIGN) * DATA_ALIGN;
-        let want = header.grid.points() * header.n_sites * 4;
-        if mmap.len() != data_offset + want {
+        let los_offset = los_offset(data_offset, header.grid.rsrp_bytes(header.n_sites));
+        let want = los_offset + header.grid.points() * los_bytes_per_point(header.n_sites);
+        if mmap.len() != want {
             return Err(bad(format!(
-                "truncated or oversized: {} bytes, expected {}",
+                "truncated or oversized: {} bytes, expected {want}",
                 mmap.len(),
-                data_offset + want
             )));
         }
         if cfg!(target_endian = "big") {
             return Err(bad("little-endian cache on a big-endian machine".into()));
         }
-        bytemuck::try_cast_slice::<u8, f32>(&mmap[data_offset..])
+        bytemuck::try_cast_slice::<u8, f32>(&mmap[data_offset..los_offset])
             .map_err(|e| bad(format!("data block not 4-byte aligned: {e}")))?;
         Ok(Opened::Valid(RsrpCache {
             header,
             storage: Storage::Mapped(mmap),
             data_offset,
+            los_offset,
             path: Some(path.to_path_buf()),
         }))
     }
@@ -345,9 +395,20 @@ impl RsrpCache {
     /// All values (f32 dBm) in file order.
     pub fn values(&self) -> &[f32] {
         match &self.storage {
-            Storage::Owned(v) => v,
+            Storage::Owned(o) => &o.0,
             // Alignment and length were checked in `open`.
-            Storage::Mapped(m) => bytemuck::cast_slice(&m[self.data_offset..]),
+            Storage::Mapped(m) => bytemuck::cast_slice(
+                &m[self.data_offset
+                    ..self.data_offset + self.header.grid.rsrp_bytes(self.header.n_sites)],
+            ),
+        }
+    }
+
+    /// The line-of-sight bits in file order (⌈M / 8⌉ bytes per grid point).
+    fn los_bits(&self) -> &[u8] {
+        match &self.storage {
+            Storage::Owned(o) => &o.1,
+            Storage::Mapped(m) => &m[self.los_offset..],
         }
     }
 
@@ -416,5 +477,36 @@ impl RsrpSource for RsrpCache {
                 }
             }
         }
+    }
+
+    /// The grid's line of sight (1 or 0 at each grid point) interpolated trilinearly like the
+    /// RSRP: 1 or 0 where all 8 surrounding grid points agree, the weight of those that see the
+    /// site otherwise.
+    fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {
+        let g = &self.header.grid;
+        let m = self.header.n_sites;
+        let lb = los_bytes_per_point(m);
+        let bits = self.los_bits();
+        let (ix, tx) = Self::axis(p_m[0], g.x0_m, g.dxy_m, g.nx);
+        let (iy, ty) = Self::axis(p_m[1], g.y0_m, g.dxy_m, g.ny);
+        let (iz, tz) = Self::axis(p_m[2], g.z0_m, g.dz_m, g.nz);
+        let out = &mut out[..m];
+        out.fill(0.0);
+        let iz1 = (iz + 1).min(g.nz - 1);
+        for (cy, wy) in [(iy, 1.0 - ty), ((iy + 1).min(g.ny - 1), ty)] {
+            for (cx, wx) in [(ix, 1.0 - tx), ((ix + 1).min(g.nx - 1), tx)] {
+                let base = (cy * g.nx + cx) * g.nz;
+                for (cz, wz) in [(iz, 1.0 - tz), (iz1, tz)] {
+                    let w = wx * wy * wz;
+                    let b = &bits[(base + cz) * lb..(base + cz + 1) * lb];
+                    for (s, o) in out.iter_mut().enumerate() {
+                        if b[s / 8] >> (s % 8) & 1 == 1 {
+                            *o += w;
+                        }
+                    }
+                }
+            }
+        }
+        true
     }
 }

@@ -102,12 +102,20 @@ impl RadioWorld {
             .evaluate(&self.transmitter(id.index()), uav_m, los)
     }
 
+    /// Exact RSRP (dBm) of site `id` at `uav_m` and whether the site sees it (one ray cast).
+    #[inline]
+    pub fn rsrp_los(&self, id: SiteId, uav_m: Point) -> (f64, bool) {
+        let los = self.los(id, uav_m);
+        let rsrp_dbm = self
+            .link
+            .rsrp_dbm(&self.transmitter(id.index()), uav_m, los);
+        (rsrp_dbm, los)
+    }
+
     /// Exact RSRP (dBm) of site `id` at `uav_m`.
     #[inline]
     pub fn rsrp_dbm(&self, id: SiteId, uav_m: Point) -> f64 {
-        let los = self.los(id, uav_m);
-        self.link
-            .rsrp_dbm(&self.transmitter(id.index()), uav_m, los)
+        self.rsrp_los(id, uav_m).0
     }
 
     /// Exact RSRP (dBm) of every site at `uav_m`, written into `out[site]` (`out.len()` ≥ M).

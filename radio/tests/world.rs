@@ -228,6 +228,63 @@ fn cache_matches_exact_mode_at_grid_points_and_detects_staleness() {
     assert_eq!(w3.fingerprint(), w.fingerprint());
 }
 
+/// The cache's line of sight (what the site features observe under `env.observation.site_los =
+/// "cache"`) is the ray's at every grid point, read back from the file as it was built, and
+/// interpolated like the RSRP between grid points.
+#[test]
+fn the_caches_line_of_sight_is_the_rays_at_grid_points_and_interpolated_between() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cfg = procedural_config(dir.path());
+    let w = RadioWorld::build(&cfg).expect("world");
+    let (cache, _) = RsrpCache::open_or_build(&w, &cfg.cache, &|_| {}).expect("cache");
+    let g = *cache.grid();
+    let m = w.num_sites();
+    let (mut cached, mut rays) = (vec![0.0; m], vec![0.0; m]);
+    let (mut seen, mut blocked) = (0, 0);
+    for iy in (0..g.ny).step_by(3) {
+        for ix in (0..g.nx).step_by(3) {
+            for iz in [0, g.nz / 2, g.nz - 1] {
+                let p = g.point_m(ix, iy, iz);
+                assert!(cache.los_all(p, &mut cached));
+                assert!(RsrpSource::los_all(&w, p, &mut rays));
+                for s in 0..m {
+                    assert_eq!(cached[s], rays[s], "grid point {p:?} site {s}");
+                    assert_eq!(rays[s] == 1.0, w.los(SiteId(s as u16), p));
+                    if rays[s] == 1.0 {
+                        seen += 1;
+                    } else {
+                        blocked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        seen > 100 && blocked > 100,
+        "both kinds tested: {seen} LoS, {blocked} NLoS"
+    );
+    // Between two grid points that disagree, the value is the interpolation weight.
+    let (a, b, s) = (0..g.ny)
+        .flat_map(|iy| (0..g.nx - 1).map(move |ix| (ix, iy)))
+        .flat_map(|(ix, iy)| (0..m).map(move |s| (ix, iy, s)))
+        .map(|(ix, iy, s)| {
+            (
+                g.point_m(ix, iy, 0),
+                g.point_m(ix + 1, iy, 0),
+                SiteId(s as u16),
+            )
+        })
+        .find(|(a, b, s)| w.los(*s, *a) && !w.los(*s, *b))
+        .expect("a shadow edge along a row");
+    let quarter = Point::new(a[0] + 0.25 * (b[0] - a[0]), a[1], a[2]);
+    assert!(cache.los_all(quarter, &mut cached));
+    assert!(
+        (cached[s.index()] - 0.75).abs() < 1e-9,
+        "{}",
+        cached[s.index()]
+    );
+}
+
 #[test]
 fn truncated_cache_is_an_error_not_a_panic() {
     let dir = tempfile::tempdir().expect("tmp");

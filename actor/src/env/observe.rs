@@ -4,7 +4,7 @@
 
 use super::{Env, RSRP_FLOOR_DBM, argmax};
 use dupac_common::SiteId;
-use dupac_common::config::NearestObstacle;
+use dupac_common::config::{NearestObstacle, SiteLos};
 use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::obs::{site_feature, site_features_per_site};
 
@@ -163,6 +163,12 @@ impl Env {
         let serving = self.serving.index();
         let per_site = site_features_per_site(o);
         let ping_pong_at = site_feature::ping_pong(o);
+        let mut los = vec![0.0; self.world.sites.len()];
+        if o.site_los == SiteLos::Ray || !self.rsrp.los_all(p, &mut los) {
+            for (k, l) in los.iter_mut().enumerate() {
+                *l = f64::from(u8::from(self.world.los(SiteId(k as u16), p)));
+            }
+        }
         for (k, site) in self.world.sites.iter().enumerate() {
             let f = &mut out[k * per_site..][..per_site];
             let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
@@ -183,7 +189,7 @@ impl Env {
             f[SIN_BEARING_HEADING] = sh as f32;
             f[COS_BEARING_GOAL] = cg as f32;
             f[SIN_BEARING_GOAL] = sg as f32;
-            f[LOS] = f32::from(u8::from(self.world.los(SiteId(k as u16), p)));
+            f[LOS] = los[k] as f32;
             if o.site_trend {
                 // NaN before the first observation of an episode: no change yet.
                 let before = self.rsrp_at_last_obs_dbm[k];

@@ -20,6 +20,18 @@ pub enum SensorScale {
     Log,
 }
 
+/// Where each site's line-of-sight feature comes from (see [`ObservationConfig::site_los`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SiteLos {
+    /// A ray from each site to the UAV at every observation (spec/radio.md D9): exact, 0 or 1.
+    Ray,
+    /// From the RSRP source: under the RSRP cache, its grid's line of sight interpolated
+    /// trilinearly like its RSRP (a value in [0, 1]); in exact mode, the ray.
+    #[default]
+    Cache,
+}
+
 impl SensorScale {
     /// Scales a sensed distance `d_m` (≤ `range_m`) into [0, 1]; 1 = nothing in range.
     pub fn scale(self, d_m: f64, range_m: f64) -> f64 {
@@ -261,6 +273,13 @@ pub struct ObservationConfig {
     /// Default 5 m: paths that pass buildings at 1.5 m taught the policy to squeeze past them
     /// and doubled the collisions (issue 15; docs/env.md "Path guide").
     pub path_guide_clearance_m: f64,
+    /// Where each site's line-of-sight site feature comes from: `ray` = a ray cast from every
+    /// site at every step (150 per decision with the site chosen every step: over half of an
+    /// actor's time), `cache` = the RSRP cache's grid line of sight, interpolated like the RSRP
+    /// the UAV observes beside it (it differs from the ray only within one grid cell of a
+    /// shadow edge; docs/env.md "Observation"). Recorded in the policy: files of format 5 and
+    /// older were trained with `ray` and are flown with it.
+    pub site_los: SiteLos,
 }
 
 impl EnvConfig {
@@ -295,6 +314,7 @@ impl Default for ObservationConfig {
             path_lookahead_m: 10.0,
             path_guide_lambda: 1.0,
             path_guide_clearance_m: 5.0,
+            site_los: SiteLos::Cache,
         }
     }
 }
