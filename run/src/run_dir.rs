@@ -52,6 +52,18 @@ pub struct RunOutput {
     _lock: std::fs::File,
 }
 
+/// Fails, naming the holder, when a live learner holds run directory `out`'s lock; takes and
+/// releases it otherwise. For a process that writes into the directory before its learner
+/// starts (`dupac train` writes `config.toml` and the pool for its children), so that it never
+/// overwrites a running run's files. Two such processes started at the same instant can both
+/// pass; the learner's own lock still keeps one of them.
+pub fn ensure_free(out: &Path) -> Result<(), RunError> {
+    if out.is_dir() {
+        lock_run_dir(out)?;
+    }
+    Ok(())
+}
+
 /// Takes the exclusive lock of run directory `out` (`<out>/.lock`, `flock`), or says who holds
 /// it. The lock dies with its process, so a crashed learner never leaves a stale one.
 fn lock_run_dir(out: &Path) -> Result<std::fs::File, RunError> {

@@ -14,7 +14,7 @@ use anyhow::{Context, Result, bail};
 use dupac_actor::pairs::write_pairs_jsonl;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{StatsMsg, decode_msg};
-use dupac_run::run_dir::checkpoint_to_resume;
+use dupac_run::run_dir::{checkpoint_to_resume, ensure_free};
 use dupac_run::scenario::{guide_pairs_cached, held_out_pairs, make_pool, world_and_cache};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
@@ -29,6 +29,8 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let _ = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
     device(run.device)?;
     let out = cfg.train.out_dir.clone();
+    // A run directory a live learner holds is refused before anything in it is rewritten.
+    ensure_free(&out)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let config_path = out.join("config.toml");
     write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;

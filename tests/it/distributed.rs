@@ -390,6 +390,31 @@ fn a_second_learner_of_the_same_run_is_refused() {
             && err.contains("pid "),
         "{err}"
     );
+    // `dupac train --resume` of the live run (another seed) is refused before it rewrites the
+    // run's configuration.
+    let config_before = p.read("run/config.toml");
+    assert!(
+        config_before.contains("[train]"),
+        "the live run wrote its configuration"
+    );
+    p.spawn(
+        "train-same-dir",
+        &[
+            "train",
+            "--out",
+            &same_dir,
+            "--resume",
+            "--set",
+            "train.seed=99",
+        ],
+    );
+    assert!(!p.wait_exit("train-same-dir", 60).success());
+    let err = p.read("train-same-dir.err");
+    assert!(err.contains("in use by another learner"), "{err}");
+    assert!(
+        p.read("run/config.toml") == config_before,
+        "the live run's configuration was rewritten"
+    );
     let err = p.read("same-run.err");
     assert!(
         err.contains("another learner is live on run") && err.contains("alive/learner/"),
