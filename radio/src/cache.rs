@@ -447,6 +447,28 @@ impl RsrpCache {
     pub fn path(&self) -> Option<&Path> {
         self.path.as_deref()
     }
+
+    /// The 4 grid columns around `p_m` (clamped to the grid): the index of each column's first
+    /// point (`(iy·nx + ix)·nz`) with its horizontal weight, and the two heights between which
+    /// `p_m` lies with the upper one's weight `(iz, iz + 1, tz)`.
+    #[inline(always)]
+    fn columns(&self, p_m: Point) -> ([(usize, f64); 4], (usize, usize, f64)) {
+        let g = &self.header.grid;
+        let (ix, tx) = Self::axis(p_m[0], g.x0_m, g.dxy_m, g.nx);
+        let (iy, ty) = Self::axis(p_m[1], g.y0_m, g.dxy_m, g.ny);
+        let (iz, tz) = Self::axis(p_m[2], g.z0_m, g.dz_m, g.nz);
+        let (iy1, ix1) = ((iy + 1).min(g.ny - 1), (ix + 1).min(g.nx - 1));
+        let base = |cy: usize, cx: usize| (cy * g.nx + cx) * g.nz;
+        (
+            [
+                (base(iy, ix), (1.0 - tx) * (1.0 - ty)),
+                (base(iy, ix1), tx * (1.0 - ty)),
+                (base(iy1, ix), (1.0 - tx) * ty),
+                (base(iy1, ix1), tx * ty),
+            ],
+            (iz, (iz + 1).min(g.nz - 1), tz),
+        )
+    }
 }
 
 impl RsrpSource for RsrpCache {
@@ -456,25 +478,18 @@ impl RsrpSource for RsrpCache {
 
     /// Trilinear interpolation of all sites at once (positions outside the grid are clamped).
     fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
-        let g = &self.header.grid;
         let m = self.header.n_sites;
         let v = self.values();
-        let (ix, tx) = Self::axis(p_m[0], g.x0_m, g.dxy_m, g.nx);
-        let (iy, ty) = Self::axis(p_m[1], g.y0_m, g.dxy_m, g.ny);
-        let (iz, tz) = Self::axis(p_m[2], g.z0_m, g.dz_m, g.nz);
+        let (columns, (iz, iz1, tz)) = self.columns(p_m);
         let out = &mut out[..m];
         out.fill(0.0);
-        let iz1 = (iz + 1).min(g.nz - 1);
-        for (cy, wy) in [(iy, 1.0 - ty), ((iy + 1).min(g.ny - 1), ty)] {
-            for (cx, wx) in [(ix, 1.0 - tx), ((ix + 1).min(g.nx - 1), tx)] {
-                let base = (cy * g.nx + cx) * g.nz;
-                let w0 = (wx * wy * (1.0 - tz)) as f32;
-                let w1 = (wx * wy * tz) as f32;
-                let a = &v[(base + iz) * m..(base + iz) * m + m];
-                let b = &v[(base + iz1) * m..(base + iz1) * m + m];
-                for ((o, va), vb) in out.iter_mut().zip(a).zip(b) {
-                    *o += f64::from(w0 * va + w1 * vb);
-                }
+        for (base, wxy) in columns {
+            let w0 = (wxy * (1.0 - tz)) as f32;
+            let w1 = (wxy * tz) as f32;
+            let a = &v[(base + iz) * m..(base + iz) * m + m];
+            let b = &v[(base + iz1) * m..(base + iz1) * m + m];
+            for ((o, va), vb) in out.iter_mut().zip(a).zip(b) {
+                *o += f64::from(w0 * va + w1 * vb);
             }
         }
     }
@@ -483,26 +498,19 @@ impl RsrpSource for RsrpCache {
     /// RSRP: 1 or 0 where all 8 surrounding grid points agree, the weight of those that see the
     /// site otherwise.
     fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {
-        let g = &self.header.grid;
         let m = self.header.n_sites;
         let lb = los_bytes_per_point(m);
         let bits = self.los_bits();
-        let (ix, tx) = Self::axis(p_m[0], g.x0_m, g.dxy_m, g.nx);
-        let (iy, ty) = Self::axis(p_m[1], g.y0_m, g.dxy_m, g.ny);
-        let (iz, tz) = Self::axis(p_m[2], g.z0_m, g.dz_m, g.nz);
+        let (columns, (iz, iz1, tz)) = self.columns(p_m);
         let out = &mut out[..m];
         out.fill(0.0);
-        let iz1 = (iz + 1).min(g.nz - 1);
-        for (cy, wy) in [(iy, 1.0 - ty), ((iy + 1).min(g.ny - 1), ty)] {
-            for (cx, wx) in [(ix, 1.0 - tx), ((ix + 1).min(g.nx - 1), tx)] {
-                let base = (cy * g.nx + cx) * g.nz;
-                for (cz, wz) in [(iz, 1.0 - tz), (iz1, tz)] {
-                    let w = wx * wy * wz;
-                    let b = &bits[(base + cz) * lb..(base + cz + 1) * lb];
-                    for (s, o) in out.iter_mut().enumerate() {
-                        if b[s / 8] >> (s % 8) & 1 == 1 {
-                            *o += w;
-                        }
+        for (base, wxy) in columns {
+            for (cz, wz) in [(iz, 1.0 - tz), (iz1, tz)] {
+                let w = wxy * wz;
+                let b = &bits[(base + cz) * lb..(base + cz + 1) * lb];
+                for (s, o) in out.iter_mut().enumerate() {
+                    if b[s / 8] >> (s % 8) & 1 == 1 {
+                        *o += w;
                     }
                 }
             }
