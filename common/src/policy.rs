@@ -495,8 +495,10 @@ impl PolicyWeights {
             }
             None => {
                 // Written before the observation was recorded (file format 2), so before the
-                // path guide existed (format 4): flown unguided, whatever today's default.
+                // path guide existed (format 4) and with the line of sight cast as rays (format
+                // 6): flown so, whatever today's defaults.
                 c.env.observation.path_guide = false;
+                c.env.observation.site_los = crate::config::SiteLos::Ray;
                 c.env.reward.progress = crate::config::Progress::Straight;
                 c.env.reward.guide_deviation_weight = 0.0;
             }

@@ -54,7 +54,7 @@ pub enum ActorError {
     Threads(String),
 }
 
-/// Chunks queued for the network side before the environments wait: one being sent, one ready.
+/// Chunks queued for the network side before the environments wait (besides the one being sent).
 const CHUNKS_IN_FLIGHT: usize = 2;
 
 fn z(e: impl std::fmt::Display) -> ActorError {

@@ -222,6 +222,9 @@ pub(crate) async fn decode_task(
             inbox.arrived.notified().await;
             continue;
         };
+        // A backlog (or a flood of refused messages) is worked through a message at a time
+        // between the other tasks' turns.
+        tokio::task::yield_now().await;
         let refuse = |reason: DropReason| {
             inbox.drop_one(reason);
             if let Ok(mut q) = inbox.queues.lock() {

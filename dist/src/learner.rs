@@ -280,10 +280,10 @@ impl LearnerNode {
             session
                 .declare_queryable(keys.weights())
                 .callback(move |query| {
-                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now()))
-                        || tx.try_send(query).is_err()
-                    {
+                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now())) {
                         tracing::debug!("weights query left unanswered: over the reply rate");
+                    } else if tx.try_send(query).is_err() {
+                        tracing::debug!("weights query left unanswered: a burst already waits");
                     }
                 })
                 .wait()
@@ -543,28 +543,25 @@ impl LearnerNode {
         Ok(stats)
     }
 
-    /// Tells actors and followers that the run is over.
-    pub fn send_stop(&self, version: u64) -> Result<(), NodeError> {
-        let msg = ControlMsg {
-            header: self.header(version),
-            command: Command::Stop,
-        };
-        self.session
-            .put(self.keys.ctrl(), encode_msg(&msg)?)
-            .congestion_control(CongestionControl::Block)
-            .priority(Priority::InteractiveHigh)
-            .wait()
-            .map_err(z)
-    }
-
     /// Seconds since the last stats message.
     pub fn since_stats_s(&self) -> f64 {
         self.last_stats.elapsed().as_secs_f64()
     }
 
     /// Publishes what is still queued (the last weights and stats), stops the network side's
-    /// tasks and closes the session.
-    pub fn close(self) {
+    /// tasks, then — with `stop_version`, a completed run — tells actors and followers that the
+    /// run is over (the node's last message, so that they have the last weights first), and
+    /// closes the session.
+    pub fn close(self, stop_version: Option<u64>) -> Result<(), NodeError> {
+        let stop = stop_version
+            .map(|v| {
+                encode_msg(&ControlMsg {
+                    header: self.header(v),
+                    command: Command::Stop,
+                })
+            })
+            .transpose()?;
+        let ctrl = self.keys.ctrl();
         let LearnerNode {
             session,
             inbox,
@@ -580,7 +577,17 @@ impl LearnerNode {
         // Their senders gone, the publishing and replying tasks send what is left and end.
         drop((weights, stats, _queryable));
         net.finish(Duration::from_secs(5));
+        let sent = match stop {
+            Some(bytes) => session
+                .put(ctrl, bytes)
+                .congestion_control(CongestionControl::Block)
+                .priority(Priority::InteractiveHigh)
+                .wait()
+                .map_err(z),
+            None => Ok(()),
+        };
         let _ = session.close().wait();
+        sent
     }
 }
 

@@ -1,4 +1,4 @@
-//! A node's network side: a tokio runtime with one worker thread (`dupac-net`) on which the
+//! A node's network side: a tokio runtime with two worker threads (`dupac-net`) on which the
 //! node's zenoh I/O runs as tasks — decoding received chunks, publishing weights, chunks and
 //! stats, answering weight queries — apart from the compute threads (the PPO update, the
 //! environments), which hand it encoded messages and go on without waiting for the network.
@@ -6,6 +6,11 @@
 //! zenoh's receive callbacks stay on zenoh's own (tokio) runtime: they only check sizes and
 //! queue bytes or update a table, never block and never do I/O (a blocked callback stalls
 //! zenoh's receive path; a `Block` sender stalled 5 s loses its transport).
+//!
+//! zenoh 1.10's `put(..).await` and `reply(..).await` run its blocking call in place: a
+//! `Block` publication held up by a slow peer occupies the worker it runs on. Two workers
+//! keep the decode task going beside it, and the decode task yields after each message so
+//! that a backlog does not hold back the publishers.
 
 use std::future::Future;
 use std::time::Duration;
@@ -20,10 +25,10 @@ pub(crate) struct NetSide {
 }
 
 impl NetSide {
-    /// A runtime of one worker thread named `dupac-net`.
+    /// A runtime of two worker threads named `dupac-net`.
     pub(crate) fn new() -> std::io::Result<NetSide> {
         let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
+            .worker_threads(2)
             .thread_name("dupac-net")
             .enable_time()
             .build()?;

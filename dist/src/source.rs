@@ -117,12 +117,7 @@ impl TrajectorySource for ZenohSource {
         let Some(node) = self.node.take() else {
             return Ok(());
         };
-        let sent = if completed {
-            node.send_stop(p.update)
-        } else {
-            Ok(())
-        };
-        node.close();
-        sent.map_err(|e: NodeError| e.into())
+        node.close(completed.then_some(p.update))
+            .map_err(|e: NodeError| e.into())
     }
 }

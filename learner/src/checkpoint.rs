@@ -770,6 +770,7 @@ mod tests {
         // It predates the path guide: flown unguided under today's (guided) defaults.
         let flown = old.configure(&Config::default()).expect("configure");
         assert!(!flown.env.observation.path_guide);
+        assert_eq!(flown.env.observation.site_los, SiteLos::Ray);
         assert_eq!(
             flown.env.reward.progress,
             dupac_common::config::Progress::Straight
