@@ -225,10 +225,12 @@ fn a_policy_is_flown_with_the_observation_it_records() {
     );
     assert_eq!(p.check_observation(&trend), Ok(()));
     // An older file (format 2) records none: flown with the configuration's, checked by length
-    // elsewhere, without the path guide, which it predates.
+    // elsewhere, without the path guide, which it predates, and with the line of sight cast as
+    // rays, as it was trained.
     p.observation = None;
     let mut unguided = cfg.clone();
     unguided.env.observation.path_guide = false;
+    unguided.env.observation.site_los = dupac_common::config::SiteLos::Ray;
     unguided.env.reward.progress = dupac_common::config::Progress::Straight;
     assert_eq!(p.configure(&cfg).expect("flown"), unguided);
     assert_eq!(p.check_observation(&cfg.env.observation), Ok(()));

@@ -32,7 +32,7 @@ const FORMAT_2: u32 = 2;
 const FORMAT_3: u32 = 3;
 /// 2026-11-26, the path guide without its clearance (it was `planner.clearance_m`).
 const FORMAT_4: u32 = 4;
-/// 2026-11-26 to 2026-11-27, the sites' line of sight always cast as rays.
+/// The guide with its clearance, the sites' line of sight always cast as rays (no `site_los`).
 const FORMAT_5: u32 = 5;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
