@@ -647,3 +647,107 @@ fn ctrl_c_stops_dupac_train_with_a_checkpoint_and_no_orphans() {
     let updates = metric_updates(&metrics);
     assert_eq!(updates, (1..=target).collect::<Vec<_>>());
 }
+
+/// A completed run's learner sends `Stop` only after its network side has published the last
+/// weights it was given, so an actor or a `fly --follow` pilot that stops at `Stop` has the
+/// final policy (in-process learner node, a client session watching weights and control). The
+/// order without the protection is a race (seen failing in one run of three): five rounds.
+#[test]
+fn the_last_weights_go_out_before_stop() {
+    for round in 0..5 {
+        assert_eq!(
+            last_weights_before_stop(round),
+            30,
+            "round {round}: Stop arrived before the last weights"
+        );
+    }
+}
+
+/// The highest weights version a watcher received before `Stop`, the learner having published
+/// versions 1 to 30 and closed.
+fn last_weights_before_stop(round: u32) -> u64 {
+    use dupac_common::config::Config;
+    use dupac_common::keys::KeySpace;
+    use dupac_common::msg::{MsgLimits, WeightsMsg, decode_msg};
+    use dupac_common::obs::ObsLayout;
+    use dupac_dist::learner::LearnerNode;
+    use dupac_dist::net::{ConnectOpts, Mode};
+    use std::sync::mpsc;
+    use zenoh::Wait;
+
+    let mut cfg = Config::default();
+    cfg.distributed.run = format!("e2e-last-weights-{round}");
+    cfg.ppo.hidden = vec![8, 8];
+    let n_sites = cfg.scenario.n_sites;
+    let obs_dim = ObsLayout::new(&cfg.env.observation, n_sites).len();
+    let mut policy = dupac_learner::learner::Learner::new(
+        cfg.clone(),
+        obs_dim,
+        n_sites,
+        &burn::tensor::Device::flex(),
+    )
+    .policy();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let learner_session = ConnectOpts {
+        mode: Some(Mode::Router),
+        listen: vec![endpoint.clone()],
+        no_multicast_scouting: true,
+        ..ConnectOpts::default()
+    }
+    .open()
+    .expect("learner session");
+    let node = LearnerNode::start(learner_session, &cfg, obs_dim, n_sites, 7, 11).expect("node");
+    let watcher = ConnectOpts {
+        mode: Some(Mode::Client),
+        connect: vec![endpoint],
+        no_multicast_scouting: true,
+        ..ConnectOpts::default()
+    }
+    .open()
+    .expect("watcher session");
+    let keys = KeySpace::new(&cfg.distributed.run);
+    // `Some(version)` for weights, `None` for Stop, in arrival order.
+    let (tx, rx) = mpsc::channel::<Option<u64>>();
+    let limit = MsgLimits::weights(&cfg, obs_dim, n_sites);
+    let weights_key = keys.weights();
+    let tx_w = tx.clone();
+    let _w = watcher
+        .declare_subscriber(keys.weights())
+        .callback(move |s| {
+            if let Ok(w) = decode_msg::<WeightsMsg>(&s.payload().to_bytes(), limit, &weights_key) {
+                let _ = tx_w.send(Some(w.policy.version));
+            }
+        })
+        .wait()
+        .expect("weights subscriber");
+    let _c = watcher
+        .declare_subscriber(keys.ctrl())
+        .callback(move |_| {
+            let _ = tx.send(None);
+        })
+        .wait()
+        .expect("ctrl subscriber");
+    // Until the watcher's subscription has reached the learner: version 0 again and again.
+    let t0 = Instant::now();
+    loop {
+        node.publish_weights(&policy).expect("publish");
+        if let Ok(Some(0)) = rx.recv_timeout(Duration::from_millis(200)) {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "no weights arrived");
+    }
+    for v in 1..=30 {
+        policy.version = v;
+        node.publish_weights(&policy).expect("publish");
+    }
+    node.close(Some(30)).expect("close with Stop");
+    let mut last_weights = 0;
+    while let Some(v) = rx
+        .recv_timeout(Duration::from_secs(20))
+        .expect("Stop arrives")
+    {
+        last_weights = last_weights.max(v);
+    }
+    let _ = watcher.close().wait();
+    last_weights
+}
