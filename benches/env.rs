@@ -75,7 +75,6 @@ fn benches(c: &mut Criterion) {
     let mut unguided_cfg = cfg.clone();
     unguided_cfg.env.observation.path_guide = false;
     unguided_cfg.env.reward.progress = dupac_common::config::Progress::Straight;
-    unguided_cfg.env.reward.guide_deviation_weight = 0.0;
     let unguided: Vec<Episode> = episodes
         .iter()
         .map(|e| Episode {

@@ -6,7 +6,7 @@ Network (docs/training.md): actor and critic MLPs 108 -> 256 -> 256 (tanh) over 
 trunk, the actor's head 3 move means with a state-independent log-std; the permutation-equivariant
 site head: an embedding tanh(E h) (256 -> 16) of the actor's last hidden activation and an MLP
 (11 + 16) -> 32 (tanh) -> 1 shared by the 30 sites, scored on one step's site features per
-decision (`ppo.site_step_rows = 1`), its first layer split as DUPAC's is. Loss: clipped surrogate
+decision (the learner's `SITE_STEP_ROWS`, 1), its first layer split as DUPAC's is. Loss: clipped surrogate
 of the move, clipped value loss (0.5), the all-sites expected site loss (coefficient 1);
 Adam (eps 1e-5), global grad-norm clip 0.5. 4 096 samples, 4 epochs x 8 minibatches of 512.
 

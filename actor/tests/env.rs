@@ -55,7 +55,6 @@ fn unguided() -> Config {
     let mut cfg = Config::default();
     cfg.env.observation.path_guide = false;
     cfg.env.reward.progress = dupac_common::config::Progress::Straight;
-    cfg.env.reward.guide_deviation_weight = 0.0;
     cfg
 }
 
@@ -323,44 +322,6 @@ fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
         }
     }
     assert_eq!(first, Some(5));
-}
-
-#[test]
-fn the_minimum_time_of_stay_leaves_no_ping_pong() {
-    // A learned choice that alternates every step: with a minimum stay of 1 s (21 steps at
-    // 20.8 m/s) each handover comes ≥ 22 steps after the last, later choices are ignored
-    // meanwhile, and no handover is a ping-pong (window 1 s). Without it, every step hands over.
-    let run = |mts_s: f64| {
-        let mut cfg = unguided();
-        cfg.env.association = Association::Learned;
-        cfg.env.min_time_of_stay_s = mts_s;
-        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-        e.reset(
-            1,
-            ep(Point::new(0.0, -90.0, 50.0), Point::new(0.0, 100.0, 50.0)),
-        )
-        .expect("reset");
-        let mut handover_steps = Vec::new();
-        let mut ping_pongs = 0;
-        for t in 0..120u32 {
-            let st = e
-                .step(&mv(0.0, 1.0, 0.0, ((t + 1) % 2) as u16))
-                .expect("step");
-            if st.info.handover {
-                handover_steps.push(st.info.step);
-            }
-            ping_pongs += u32::from(st.info.ping_pong);
-        }
-        (handover_steps, ping_pongs)
-    };
-    let (free, free_pp) = run(0.0);
-    assert_eq!(free.len(), 120);
-    assert!(free_pp > 100);
-    let (held, held_pp) = run(1.0);
-    assert_eq!(held_pp, 0);
-    assert_eq!(held[0], 1, "the first choice is free");
-    assert!(held.windows(2).all(|w| w[1] - w[0] >= 22), "{held:?}");
-    assert!(held.len() >= 5, "{held:?}");
 }
 
 #[test]
@@ -693,66 +654,6 @@ fn one_decision_is_action_repeat_steps_and_ends_with_the_episode() {
     assert_eq!(e.substeps().len(), 1, "36 = 7 × 5 + 1");
 }
 
-/// `env.observation.site_trend`: one more feature per site, its RSRP change since the previous
-/// observation / 10 dB (0 at the start of an episode), and the site features still last.
-#[test]
-fn site_trend_is_the_rsrp_change_over_one_decision() {
-    use dupac_common::obs::{site_feature, site_features_per_site};
-    // Site 0 falls 0.5 dB per metre north, site 1 rises 0.5 dB.
-    let field: fn(usize, Point) -> f64 = |s, p| {
-        if s == 0 {
-            -70.0 - 0.5 * p[1]
-        } else {
-            -90.0 + 0.5 * p[1]
-        }
-    };
-    let mut cfg = unguided();
-    cfg.env.association = Association::Learned;
-    cfg.env.observation.site_trend = true;
-    let per_site = site_features_per_site(&cfg.env.observation);
-    // The trend, then the ping-pong flag (on by default), last.
-    assert_eq!(per_site, 12);
-    assert_eq!(site_feature::ping_pong(&cfg.env.observation), Some(11));
-    let mut e = Env::new(&cfg, world(), Arc::new(Field(field, 2))).expect("env");
-    let trend = |e: &Env| {
-        let r = e
-            .layout()
-            .range(field::SITE_FEATURES)
-            .expect("site features");
-        assert_eq!(r.len(), 2 * per_site);
-        assert_eq!(r.end, e.observation().len(), "the site features stay last");
-        let o = &e.observation()[r];
-        [0, 1].map(|k| o[k * per_site + site_feature::RSRP_TREND])
-    };
-    e.reset(
-        1,
-        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 150.0, 50.0)),
-    )
-    .expect("reset");
-    assert_eq!(trend(&e), [0.0, 0.0]);
-    // One decision: 5 steps of 1 m north, −2.5 and +2.5 dB.
-    e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
-    let t = trend(&e);
-    assert!(
-        (t[0] + 0.25).abs() < 1e-5 && (t[1] - 0.25).abs() < 1e-5,
-        "{t:?}"
-    );
-    // A decision that holds still: no change.
-    e.act(&mv(0.0, 0.0, 0.0, 0)).expect("act");
-    assert_eq!(trend(&e), [0.0, 0.0]);
-    // A new episode starts from 0 again.
-    e.act(&mv(0.0, 1.0, 0.0, 0)).expect("act");
-    e.reset(
-        2,
-        ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 150.0, 50.0)),
-    )
-    .expect("reset");
-    assert_eq!(trend(&e), [0.0, 0.0]);
-    // Without the key the layout is today's: 11 features per site (with the ping-pong flag).
-    let plain = Env::new(&unguided(), world(), Arc::new(Field(field, 2))).expect("env");
-    assert_eq!(plain.layout().len() + 2, e.layout().len());
-}
-
 #[test]
 fn geofence_makes_the_area_edge_a_sensed_wall() {
     use dupac_common::config::NearestObstacle;
@@ -823,73 +724,6 @@ fn site_rewards_are_what_each_site_would_have_given() {
     cfg.env.reward.ping_pong_reward = 0.0;
     cfg.env.observation.site_ping_pong = false;
     site_rewards_match_their_counterfactuals(&cfg);
-}
-
-/// The same with a minimum time of stay of 0.3 s (7 steps): a decision's choice is deferred past
-/// its first step (or never applied) while the stay lasts, and every site's reward says so.
-#[test]
-fn site_rewards_follow_the_minimum_time_of_stay() {
-    let mut cfg = unguided();
-    cfg.env.association = Association::Learned;
-    cfg.env.min_time_of_stay_s = 0.3;
-    site_rewards_match_their_counterfactuals(&cfg);
-}
-
-/// Issue 15: `env.handover_margin_db` refuses a choice of a site that does not lead the serving
-/// one by the margin, and every site's reward follows the refusals (the counterfactual replay).
-#[test]
-fn site_rewards_follow_the_handover_margin() {
-    let mut cfg = unguided();
-    cfg.env.association = Association::Learned;
-    cfg.env.handover_margin_db = 5.0;
-    site_rewards_match_their_counterfactuals(&cfg);
-    // With a minimum stay as well: a deferred choice meets the margin when it is applied.
-    cfg.env.min_time_of_stay_s = 0.3;
-    site_rewards_match_their_counterfactuals(&cfg);
-}
-
-/// Flying north through `CROSSING` (site 1 − site 0 = y − 35 dB) choosing site 1 every step: with
-/// a 5 dB margin the handover waits until site 1 leads by 5 dB (y = 40 m), then a choice of
-/// site 0 is refused while it trails; without a margin the first choice hands over at once.
-#[test]
-fn the_handover_margin_holds_the_serving_site_until_the_choice_leads_by_it() {
-    let run = |margin_db: f64, choose: fn(u32) -> u16| {
-        let mut cfg = unguided();
-        cfg.env.association = Association::Learned;
-        cfg.env.handover_margin_db = margin_db;
-        let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
-        e.reset(
-            1,
-            ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 120.0, 50.0)),
-        )
-        .expect("reset");
-        let mut serving = Vec::new();
-        for t in 0..60u32 {
-            let st = e.step(&mv(0.0, 1.0, 0.0, choose(t))).expect("step");
-            serving.push((st.info.position_m[1], st.info.serving.0, st.info.handover));
-        }
-        serving
-    };
-    let free = run(0.0, |_| 1);
-    assert_eq!(free[0].1, 1, "no margin: the first choice serves");
-    let held = run(5.0, |_| 1);
-    let first = held.iter().position(|s| s.1 == 1).expect("a handover");
-    assert!(
-        (held[first].0 - 40.0).abs() < 1e-9 && held[first].2,
-        "hands over where site 1 leads by 5 dB: {:?}",
-        held[first]
-    );
-    assert!(held[..first].iter().all(|s| s.1 == 0 && !s.2));
-    // From y = 40 on, a choice of site 0 (trailing by ≥ 5 dB) is refused every time.
-    let back = run(5.0, |t| if t < 45 { 1 } else { 0 });
-    assert!(
-        back[45..].iter().all(|s| s.1 == 1 && !s.2),
-        "{:?}",
-        &back[44..50]
-    );
-    // A margin of 0 is the paper's free choice: the same choice back hands over at once.
-    let free_back = run(0.0, |t| if t < 45 { 1 } else { 0 });
-    assert_eq!(free_back[45].1, 0);
 }
 
 fn site_rewards_match_their_counterfactuals(cfg: &Config) {
@@ -1128,16 +962,8 @@ fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
     cfg.env.reward.ping_pong_reward = 0.0;
     cfg.env.observation.site_ping_pong = false;
     step_site_rewards_match_their_counterfactuals(&cfg, 10);
-    // The margin and the minimum stay apply per step (site 1 leads by 2 dB from y = 37 m on:
-    // one handover, every later choice of site 0 refused).
-    cfg.env.handover_margin_db = 2.0;
-    step_site_rewards_match_their_counterfactuals(&cfg, 1);
-    cfg.env.handover_margin_db = 0.0;
-    cfg.env.min_time_of_stay_s = 0.1;
-    step_site_rewards_match_their_counterfactuals(&cfg, 3);
     // A ping-pong cost and its site feature: each step's every-site reward charges it where
     // serving that site would be a ping-pong, and the features say which (the replay's own).
-    cfg.env.min_time_of_stay_s = 0.0;
     cfg.env.reward.ping_pong_reward = -4.0;
     cfg.env.observation.site_ping_pong = true;
     step_site_rewards_match_their_counterfactuals(&cfg, 10);
@@ -1295,47 +1121,4 @@ fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
             .range(field::PATH_GUIDE)
             .is_none()
     );
-}
-
-/// The path-keeping cost (`env.reward.guide_deviation_weight`, issue 15): per step,
-/// −μ1 · κ_g · (metres off the planned path beyond the free band); nothing within the band; an
-/// episode without a path is refused when the cost alone needs one.
-#[test]
-fn the_path_keeping_cost_charges_the_metres_off_the_path_beyond_the_free_band() {
-    use dupac_actor::env::PathGuide;
-    use dupac_common::config::Progress;
-    let mut cfg = unguided();
-    cfg.env.association = Association::A3;
-    paper_reward(&mut cfg);
-    cfg.env.reward.guide_deviation_weight = 0.5;
-    cfg.env.reward.guide_deviation_free_m = 2.0;
-    let (src, dst) = (Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
-    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-    // Straight progress, no guide in the observation: the cost alone needs the path.
-    assert_eq!(cfg.env.reward.progress, Progress::Straight);
-    assert_eq!(e.reset(1, ep(src, dst)).unwrap_err(), EnvError::NoGuide);
-    let guided = Episode {
-        guide: Some(Arc::new(PathGuide::new(&[src, dst]).expect("path"))),
-        ..ep(src, dst)
-    };
-    let mut free = cfg.clone();
-    free.env.reward.guide_deviation_weight = 0.0;
-    let mut f = Env::new(&free, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-    e.reset(1, guided.clone()).expect("reset");
-    f.reset(1, guided).expect("reset");
-    // West, square to the path, one metre a step: 1, 2, 3, 4 m off.
-    let west = Action {
-        move_: Vector::new(-1.0, 0.0, 0.0),
-        site: SiteId(0),
-    };
-    let mu1 = cfg.env.reward.mu1;
-    for off_m in [1.0, 2.0, 3.0, 4.0] {
-        let (s, t) = (e.step(&west).expect("step"), f.step(&west).expect("step"));
-        let cost = t.reward - s.reward;
-        let want = mu1 * 0.5 * (off_m - 2.0_f64).max(0.0);
-        assert!((cost - want).abs() < 1e-9, "{off_m} m off: {cost} ≠ {want}");
-    }
-    let mut bad = cfg.clone();
-    bad.env.reward.guide_deviation_weight = -1.0;
-    assert!(bad.validate().is_err());
 }

@@ -23,7 +23,8 @@ use std::collections::BTreeMap;
 /// 6: the path guide's keys in that observation (`env.observation.path_guide`).
 /// 7: its planned path's clearance (`env.observation.path_guide_clearance_m`).
 /// 8: the source of the sites' line of sight (`env.observation.site_los`).
-pub const SCHEMA_VERSION: u32 = 8;
+/// 9: that observation without `site_trend`.
+pub const SCHEMA_VERSION: u32 = 9;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -35,26 +35,20 @@ pub mod site_feature {
     pub const SIN_BEARING_GOAL: usize = 8;
     /// 1 when the geometric line of sight to the site is clear.
     pub const LOS: usize = 9;
-    /// With `env.observation.site_trend` only: the site's RSRP now minus at the previous
-    /// observation (one decision ago; 0 at the start), / 10 dB, clipped to ±3.
-    pub const RSRP_TREND: usize = 10;
-
-    /// With `env.observation.site_ping_pong` only, after [`RSRP_TREND`] when both are on: 1 for
-    /// the site that serving at the next step would make a ping-pong (the site the last
-    /// handover left, within `env.ping_pong_window_s`), else 0.
+    /// With `env.observation.site_ping_pong` only, last: 1 for the site that serving at the next
+    /// step would make a ping-pong (the site the last handover left, within
+    /// `env.ping_pong_window_s`), else 0.
     pub fn ping_pong(cfg: &crate::config::ObservationConfig) -> Option<usize> {
-        cfg.site_ping_pong
-            .then(|| super::SITE_FEATURES + usize::from(cfg.site_trend))
+        cfg.site_ping_pong.then_some(super::SITE_FEATURES)
     }
 }
 
-/// Number of features per site in the `site_features` field without `site_trend` and
-/// `site_ping_pong`.
+/// Number of features per site in the `site_features` field without `site_ping_pong`.
 pub const SITE_FEATURES: usize = 10;
 
 /// Features per site in the `site_features` field under `cfg`.
 pub fn site_features_per_site(cfg: &ObservationConfig) -> usize {
-    SITE_FEATURES + usize::from(cfg.site_trend) + usize::from(cfg.site_ping_pong)
+    SITE_FEATURES + usize::from(cfg.site_ping_pong)
 }
 
 /// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),

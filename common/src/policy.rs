@@ -282,8 +282,8 @@ pub struct PolicyWeights {
     pub obs_norm: ObsNormalizer,
     pub reward_scaler: RewardScaler,
     /// The observation the policy was trained on (`env.observation`), recorded since policy file
-    /// format 3: flags that give layouts of one length (`site_trend`, `site_ping_pong`) and the
-    /// scales of its values (sensor range, RSRP centre) are not visible in the weights' shapes.
+    /// format 3: flags that give layouts of one length and the scales of its values (sensor
+    /// range, RSRP centre) are not visible in the weights' shapes.
     /// `None` in a file of an older format, which is checked by its length only
     /// ([`PolicyWeights::configure`]).
     pub observation: Option<ObservationConfig>,
@@ -478,10 +478,7 @@ impl PolicyWeights {
     /// file format, which records none, `cfg` with the path guide off (it predates the guide). The error names the invalid key
     /// (a loaded policy has passed [`PolicyWeights::validate`] already; this also guards one
     /// built in code). Only the observation is taken: the training-time rules that tie it to
-    /// the reward (a ping-pong cost needs its feature) are not about flying. One rule is about
-    /// flying: a policy that observes the site trend was trained with the site held for the
-    /// decision (the configuration refuses the trend with `env.site_every_step`), so it is
-    /// flown so.
+    /// the reward (a ping-pong cost needs its feature) are not about flying.
     pub fn configure(&self, cfg: &Config) -> Result<Config, String> {
         let mut c = cfg.clone();
         match &self.observation {
@@ -489,9 +486,6 @@ impl PolicyWeights {
                 o.validate()
                     .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
                 c.env.observation = o.clone();
-                if o.site_trend {
-                    c.env.site_every_step = false;
-                }
             }
             None => {
                 // Written before the observation was recorded (file format 2), so before the
@@ -500,7 +494,6 @@ impl PolicyWeights {
                 c.env.observation.path_guide = false;
                 c.env.observation.site_los = crate::config::SiteLos::Ray;
                 c.env.reward.progress = crate::config::Progress::Straight;
-                c.env.reward.guide_deviation_weight = 0.0;
             }
         }
         Ok(c)

@@ -198,32 +198,32 @@ proptest! {
     }
 }
 
-/// The observation a policy records (issue 15: two layouts of one length) is what it is flown
-/// with, and what an actor or a resumed learner must share; a hostile one is refused by key.
+/// The observation a policy records (issue 15: scales and flags its weights' shapes do not
+/// show) is what it is flown with, and what an actor or a resumed learner must share; a hostile
+/// one is refused by key.
 #[test]
 fn a_policy_is_flown_with_the_observation_it_records() {
     use dupac_common::config::{Config, ObservationConfig};
     let cfg = Config::default();
-    let mut trend = ObservationConfig {
-        site_trend: true,
+    let mut other = ObservationConfig {
+        rsrp_centre_dbm: -80.0,
         site_ping_pong: false,
         ..ObservationConfig::default()
     };
     let mut p = policy();
-    p.observation = Some(trend.clone());
+    p.observation = Some(other.clone());
     let flown = p.configure(&cfg).expect("flown");
-    assert_eq!(flown.env.observation, trend);
-    // Trained with the trend, it was trained with the site held: flown so.
-    assert!(cfg.env.site_every_step && !flown.env.site_every_step);
+    assert_eq!(flown.env.observation, other);
+    assert_eq!(flown.env.site_every_step, cfg.env.site_every_step);
     let e = p
         .check_observation(&cfg.env.observation)
         .expect_err("another");
     assert!(
         e.contains("env.observation.site_ping_pong: false vs true")
-            && e.contains("env.observation.site_trend: true vs false"),
+            && e.contains("env.observation.rsrp_centre_dbm: -80"),
         "{e}"
     );
-    assert_eq!(p.check_observation(&trend), Ok(()));
+    assert_eq!(p.check_observation(&other), Ok(()));
     // An older file (format 2) records none: flown with the configuration's, checked by length
     // elsewhere, without the path guide, which it predates, and with the line of sight cast as
     // rays, as it was trained.
@@ -235,8 +235,8 @@ fn a_policy_is_flown_with_the_observation_it_records() {
     assert_eq!(p.configure(&cfg).expect("flown"), unguided);
     assert_eq!(p.check_observation(&cfg.env.observation), Ok(()));
     // A hostile record is refused by its key, by validation and by `configure`.
-    trend.rsrp_scale_db = f64::NAN;
-    p.observation = Some(trend);
+    other.rsrp_scale_db = f64::NAN;
+    p.observation = Some(other);
     let e = p.validate().expect_err("NaN scale");
     assert!(e.contains("env.observation.rsrp_scale_db"), "{e}");
     let e = p.configure(&cfg).expect_err("NaN scale");

@@ -22,7 +22,6 @@ fn spec_env_toml_is_the_spec_environment() {
     assert_eq!(o.nearest_obstacle, NearestObstacle::Fan);
     assert!(!o.geofence && !o.goal_direction);
     assert!(!o.path_guide && e.reward.progress == Progress::Straight);
-    assert_eq!(e.reward.guide_deviation_weight, 0.0);
     // Everything else is the default: the file changes only the departures.
     let mut spec = Config::default();
     spec.env.action_clip = ActionClip::Cube;
@@ -39,7 +38,6 @@ fn spec_env_toml_is_the_spec_environment() {
     spec.env.observation.path_guide_clearance_m = 0.0;
     spec.env.observation.path_lookahead_m = 30.0;
     spec.env.reward.progress = Progress::Straight;
-    spec.env.reward.guide_deviation_weight = 0.0;
     assert_eq!(cfg, spec);
 }
 
@@ -67,6 +65,5 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.env.observation.path_guide_clearance_m = 0.0;
     paper.env.observation.path_lookahead_m = 30.0;
     paper.env.reward.progress = Progress::Straight;
-    paper.env.reward.guide_deviation_weight = 0.0;
     assert_eq!(cfg, paper);
 }

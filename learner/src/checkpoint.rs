@@ -22,10 +22,11 @@ use crate::model::ActorCritic;
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
 /// Format 3 records the policy's observation ([`PolicyWeights::observation`]), format 4 with
 /// the path guide's keys, format 5 with the guide's clearance, format 6 with the source of the
-/// sites' line of sight; formats 2 to 5 are still read ([`legacy`]).
-const CHECKPOINT_VERSION: u32 = 6;
+/// sites' line of sight, format 7 without `site_trend`; formats 2 to 6 are still read
+/// ([`legacy`]).
+const CHECKPOINT_VERSION: u32 = 7;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-const POLICY_VERSION: u32 = 6;
+const POLICY_VERSION: u32 = 7;
 /// 2026-11-24 to 2026-11-26, read without the observation.
 const FORMAT_2: u32 = 2;
 /// 2026-11-26, the observation without the path guide.
@@ -34,6 +35,8 @@ const FORMAT_3: u32 = 3;
 const FORMAT_4: u32 = 4;
 /// The guide with its clearance, the sites' line of sight always cast as rays (no `site_los`).
 const FORMAT_5: u32 = 5;
+/// The observation with `site_trend`.
+const FORMAT_6: u32 = 6;
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -80,7 +83,8 @@ struct CheckpointFile {
 /// observation as it was before the path guide (`env.observation.path_guide`,
 /// `path_lookahead_m`, `path_guide_lambda`), format 4 before the guide's own clearance
 /// (`path_guide_clearance_m`; it used `planner.clearance_m`, which 0 says), format 5 before
-/// `site_los` (rays). The tests write old files with these types too.
+/// `site_los` (rays), format 6 with `site_trend` (a file whose policy observes the trend is
+/// refused: no build since computes it). The tests write old files with these types too.
 mod legacy {
     use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale, SiteLos};
     use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
@@ -99,19 +103,6 @@ mod legacy {
             ("path_guide_lambda", toml::Value::Float(0.0)),
             ("path_guide_clearance_m", toml::Value::Float(0.0)),
         ]
-    }
-
-    /// Today's observation with the guide as a file of format 3 or older meant it: off (and the
-    /// look-ahead of those days, 30 m), the line of sight from rays.
-    fn guide_off() -> ObservationConfig {
-        ObservationConfig {
-            site_los: SiteLos::Ray,
-            path_guide: false,
-            path_guide_lambda: 0.0,
-            path_guide_clearance_m: 0.0,
-            path_lookahead_m: 30.0,
-            ..ObservationConfig::default()
-        }
     }
 
     /// `env.observation` as format 3 recorded it.
@@ -136,24 +127,16 @@ mod legacy {
     }
 
     impl ObservationV3 {
-        pub(super) fn upgrade(self) -> ObservationConfig {
-            ObservationConfig {
-                goal: self.goal,
-                sensor_fan: self.sensor_fan,
-                rsrp_all: self.rsrp_all,
-                rsrp_serving: self.rsrp_serving,
-                sensor_range_m: self.sensor_range_m,
-                sensor_scale: self.sensor_scale,
-                nearest_obstacle: self.nearest_obstacle,
-                geofence: self.geofence,
-                goal_scale_m: self.goal_scale_m,
-                goal_direction: self.goal_direction,
-                rsrp_centre_dbm: self.rsrp_centre_dbm,
-                rsrp_scale_db: self.rsrp_scale_db,
-                site_features: self.site_features,
-                site_trend: self.site_trend,
-                site_ping_pong: self.site_ping_pong,
-                ..guide_off()
+        /// The guide as a file of format 3 meant it: off (and the look-ahead of those days,
+        /// 30 m), the line of sight from rays.
+        pub(super) fn upgrade(self) -> ObservationV6 {
+            ObservationV6 {
+                v3: self,
+                path_guide: false,
+                path_lookahead_m: 30.0,
+                path_guide_lambda: 0.0,
+                path_guide_clearance_m: 0.0,
+                site_los: SiteLos::Ray,
             }
         }
     }
@@ -170,8 +153,8 @@ mod legacy {
 
     impl ObservationV4 {
         /// The guide's path planned with `planner.clearance_m`, as format 4's was (0).
-        pub(super) fn upgrade(self) -> ObservationConfig {
-            ObservationConfig {
+        pub(super) fn upgrade(self) -> ObservationV6 {
+            ObservationV6 {
                 path_guide: self.path_guide,
                 path_lookahead_m: self.path_lookahead_m,
                 path_guide_lambda: self.path_guide_lambda,
@@ -191,16 +174,89 @@ mod legacy {
 
     impl ObservationV5 {
         /// The sites' line of sight from rays, as format 5's was.
-        pub(super) fn upgrade(self) -> ObservationConfig {
-            ObservationConfig {
+        pub(super) fn upgrade(self) -> ObservationV6 {
+            ObservationV6 {
                 path_guide_clearance_m: self.path_guide_clearance_m,
                 ..self.v4.upgrade()
             }
         }
     }
 
-    /// The policy of formats 2 and 3: `O` = `()` (format 2, none recorded) or
-    /// `Option<ObservationV3>` (format 3).
+    /// `env.observation` as format 6 recorded it: format 3's keys (with `site_trend`), then the
+    /// guide's, its clearance and `site_los`.
+    #[derive(Deserialize)]
+    #[cfg_attr(test, derive(serde::Serialize))]
+    pub(super) struct ObservationV6 {
+        pub(super) v3: ObservationV3,
+        pub(super) path_guide: bool,
+        pub(super) path_lookahead_m: f64,
+        pub(super) path_guide_lambda: f64,
+        pub(super) path_guide_clearance_m: f64,
+        pub(super) site_los: SiteLos,
+    }
+
+    impl ObservationV6 {
+        /// Today's observation; refused when it observes the site trend, which no build of
+        /// format 7 or later computes.
+        pub(super) fn upgrade(self) -> Result<ObservationConfig, String> {
+            let o = self.v3;
+            if o.site_trend {
+                return Err(
+                    "the policy observes the site trend (env.observation.site_trend), which this build no longer computes: retrain it (dupac train)"
+                        .into(),
+                );
+            }
+            Ok(ObservationConfig {
+                goal: o.goal,
+                sensor_fan: o.sensor_fan,
+                rsrp_all: o.rsrp_all,
+                rsrp_serving: o.rsrp_serving,
+                sensor_range_m: o.sensor_range_m,
+                sensor_scale: o.sensor_scale,
+                nearest_obstacle: o.nearest_obstacle,
+                geofence: o.geofence,
+                goal_scale_m: o.goal_scale_m,
+                goal_direction: o.goal_direction,
+                rsrp_centre_dbm: o.rsrp_centre_dbm,
+                rsrp_scale_db: o.rsrp_scale_db,
+                site_features: o.site_features,
+                site_ping_pong: o.site_ping_pong,
+                path_guide: self.path_guide,
+                path_lookahead_m: self.path_lookahead_m,
+                path_guide_lambda: self.path_guide_lambda,
+                path_guide_clearance_m: self.path_guide_clearance_m,
+                site_los: self.site_los,
+            })
+        }
+    }
+
+    /// An observation of format 3 to 6 as today's.
+    pub(super) trait Upgrade {
+        fn observation(self) -> Result<ObservationConfig, String>;
+    }
+    impl Upgrade for ObservationV3 {
+        fn observation(self) -> Result<ObservationConfig, String> {
+            self.upgrade().upgrade()
+        }
+    }
+    impl Upgrade for ObservationV4 {
+        fn observation(self) -> Result<ObservationConfig, String> {
+            self.upgrade().upgrade()
+        }
+    }
+    impl Upgrade for ObservationV5 {
+        fn observation(self) -> Result<ObservationConfig, String> {
+            self.upgrade().upgrade()
+        }
+    }
+    impl Upgrade for ObservationV6 {
+        fn observation(self) -> Result<ObservationConfig, String> {
+            self.upgrade()
+        }
+    }
+
+    /// The policy of formats 2 to 6: `O` = `()` (format 2, none recorded) or
+    /// `Option<ObservationV3>` … `Option<ObservationV6>`.
     #[derive(Deserialize)]
     #[cfg_attr(test, derive(serde::Serialize))]
     pub(super) struct PolicyWeightsOld<O> {
@@ -222,6 +278,7 @@ mod legacy {
     pub(super) type PolicyWeightsV3 = PolicyWeightsOld<Option<ObservationV3>>;
     pub(super) type PolicyWeightsV4 = PolicyWeightsOld<Option<ObservationV4>>;
     pub(super) type PolicyWeightsV5 = PolicyWeightsOld<Option<ObservationV5>>;
+    pub(super) type PolicyWeightsV6 = PolicyWeightsOld<Option<ObservationV6>>;
 
     impl<O> PolicyWeightsOld<O> {
         /// The policy, with `observation`.
@@ -242,24 +299,11 @@ mod legacy {
         }
     }
 
-    impl PolicyWeightsV3 {
-        pub(super) fn upgrade(mut self) -> PolicyWeights {
-            let o = self.observation.take().map(ObservationV3::upgrade);
-            self.with(o)
-        }
-    }
-
-    impl PolicyWeightsV4 {
-        pub(super) fn upgrade(mut self) -> PolicyWeights {
-            let o = self.observation.take().map(ObservationV4::upgrade);
-            self.with(o)
-        }
-    }
-
-    impl PolicyWeightsV5 {
-        pub(super) fn upgrade(mut self) -> PolicyWeights {
-            let o = self.observation.take().map(ObservationV5::upgrade);
-            self.with(o)
+    impl<O: Upgrade> PolicyWeightsOld<Option<O>> {
+        /// Today's policy; refused when its observation has no equivalent today.
+        pub(super) fn upgrade(mut self) -> Result<PolicyWeights, String> {
+            let o = self.observation.take().map(O::observation).transpose()?;
+            Ok(self.with(o))
         }
     }
 
@@ -286,10 +330,8 @@ mod legacy {
 
     #[cfg(test)]
     pub(super) type CheckpointMetaV2 = CheckpointMetaOld<PolicyWeightsV2>;
+    #[cfg(test)]
     pub(super) type CheckpointFileV2 = CheckpointFileOld<PolicyWeightsV2>;
-    pub(super) type CheckpointFileV3 = CheckpointFileOld<PolicyWeightsV3>;
-    pub(super) type CheckpointFileV4 = CheckpointFileOld<PolicyWeightsV4>;
-    pub(super) type CheckpointFileV5 = CheckpointFileOld<PolicyWeightsV5>;
 
     /// The observation a run's configuration (TOML) gives, when that is certain: every key of
     /// today's `[env.observation]` written in it (a key added since — a feature that did not
@@ -299,6 +341,12 @@ mod legacy {
     pub(super) fn observation_of(config_toml: &str) -> Option<ObservationConfig> {
         let table: toml::Table = toml::from_str(config_toml).ok()?;
         let mut written = table.get("env")?.get("observation")?.as_table()?.clone();
+        // A key dropped since: its absence is today's layout only when it was off.
+        if let Some(trend) = written.remove("site_trend") {
+            if trend.as_bool() != Some(false) {
+                return None;
+            }
+        }
         let added = added_after_format_3();
         let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
         if !today
@@ -322,11 +370,11 @@ mod legacy {
         /// configuration.
         pub(super) fn upgrade(
             self,
-            upgrade: impl FnOnce(P, &str) -> PolicyWeights,
-        ) -> super::CheckpointFile {
+            upgrade: impl FnOnce(P, &str) -> Result<PolicyWeights, String>,
+        ) -> Result<super::CheckpointFile, String> {
             let m = self.meta;
-            let policy = upgrade(m.policy, &m.config_toml);
-            super::CheckpointFile {
+            let policy = upgrade(m.policy, &m.config_toml)?;
+            Ok(super::CheckpointFile {
                 meta: super::CheckpointMeta {
                     seed: m.seed,
                     update: m.update,
@@ -339,25 +387,47 @@ mod legacy {
                 },
                 model: self.model,
                 optim: self.optim,
-            }
+            })
         }
     }
 
     /// A format-2 checkpoint's policy with the observation of the run's own configuration when
     /// it is certain ([`observation_of`]); none recorded otherwise (checked by length).
-    pub(super) fn upgrade_v2(p: PolicyWeightsV2, config_toml: &str) -> PolicyWeights {
+    pub(super) fn upgrade_v2(
+        p: PolicyWeightsV2,
+        config_toml: &str,
+    ) -> Result<PolicyWeights, String> {
         let mut policy = p.with(observation_of(config_toml));
         if policy.observation.is_some() && policy.validate().is_err() {
             // The configuration disagrees with the weights (a resume that changed the
             // observation at the same length): not certain either.
             policy.observation = None;
         }
-        policy
+        Ok(policy)
     }
 }
 
-/// Decodes a checkpoint file of this format or of formats 2 to 5.
+/// Decodes a checkpoint file of this format or of formats 2 to 6.
 fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, CheckpointError> {
+    fn old<P: serde::de::DeserializeOwned>(
+        bytes: &[u8],
+        format: u32,
+        what: &str,
+        upgrade: impl FnOnce(P, &str) -> Result<PolicyWeights, String>,
+    ) -> Result<CheckpointFile, CheckpointError> {
+        codec::decode::<legacy::CheckpointFileOld<P>>(
+            CHECKPOINT_MAGIC,
+            format,
+            bytes,
+            MAX_FILE_BYTES,
+            what,
+        )?
+        .upgrade(upgrade)
+        .map_err(|message| CheckpointError::Invalid {
+            path: what.to_string(),
+            message,
+        })
+    }
     match codec::decode(
         CHECKPOINT_MAGIC,
         CHECKPOINT_VERSION,
@@ -366,48 +436,27 @@ fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, Checkpo
         what,
     ) {
         Err(CodecError::Version { got: FORMAT_2, .. }) => {
-            codec::decode::<legacy::CheckpointFileV2>(
-                CHECKPOINT_MAGIC,
-                FORMAT_2,
-                bytes,
-                MAX_FILE_BYTES,
-                what,
-            )
-            .map(|c| c.upgrade(legacy::upgrade_v2))
-            .map_err(CheckpointError::from)
+            old(bytes, FORMAT_2, what, legacy::upgrade_v2)
         }
         Err(CodecError::Version { got: FORMAT_3, .. }) => {
-            codec::decode::<legacy::CheckpointFileV3>(
-                CHECKPOINT_MAGIC,
-                FORMAT_3,
-                bytes,
-                MAX_FILE_BYTES,
-                what,
-            )
-            .map(|c| c.upgrade(|p, _| p.upgrade()))
-            .map_err(CheckpointError::from)
+            old(bytes, FORMAT_3, what, |p: legacy::PolicyWeightsV3, _| {
+                p.upgrade()
+            })
         }
         Err(CodecError::Version { got: FORMAT_4, .. }) => {
-            codec::decode::<legacy::CheckpointFileV4>(
-                CHECKPOINT_MAGIC,
-                FORMAT_4,
-                bytes,
-                MAX_FILE_BYTES,
-                what,
-            )
-            .map(|c| c.upgrade(|p, _| p.upgrade()))
-            .map_err(CheckpointError::from)
+            old(bytes, FORMAT_4, what, |p: legacy::PolicyWeightsV4, _| {
+                p.upgrade()
+            })
         }
         Err(CodecError::Version { got: FORMAT_5, .. }) => {
-            codec::decode::<legacy::CheckpointFileV5>(
-                CHECKPOINT_MAGIC,
-                FORMAT_5,
-                bytes,
-                MAX_FILE_BYTES,
-                what,
-            )
-            .map(|c| c.upgrade(|p, _| p.upgrade()))
-            .map_err(CheckpointError::from)
+            old(bytes, FORMAT_5, what, |p: legacy::PolicyWeightsV5, _| {
+                p.upgrade()
+            })
+        }
+        Err(CodecError::Version { got: FORMAT_6, .. }) => {
+            old(bytes, FORMAT_6, what, |p: legacy::PolicyWeightsV6, _| {
+                p.upgrade()
+            })
         }
         r => r.map_err(older_format),
     }
@@ -523,46 +572,40 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let policy: PolicyWeights = if bytes.starts_with(CHECKPOINT_MAGIC) {
         decode_checkpoint(&bytes, &what)?.meta.policy
     } else {
+        let invalid = |message| CheckpointError::Invalid {
+            path: what.clone(),
+            message,
+        };
+        fn old<P: serde::de::DeserializeOwned>(
+            bytes: &[u8],
+            format: u32,
+            what: &str,
+        ) -> Result<P, CodecError> {
+            codec::decode::<P>(POLICY_MAGIC, format, bytes, MAX_FILE_BYTES, what)
+        }
         match codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what) {
             Err(CodecError::Version { got: FORMAT_2, .. }) => {
-                codec::decode::<legacy::PolicyWeightsV2>(
-                    POLICY_MAGIC,
-                    FORMAT_2,
-                    &bytes,
-                    MAX_FILE_BYTES,
-                    &what,
-                )?
-                .with(None)
+                old::<legacy::PolicyWeightsV2>(&bytes, FORMAT_2, &what)?.with(None)
             }
             Err(CodecError::Version { got: FORMAT_3, .. }) => {
-                codec::decode::<legacy::PolicyWeightsV3>(
-                    POLICY_MAGIC,
-                    FORMAT_3,
-                    &bytes,
-                    MAX_FILE_BYTES,
-                    &what,
-                )?
-                .upgrade()
+                old::<legacy::PolicyWeightsV3>(&bytes, FORMAT_3, &what)?
+                    .upgrade()
+                    .map_err(invalid)?
             }
             Err(CodecError::Version { got: FORMAT_4, .. }) => {
-                codec::decode::<legacy::PolicyWeightsV4>(
-                    POLICY_MAGIC,
-                    FORMAT_4,
-                    &bytes,
-                    MAX_FILE_BYTES,
-                    &what,
-                )?
-                .upgrade()
+                old::<legacy::PolicyWeightsV4>(&bytes, FORMAT_4, &what)?
+                    .upgrade()
+                    .map_err(invalid)?
             }
             Err(CodecError::Version { got: FORMAT_5, .. }) => {
-                codec::decode::<legacy::PolicyWeightsV5>(
-                    POLICY_MAGIC,
-                    FORMAT_5,
-                    &bytes,
-                    MAX_FILE_BYTES,
-                    &what,
-                )?
-                .upgrade()
+                old::<legacy::PolicyWeightsV5>(&bytes, FORMAT_5, &what)?
+                    .upgrade()
+                    .map_err(invalid)?
+            }
+            Err(CodecError::Version { got: FORMAT_6, .. }) => {
+                old::<legacy::PolicyWeightsV6>(&bytes, FORMAT_6, &what)?
+                    .upgrade()
+                    .map_err(invalid)?
             }
             r => r.map_err(older_format)?,
         }
@@ -580,7 +623,7 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 mod tests {
     use super::legacy::{
         CheckpointFileV2, CheckpointMetaV2, ObservationV3, ObservationV4, ObservationV5,
-        PolicyWeightsOld, PolicyWeightsV2,
+        ObservationV6, PolicyWeightsOld, PolicyWeightsV2,
     };
     use super::*;
     use crate::learner::Learner;
@@ -635,7 +678,7 @@ mod tests {
             rsrp_centre_dbm: o.rsrp_centre_dbm,
             rsrp_scale_db: o.rsrp_scale_db,
             site_features: o.site_features,
-            site_trend: o.site_trend,
+            site_trend: false,
             site_ping_pong: o.site_ping_pong,
         });
         let v2 = v2(p);
@@ -700,6 +743,35 @@ mod tests {
         }
     }
 
+    /// `p` as file format 6 wrote it (with `site_trend`, here `trend`).
+    fn v6(p: &PolicyWeights, trend: bool) -> PolicyWeightsOld<Option<ObservationV6>> {
+        let o = p.observation.clone();
+        let v3 = v3(p);
+        PolicyWeightsOld {
+            version: v3.version,
+            obs_version: v3.obs_version,
+            obs_dim: v3.obs_dim,
+            n_sites: v3.n_sites,
+            actor: v3.actor,
+            critic: v3.critic,
+            site_head: v3.site_head,
+            log_std: v3.log_std,
+            obs_norm: v3.obs_norm,
+            reward_scaler: v3.reward_scaler,
+            observation: v3.observation.zip(o).map(|(mut v3, o)| {
+                v3.site_trend = trend;
+                ObservationV6 {
+                    v3,
+                    path_guide: o.path_guide,
+                    path_lookahead_m: o.path_lookahead_m,
+                    path_guide_lambda: o.path_guide_lambda,
+                    path_guide_clearance_m: o.path_guide_clearance_m,
+                    site_los: o.site_los,
+                }
+            }),
+        }
+    }
+
     /// A format-2 checkpoint of `p` whose configuration is `config_toml`, loaded.
     fn load_v2_checkpoint(p: &PolicyWeights, config_toml: String) -> LoadedCheckpoint {
         let file = CheckpointFileV2 {
@@ -730,11 +802,6 @@ mod tests {
     #[test]
     fn a_policy_records_its_observation_and_an_older_file_still_loads() {
         let mut cfg = small();
-        // A layout of the same length as the default's, another feature at index 10.
-        cfg.env.observation.site_ping_pong = false;
-        cfg.env.reward.ping_pong_reward = 0.0;
-        cfg.env.observation.site_trend = true;
-        cfg.env.site_every_step = false;
         // Unguided, as a file of format 3 or older reads (the guide off, λ 0, clearance 0, the
         // look-ahead of those days, 30 m).
         cfg.env.observation.path_guide = false;
@@ -750,7 +817,7 @@ mod tests {
         // A record that disagrees with the site head's features is refused.
         let mut wrong = p.clone();
         if let Some(o) = wrong.observation.as_mut() {
-            o.site_trend = false;
+            o.site_ping_pong = false;
         }
         let e = wrong.validate().expect_err("10 recorded features, 11 read");
         assert!(
@@ -775,10 +842,6 @@ mod tests {
             flown.env.reward.progress,
             dupac_common::config::Progress::Straight
         );
-        // Nor charged for leaving a path it never had.
-        let mut keeping = Config::default();
-        keeping.env.reward.guide_deviation_weight = 0.2;
-        let flown = old.configure(&keeping).expect("configure");
         assert!(!flown.env.needs_path());
         assert_eq!(
             PolicyWeights {
@@ -842,6 +905,21 @@ mod tests {
         assert_eq!(flown.env.observation.site_los, SiteLos::Ray);
         assert_eq!(Config::default().env.observation.site_los, SiteLos::Cache);
 
+        // Format 6 (with `site_trend`) loads when the trend is off…
+        let bytes =
+            codec::encode(POLICY_MAGIC, FORMAT_6, &v6(&guided, false), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        assert_eq!(load_policy(&path).expect("a format-6 policy loads"), guided);
+        // …and is refused, naming the file and the key, when the policy observes it.
+        let bytes =
+            codec::encode(POLICY_MAGIC, FORMAT_6, &v6(&guided, true), "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let e = load_policy(&path).expect_err("the trend").to_string();
+        assert!(
+            e.contains(&path.display().to_string()) && e.contains("env.observation.site_trend"),
+            "{e}"
+        );
+
         // Format 1 is refused by name.
         let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");
         std::fs::write(&path, bytes).expect("write");
@@ -852,23 +930,33 @@ mod tests {
         );
     }
 
-    /// Formats 4 and 5 are today's observation without its last keys: format 5's bincode is
-    /// today's less the last field (`site_los`, an enum), format 4's that less the 8 bytes of
-    /// `path_guide_clearance_m` (an f64), so each old file reads field by field as written.
+    /// Format 6's observation is today's with `site_trend` (one byte) after `site_features`,
+    /// format 5's that less its last field (`site_los`, an enum), format 4's that less the 8
+    /// bytes of `path_guide_clearance_m` (an f64), so each old file reads field by field as
+    /// written.
     #[test]
-    fn formats_4_and_5s_observations_are_todays_less_their_last_keys() {
+    fn older_observations_are_todays_with_their_keys_of_then() {
         let p = learner(&small()).policy();
         let today = p.observation.clone().expect("recorded");
         let enc = |bytes: Vec<u8>| bytes[12..].to_vec();
         let a = enc(codec::encode(b"TESTTEST", 1, &today, "t").expect("encode"));
+        let old6 = v6(&p, false).observation.expect("recorded");
         let old5 = v5(&p).observation.expect("recorded");
         let old4 = v4(&p).observation.expect("recorded");
+        let b6 = enc(codec::encode(b"TESTTEST", 1, &old6, "t").expect("encode"));
         let b5 = enc(codec::encode(b"TESTTEST", 1, &old5, "t").expect("encode"));
         let b4 = enc(codec::encode(b"TESTTEST", 1, &old4, "t").expect("encode"));
+        // Through `site_features` (bincode, varints): 4 bools, an f64, 2 one-byte enums, a
+        // bool, an f64, a bool, 2 f64 and the bool `site_features`.
+        let at = 4 + 8 + 1 + 1 + 1 + 8 + 1 + 8 + 8 + 1;
+        assert_eq!(b6.len(), a.len() + 1);
+        assert_eq!(b6[..at], a[..at]);
+        assert_eq!(b6[at], 0, "site_trend = false");
+        assert_eq!(b6[at + 1..], a[at..]);
         let site_los = enc(codec::encode(b"TESTTEST", 1, &today.site_los, "t").expect("encode"));
-        assert_eq!(a.len(), b5.len() + site_los.len());
-        assert_eq!(a[..b5.len()], b5[..]);
-        assert_eq!(a[b5.len()..], site_los[..]);
+        assert_eq!(b6.len(), b5.len() + site_los.len());
+        assert_eq!(b6[..b5.len()], b5[..]);
+        assert_eq!(b6[b5.len()..], site_los[..]);
         assert_eq!(b5.len(), b4.len() + 8);
         assert_eq!(b5[..b4.len()], b4[..]);
         assert_eq!(b5[b4.len()..], today.path_guide_clearance_m.to_le_bytes());
@@ -907,6 +995,20 @@ mod tests {
             ck.meta.policy.observation.as_ref(),
             Some(&cfg.env.observation)
         );
+        // Written with the dropped `site_trend`: off, the layout is today's; on, it is not.
+        for (trend, certain) in [(false, true), (true, false)] {
+            let text = cfg.to_toml_string().replacen(
+                "site_ping_pong",
+                &format!("site_trend = {trend}\nsite_ping_pong"),
+                1,
+            );
+            let ck = load_v2_checkpoint(&p, text);
+            assert_eq!(
+                ck.meta.policy.observation.is_some(),
+                certain,
+                "trend {trend}"
+            );
+        }
         // Written before a key existed (site_ping_pong, 2026-11-26): today's default would be
         // a guess (on, for a feature that did not exist), so none is recorded.
         let mut old = cfg.to_toml_string();

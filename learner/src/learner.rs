@@ -14,13 +14,11 @@ use crate::checkpoint::{CheckpointError, CheckpointMeta, LoadedCheckpoint, save_
 use crate::gae::{Trajectory, gae};
 use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
-use crate::site_horizon::{route_site_rewards, serving_before};
 use crate::source::{Progress, SourceError, TrajectorySource};
 use dupac_common::ActorId;
-use dupac_common::config::{Config, SiteGradient, SiteHead, SiteHorizon};
+use dupac_common::config::{Config, SiteGradient, SiteHead};
 use dupac_common::metric;
 use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
-use dupac_common::obs::ObsLayout;
 use dupac_common::policy::{
     MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead as PlainSiteHead,
 };
@@ -546,13 +544,6 @@ impl Learner {
                 "env.site_every_step is on but the trajectories carry no per-step site rows: the site head learns from decision rows or not at all"
             );
         }
-        // The route horizon reads the serving site before each decision from the observation.
-        let serving_field = if all_sites && self.cfg.ppo.site_horizon == SiteHorizon::Route {
-            ObsLayout::new(&self.cfg.env.observation, self.n_sites)
-                .range(dupac_common::obs::field::SERVING_ONE_HOT)
-        } else {
-            None
-        };
         let mut batch = Batch {
             obs_dim: self.obs_dim,
             n_sites: if all_sites { self.n_sites } else { 0 },
@@ -654,21 +645,11 @@ impl Learner {
                         .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
                 );
             } else if all_sites {
-                let raw: Vec<f64> = tr.site_rewards.iter().map(|&r| f64::from(r)).collect();
-                let rows = match &serving_field {
-                    Some(range) => {
-                        let prev = serving_before(&tr.obs, self.obs_dim, range.clone());
-                        let done: Vec<bool> = (0..n)
-                            .map(|t| tr.terminated[t] || tr.truncated[t])
-                            .collect();
-                        let h = self.cfg.env.reward.handover_reward;
-                        route_site_rewards(&raw, &prev, &done, self.n_sites, gamma, h)
-                    }
-                    None => raw,
-                };
-                batch
-                    .site_rewards
-                    .extend(rows.iter().map(|&r| self.reward_scaler.scale(r) as f32));
+                batch.site_rewards.extend(
+                    tr.site_rewards
+                        .iter()
+                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
+                );
             }
             match &prox {
                 Some(prox) => {

@@ -7,7 +7,6 @@ pub mod gae;
 pub mod learner;
 pub mod model;
 pub mod ppo;
-pub mod site_horizon;
 pub mod source;
 pub mod synthetic;
 

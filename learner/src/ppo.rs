@@ -450,10 +450,19 @@ impl Ppo {
     }
 }
 
+/// With `env.site_every_step`: how many steps of each decision the site loss reads per
+/// minibatch, drawn uniformly without replacement with the update's RNG. One keeps the site
+/// head's work per update that of a decision-level site (a decision's 5 steps × 30 sites through
+/// the site MLP every epoch made an update ≈ 6× slower on 2 cores; seed 1 of the M = 10
+/// scenario at 1 M decisions learned no better with 2 or 5, docs/training.md); with 4 epochs a
+/// step is read 0.8 times per update on average. The estimate is unbiased for the mean over a
+/// decision's steps.
+pub const SITE_STEP_ROWS: usize = 1;
+
 impl Ppo {
     /// The all-sites loss over the steps of the minibatch's decisions `idx`
-    /// (`env.site_every_step`): `ppo.site_step_rows` steps of each decision drawn with `rng`
-    /// (every step at 0); step j of decision i is scored by the site head from its own features
+    /// (`env.site_every_step`): [`SITE_STEP_ROWS`] steps of each decision drawn with `rng`;
+    /// step j of decision i is scored by the site head from its own features
     /// with the actor's hidden activation `hidden[i]` of the decision's observation
     /// (`[idx.len(), H]`, as the actors score it), against that step's site advantages
     /// ([`site_advantages`] of its rows). Returns the loss and the mean entropy of the rows'
@@ -467,13 +476,13 @@ impl Ppo {
     ) -> (Tensor<1>, f64) {
         let m = batch.n_sites;
         let f = self.model.site_features() * m;
-        let per = self.cfg.site_step_rows;
+        let per = SITE_STEP_ROWS;
         let (mut parent, mut feats, mut rows) = (Vec::new(), Vec::new(), Vec::new());
         let mut steps = Vec::new();
         for (j, &i) in idx.iter().enumerate() {
             steps.clear();
             steps.extend(batch.step_offsets[i]..batch.step_offsets[i + 1]);
-            let chosen: &[usize] = if per > 0 && steps.len() > per {
+            let chosen: &[usize] = if steps.len() > per {
                 steps.partial_shuffle(rng, per).0
             } else {
                 &steps

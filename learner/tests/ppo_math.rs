@@ -14,8 +14,10 @@ use dupac_learner::checkpoint::{
 };
 use dupac_learner::model::{ActorCritic, init_plain, tensor_to_vec};
 use dupac_learner::ppo::{
-    Batch, Ppo, all_sites_loss, clip_global_grad_norm, policy_loss, site_advantages, value_loss,
+    Batch, Ppo, SITE_STEP_ROWS, all_sites_loss, clip_global_grad_norm, policy_loss,
+    site_advantages, value_loss,
 };
+use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -338,46 +340,6 @@ fn all_sites_gradient_matches_the_hand_computed_expectation() {
     assert!(g[1] < 0.0 && g[0] > 0.0 && g[2] > 0.0);
 }
 
-#[test]
-fn route_horizon_charges_the_switch_back_that_the_decision_horizon_misses() {
-    use dupac_learner::site_horizon::{route_site_rewards, serving_before};
-    // M = 2 sites, 3 decisions, site 0 served throughout, handover h = −3, γ = 1. Site 1's link
-    // is 4 better at t = 1 and 10 worse at t = 2; site 0's is 0 everywhere.
-    let h = -3.0;
-    let prev = [0usize, 0, 0];
-    // The environment's rows: link + h for a switch away from site 0.
-    let rows = [0.0, -3.0, 0.0, 4.0 + h, 0.0, -10.0 + h];
-    let myopic = site_advantages(&rows.map(|r| r as f32), &[1], 2, false);
-    // The decision horizon prefers the switch at t = 1 (+1 over staying)…
-    assert_eq!(myopic, vec![-1.0, 0.0]);
-    let out = route_site_rewards(&rows, &prev, &[false; 3], 2, 1.0, h);
-    // …the route horizon sees the switch back at t = 2 and prefers staying. By hand: from t = 1
-    // with site 1 serving, the best continuation pays the handover back (−3) at t = 2; with
-    // site 0, nothing. Rows are shifted by a constant per row (the best continuation's value).
-    let adv = |t: usize| {
-        let r = &out[t * 2..t * 2 + 2];
-        let best = r[0].max(r[1]);
-        [r[0] - best, r[1] - best]
-    };
-    assert_eq!(adv(2), [0.0, -13.0]);
-    assert_eq!(adv(1), [0.0, -2.0]);
-    // t = 0: stay (0, then stay, stay: 0) vs switch (−3, then stay on 1: 4, then back: −3).
-    assert_eq!(adv(0), [0.0, -2.0]);
-    // An episode that ends at t = 1 has no continuation there: the decision horizon's row.
-    let ended = route_site_rewards(&rows, &prev, &[false, true, false], 2, 1.0, h);
-    assert_eq!(&ended[2..4], &rows[2..4]);
-    // Without a handover cost the route adds nothing that changes an advantage.
-    let free = [0.0, 0.0, 0.0, 4.0, 0.0, -10.0];
-    let out = route_site_rewards(&free, &prev, &[false; 3], 2, 0.9, 0.0);
-    for t in 0..3 {
-        let (a, b) = (out[t * 2] - free[t * 2], out[t * 2 + 1] - free[t * 2 + 1]);
-        assert!((a - b).abs() < 1e-12, "row {t}: {a} vs {b}");
-    }
-    // The serving site before each decision, read from the one-hot field.
-    let obs = [9.0f32, 0.0, 1.0, 9.0, 1.0, 0.0];
-    assert_eq!(serving_before(&obs, 3, 1..3), vec![1, 0]);
-}
-
 /// Squared L2 norm of every gradient, visited independently of the code under test.
 struct Collect<'a>(&'a GradientsParams, Vec<Vec<f32>>);
 impl ModuleVisitor for Collect<'_> {
@@ -673,39 +635,37 @@ fn the_site_head_learns_from_every_steps_site_rewards() {
     batch.step_site_rewards = rewards;
     batch.step_offsets = (0..=n).map(|i| i * per).collect();
     assert!(batch.per_step_rows(FEATS));
-    // One step of each decision per minibatch (the default), and every step.
-    for rows in [1, 0] {
-        let cfg = dupac_common::config::PpoConfig {
-            num_minibatches: 2,
-            update_epochs: 4,
-            site_step_rows: rows,
-            ..Default::default()
-        };
-        let mut ppo = Ppo::new(cfg, ActorCritic::from_policy(&p, &device), device.clone());
-        for _ in 0..15 {
-            let stats = ppo.update(&batch, 3e-3, &mut rng);
-            assert!(stats.site_loss.is_finite());
-        }
-        let (actor, critic, log_std, site) = ppo.model.valid().to_plain();
-        let learned = PolicyWeights {
-            actor,
-            critic,
-            log_std,
-            site_head: site,
-            ..p.clone()
-        };
-        let after = accuracy(&learned, &mut ChaCha8Rng::seed_from_u64(3));
-        assert!(
-            after > 0.8 && after > before + 0.3,
-            "site_step_rows = {rows}: picks the best site on {after} of fresh steps (before: {before})"
-        );
+    // One step of each decision per minibatch (`ppo::SITE_STEP_ROWS`).
+    let cfg = dupac_common::config::PpoConfig {
+        num_minibatches: 2,
+        update_epochs: 4,
+        ..Default::default()
+    };
+    let mut ppo = Ppo::new(cfg, ActorCritic::from_policy(&p, &device), device.clone());
+    for _ in 0..15 {
+        let stats = ppo.update(&batch, 3e-3, &mut rng);
+        assert!(stats.site_loss.is_finite());
     }
+    let (actor, critic, log_std, site) = ppo.model.valid().to_plain();
+    let learned = PolicyWeights {
+        actor,
+        critic,
+        log_std,
+        site_head: site,
+        ..p.clone()
+    };
+    let after = accuracy(&learned, &mut ChaCha8Rng::seed_from_u64(3));
+    assert!(
+        after > 0.8 && after > before + 0.3,
+        "picks the best site on {after} of fresh steps (before: {before})"
+    );
 }
 
 /// `env.site_every_step`: the learner's per-step site loss against the actors' plain forward on
-/// a shuffled minibatch of decisions with uneven step counts (3, 1, 5, 2): every step is scored
-/// with its own decision's embedding and its own features, against its own every-site rewards,
-/// and the loss is `−mean_r Σ_k π(k|r) Â_{r,k}` over all of them (`ppo.site_step_rows = 0`).
+/// a shuffled minibatch of decisions with uneven step counts (3, 1, 5, 2): each step read
+/// ([`SITE_STEP_ROWS`] of each decision, drawn with the update's RNG) is scored with its own
+/// decision's embedding and its own features, against its own every-site rewards, and the loss
+/// is `−mean_r Σ_k π(k|r) Â_{r,k}` over the steps read.
 #[test]
 fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
     let device = Device::flex().autodiff();
@@ -737,10 +697,7 @@ fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
         .map(|_| rng.random_range(-3.0f32..1.0))
         .collect();
     assert!(batch.per_step_rows(FEATS));
-    let cfg = dupac_common::config::PpoConfig {
-        site_step_rows: 0,
-        ..Default::default()
-    };
+    let cfg = dupac_common::config::PpoConfig::default();
     let norm_adv = cfg.norm_adv;
     let ppo = Ppo::new(cfg, model_of(&p, &device), device.clone());
     let idx = [2usize, 0, 3, 1];
@@ -754,15 +711,25 @@ fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
         Tensor::<1, Int>::zeros([n], &device),
     );
     let hidden = ev.actor_hidden.expect("equivariant head");
+    // The steps the loss reads: the same draws from a copy of its RNG.
+    let mut draws = rng.clone();
+    let rows: Vec<(usize, usize)> = idx
+        .iter()
+        .flat_map(|&i| {
+            let mut steps: Vec<usize> =
+                (batch.step_offsets[i]..batch.step_offsets[i + 1]).collect();
+            if steps.len() > SITE_STEP_ROWS {
+                steps = steps.partial_shuffle(&mut draws, SITE_STEP_ROWS).0.to_vec();
+            }
+            steps.into_iter().map(move |r| (i, r))
+        })
+        .collect();
+    assert_eq!(rows.len(), idx.len() * SITE_STEP_ROWS);
     let got = ppo
         .step_site_loss(&batch, &idx, hidden, &mut rng)
         .0
         .into_scalar::<f32>();
     // By hand: the rows in the minibatch's order, each through the plain forward.
-    let rows: Vec<(usize, usize)> = idx
-        .iter()
-        .flat_map(|&i| (batch.step_offsets[i]..batch.step_offsets[i + 1]).map(move |r| (i, r)))
-        .collect();
     let adv = site_advantages(
         &batch.step_site_rewards,
         &rows.iter().map(|&(_, r)| r).collect::<Vec<_>>(),

@@ -57,7 +57,6 @@ pub fn unguided(cfg: &Config) -> Config {
     let mut c = cfg.clone();
     c.env.observation.path_guide = false;
     c.env.reward.progress = dupac_common::config::Progress::Straight;
-    c.env.reward.guide_deviation_weight = 0.0;
     c
 }
 
@@ -339,7 +338,6 @@ mod tests {
         let mut off = cfg.clone();
         off.env.observation.path_guide = false;
         off.env.reward.progress = dupac_common::config::Progress::Straight;
-        off.env.reward.guide_deviation_weight = 0.0;
         assert_eq!(planner_needs(&off, &[], false), vec![(1.5, false)]);
         assert_eq!(planner_needs(&off, &[], true), vec![(1.5, true)]);
         // A flown policy's guide of the shortest path at 0 (= planner.clearance_m): no classes.

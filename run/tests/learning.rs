@@ -259,8 +259,8 @@ fn same_seed_same_run_different_seed_different_run() {
 }
 
 /// Actors fly only weights of their own observation: the observation a policy records is
-/// checked before each rollout (two layouts of one length — `site_trend` and `site_ping_pong` —
-/// or another RSRP scale would otherwise be misread silently).
+/// checked before each rollout (another RSRP scale, or another flag of the same layout length,
+/// would otherwise be misread silently).
 #[test]
 fn workers_refuse_weights_of_another_observation() {
     use dupac_learner::source::TrajectorySource;

@@ -98,15 +98,9 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         |p| p.display().to_string(),
     );
     // Fly the policy with the observation it was trained on (recorded since policy format 3).
-    let per_step = cfg.env.site_every_step;
     let cfg = policy
         .configure(&cfg)
         .map_err(|e| anyhow!("{policy_name}: {e}"))?;
-    if per_step && !cfg.env.site_every_step {
-        eprintln!(
-            "{policy_name}: flown with env.site_every_step off: it observes the site trend, so it was trained with the site held"
-        );
-    }
     // The radio world does not depend on the association: one build serves both paths.
     let (world, rsrp) = match built {
         Some(wr) => wr,

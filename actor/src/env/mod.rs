@@ -55,10 +55,9 @@ pub enum EnvError {
         "a site chosen every step needs env.site_every_step, the learned association and env.observation.site_features"
     )]
     SiteEveryStepUnavailable,
-    /// `env.observation.path_guide`, `env.reward.progress = "path"` or
-    /// `env.reward.guide_deviation_weight` > 0 without a planned path.
+    /// `env.observation.path_guide` or `env.reward.progress = "path"` without a planned path.
     #[error(
-        "env.observation.path_guide, env.reward.progress = \"path\" and env.reward.guide_deviation_weight > 0 need the episode's planned path, and this episode has none"
+        "env.observation.path_guide and env.reward.progress = \"path\" need the episode's planned path, and this episode has none"
     )]
     NoGuide,
     /// The planned path does not join the episode's endpoints.
@@ -86,8 +85,8 @@ pub struct Episode {
     /// The planned path from source to destination (the shortest, or the coverage-aware one
     /// with `env.observation.path_guide_lambda` > 0, planned with
     /// `env.observation.path_guide_clearance_m` from the buildings), for
-    /// `env.observation.path_guide`, `env.reward.progress = "path"` and
-    /// `env.reward.guide_deviation_weight` > 0 (required by them, unused otherwise).
+    /// `env.observation.path_guide` and `env.reward.progress = "path"` (required by them,
+    /// unused otherwise).
     pub guide: Option<Arc<PathGuide>>,
 }
 
@@ -142,19 +141,6 @@ pub struct Env {
     layout: ObsLayout,
     slots: Slots,
     sensor_dirs: [Vector; 26],
-    /// `env.min_time_of_stay_s` in steps (0: off); learned association only.
-    min_stay_steps: u32,
-    /// `env.handover_margin_db` (learned association only; 0 = off).
-    margin_db: f64,
-    /// The serving site when this decision's choice was applied, and whether the choice was
-    /// refused by the handover margin (the origin then serves the whole decision).
-    decision_origin: SiteId,
-    choice_refused: bool,
-    /// Per site: whether choosing it at this decision would have been refused by the margin.
-    refused: Vec<bool>,
-    /// A decision whose site choice has not yet been applied (the lock of the minimum time of
-    /// stay may defer it past the decision's first step).
-    choice_pending: bool,
     /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
     route_penalty: [f64; 2],
     // Episode state.
@@ -184,8 +170,6 @@ pub struct Env {
     substeps: Vec<StepInfo>,
     /// Every site's reward of the last `act` (learned association only; empty otherwise).
     site_rewards: Vec<f64>,
-    /// Every site's RSRP at the last observation written (dBm; `site_trend`).
-    rsrp_at_last_obs_dbm: Vec<f64>,
     /// Of the last [`Env::act_site_every_step`]: each step's site features (`M × features` per
     /// step) and every site's reward of that step (`M` per step).
     step_site_features: Vec<f32>,
@@ -233,11 +217,6 @@ impl Env {
         let dt = env.dt_s();
         let a3 = A3Params::from_config(&cfg.radio.a3, dt);
         let ping_pong_steps = (env.ping_pong_window_s / dt).ceil().max(1.0) as u32;
-        let min_stay_steps = if env.association == Association::Learned {
-            (env.min_time_of_stay_s / dt).ceil() as u32
-        } else {
-            0
-        };
         let obs = vec![0.0; layout.len()];
         Ok(Env {
             thresholds: RsrpThresholds::from_config(&cfg.radio),
@@ -245,16 +224,6 @@ impl Env {
             layout,
             slots,
             sensor_dirs,
-            min_stay_steps,
-            margin_db: if env.association == Association::Learned {
-                env.handover_margin_db
-            } else {
-                0.0
-            },
-            decision_origin: SiteId(0),
-            choice_refused: false,
-            refused: vec![false; m],
-            choice_pending: false,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             episode: None,
             position_m: Point::origin(),
@@ -273,7 +242,6 @@ impl Env {
             seed: 0,
             obs,
             substeps: Vec::new(),
-            rsrp_at_last_obs_dbm: vec![f64::NAN; m],
             step_site_features: Vec::new(),
             step_site_rewards: Vec::new(),
             site_rewards: if env.association == Association::Learned {
@@ -411,10 +379,6 @@ impl Env {
         }
         self.episode = Some(episode);
         self.handovers.reset();
-        self.choice_pending = false;
-        self.choice_refused = false;
-        self.refused.fill(false);
-        self.rsrp_at_last_obs_dbm.fill(f64::NAN);
         self.substeps.clear();
         self.done = false;
         self.rsrp.rsrp_all_dbm(self.position_m, &mut self.rsrp_dbm);
@@ -484,8 +448,7 @@ impl Env {
     /// every step (`env.site_every_step`, issue 15): before step k of the decision
     /// `choose(k, features)` gets every site's features at the current state (`M × features`,
     /// [`dupac_common::obs::site_feature`]; at k = 0 the observation's own) and returns the site
-    /// for that step. Each step is a choice: the handover margin and the minimum stay apply per
-    /// step. Every step's features and every site's reward of that step (the reward the step would
+    /// for that step. Each step is a choice. Every step's features and every site's reward of that step (the reward the step would
     /// have had with site k chosen at it, the serving site before it being the one actually
     /// serving) are kept: [`Env::step_site_features`], [`Env::step_site_rewards`]. Otherwise as
     /// [`Env::act`]; [`Env::site_rewards`] is left zero.
@@ -551,9 +514,7 @@ impl Env {
     /// the decision would have had with site k chosen, the flight being the same (the site does
     /// not move the UAV): the same Eq. (8), terminal and route terms, the site's own RSRP class
     /// and regret, and the handover cost if k is not the site serving before the decision (and
-    /// `env.reward.ping_pong_reward` if serving k would be a ping-pong); with
-    /// `env.handover_margin_db`, a site the margin would refuse gets the serving site's reward
-    /// without a handover. The chosen site's entry equals the reward returned. Empty unless `env.association =
+    /// `env.reward.ping_pong_reward` if serving k would be a ping-pong). The chosen site's entry equals the reward returned. Empty unless `env.association =
     /// "learned"` (issue 15: the site head learns from all of them).
     pub fn site_rewards(&self) -> &[f64] {
         &self.site_rewards
@@ -617,12 +578,9 @@ impl Env {
         let window_m = self.guide_window_m();
         // Tracked only when used: pool pairs carry their shortest path whether guided or not.
         let guide = self.episode.as_ref().and_then(|e| e.guide.as_ref());
-        // How far off the planned path the UAV now flies (m; 0 when untracked).
-        let mut off_path_m = 0.0;
         if let Some(g) = guide.filter(|_| self.cfg.needs_path()) {
             let fix = g.fix(to, self.path_s_m, window_m);
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
-            off_path_m = fix.off_m;
         }
         let progress_m = match self.cfg.reward.progress {
             Progress::Straight => d_prev - self.distance_to_goal_m,
@@ -632,35 +590,8 @@ impl Env {
         // Radio: every site's RSRP at the new position, then the association rule.
         self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);
         let before = self.serving;
-        if first {
-            self.choice_pending = true;
-            self.choice_refused = false;
-        }
-        // The minimum time of stay: no handover within `min_stay_steps` of the last one.
-        let locked = self.min_stay_steps > 0
-            && self
-                .handovers
-                .last()
-                .is_some_and(|(_, at)| self.step - at <= self.min_stay_steps);
-        let mut chosen = if locked { before } else { action.site };
-        // The step at which this decision's choice takes effect (a handover only here).
-        let choice_step = self.choice_pending && !locked;
-        if choice_step {
-            self.choice_pending = false;
-            if self.margin_db > 0.0 {
-                // The handover margin: another site only if it leads the serving one by it.
-                self.decision_origin = before;
-                let floor_dbm = self.rsrp_dbm[before.index()] + self.margin_db;
-                for (k, g) in self.refused.iter_mut().enumerate() {
-                    *g = k != before.index() && self.rsrp_dbm[k] < floor_dbm;
-                }
-                self.choice_refused = self.refused[chosen.index()];
-            }
-        }
-        if self.choice_refused {
-            chosen = self.decision_origin;
-        }
-        self.serving = self.associator.next(chosen, &self.rsrp_dbm);
+        // The decision's choice takes effect at its first step (a handover only there).
+        self.serving = self.associator.next(action.site, &self.rsrp_dbm);
         // The counter before this step: whether serving site k now would be a ping-pong.
         let counter = self.handovers;
         let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
@@ -686,12 +617,6 @@ impl Env {
             };
             common -= r.mu1 * r.route_connectivity_weight * penalty * step_length_m;
         }
-        if r.guide_deviation_weight > 0.0 {
-            // The path-keeping cost: per step, per metre off the planned path beyond the free
-            // band (docs/env.md "Path guide").
-            common -=
-                r.mu1 * r.guide_deviation_weight * (off_path_m - r.guide_deviation_free_m).max(0.0);
-        }
         if outcome.is_none() && self.distance_to_goal_m <= self.cfg.goal_radius_m {
             outcome = Some(Outcome::Goal);
             common += r.goal_reward;
@@ -710,23 +635,11 @@ impl Env {
         };
         let reward = common + term(serving_rsrp_dbm, handover, ping_pong);
         if !self.site_rewards.is_empty() {
-            // The counterfactual of site k serves k from the step at which this decision's
-            // choice takes effect (its first step, or the end of the minimum stay) on; before
-            // that every choice gives the serving site's reward.
-            // A choice the handover margin refuses serves the decision's origin, without a
-            // handover.
-            let applied = !self.choice_pending;
-            let margin_on = self.margin_db > 0.0;
+            // The counterfactual of site k serves k from the decision's first step on.
             for (k, acc) in self.site_rewards.iter_mut().enumerate() {
-                *acc += if !applied {
-                    reward
-                } else if margin_on && self.refused[k] {
-                    common + term(self.rsrp_dbm[self.decision_origin.index()], false, false)
-                } else {
-                    let switch = choice_step && k != before.index();
-                    let pp = switch && counter.would_ping_pong(before.0, k as u16, self.step);
-                    common + term(self.rsrp_dbm[k], switch, pp)
-                };
+                let switch = first && k != before.index();
+                let pp = switch && counter.would_ping_pong(before.0, k as u16, self.step);
+                *acc += common + term(self.rsrp_dbm[k], switch, pp);
             }
         }
         let terminated = outcome.is_some();

@@ -133,9 +133,6 @@ impl Env {
                 obs[r.clone()].fill(0.0);
             } else {
                 self.site_features_into(&mut obs[r.clone()]);
-                if self.cfg.observation.site_trend {
-                    self.rsrp_at_last_obs_dbm.copy_from_slice(&self.rsrp_dbm);
-                }
             }
             self.obs = obs;
         }
@@ -190,16 +187,6 @@ impl Env {
             f[COS_BEARING_GOAL] = cg as f32;
             f[SIN_BEARING_GOAL] = sg as f32;
             f[LOS] = los[k] as f32;
-            if o.site_trend {
-                // NaN before the first observation of an episode: no change yet.
-                let before = self.rsrp_at_last_obs_dbm[k];
-                let d = if before.is_nan() {
-                    0.0
-                } else {
-                    w - before.max(RSRP_FLOOR_DBM)
-                };
-                f[RSRP_TREND] = (d / 10.0).clamp(-3.0, 3.0) as f32;
-            }
             if let Some(i) = ping_pong_at {
                 // Serving k at the next step (step + 1) would be a ping-pong.
                 let pp = self

@@ -140,19 +140,6 @@ pub struct RewardConfig {
     /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
     /// `path` to about the planned path's length.
     pub progress: Progress,
-    /// κ_g, the path-keeping cost: per step (not per metre flown), −μ1 · κ_g · max(0, off −
-    /// `guide_deviation_free_m`), with `off` the 3D distance (m) from the UAV to its tracked
-    /// place on the episode's planned path (`actor::env::GuideFix::off_m`; the path of
-    /// `env.observation.path_guide_lambda`, planned `path_guide_clearance_m` from the
-    /// buildings). 0 = off, the default (the paper has no path). A departure (issue 15;
-    /// docs/env.md "Path guide"): under `progress = "path"` leaving the path costs only the
-    /// progress it undoes, which flying back repays, so nothing keeps the UAV inside the
-    /// path's clearance. Tried at 0.2 with the 30 m look-ahead and not adopted: collisions
-    /// rose (`results/issue15/keep/RULE.md`, docs/results.md "The path-keeping cost").
-    /// Needs the planned path.
-    pub guide_deviation_weight: f64,
-    /// The free band of the path-keeping cost (m): no cost within this distance of the path.
-    pub guide_deviation_free_m: f64,
 }
 
 /// The distance whose decrease is the progress Δd of Eq. (8) ([`RewardConfig::progress`]).
@@ -180,8 +167,6 @@ impl Default for RewardConfig {
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
             progress: Progress::Path,
-            guide_deviation_weight: 0.0,
-            guide_deviation_free_m: 2.0,
         }
     }
 }
@@ -234,11 +219,6 @@ pub struct ObservationConfig {
     /// at the end of the observation; the actor and critic MLPs do not read them. Written only
     /// under `env.association = "learned"` (zeros otherwise). A departure (issue 15).
     pub site_features: bool,
-    /// One more site feature (with `site_features`): each site's RSRP change since the previous
-    /// observation ([`crate::obs::site_feature::RSRP_TREND`]), a one-decision memory from which
-    /// the site head can tell a rising site from a passing peak (A3 has its time-to-trigger for
-    /// that). Off by default (issue 15; measured in docs/results.md "What any association can do").
-    pub site_trend: bool,
     /// One more site feature (with `site_features`): 1 for the site that serving next would be a
     /// ping-pong (the site the last handover left, within `env.ping_pong_window_s`), else 0
     /// ([`crate::obs::site_feature::ping_pong`]). On by default since 2026-11-26; needed by
@@ -283,12 +263,10 @@ pub struct ObservationConfig {
 }
 
 impl EnvConfig {
-    /// Whether each episode needs its planned path (`env.observation.path_guide`,
-    /// `env.reward.progress = "path"` or `env.reward.guide_deviation_weight` > 0).
+    /// Whether each episode needs its planned path (`env.observation.path_guide` or
+    /// `env.reward.progress = "path"`).
     pub fn needs_path(&self) -> bool {
-        self.observation.path_guide
-            || self.reward.progress == Progress::Path
-            || self.reward.guide_deviation_weight > 0.0
+        self.observation.path_guide || self.reward.progress == Progress::Path
     }
 }
 
@@ -308,7 +286,6 @@ impl Default for ObservationConfig {
             rsrp_centre_dbm: -90.0,
             rsrp_scale_db: 30.0,
             site_features: true,
-            site_trend: false,
             site_ping_pong: true,
             path_guide: true,
             path_lookahead_m: 10.0,
@@ -358,32 +335,14 @@ pub struct EnvConfig {
     pub radio_mode: RadioMode,
     /// A return to the previous site within this time is a ping-pong (s).
     pub ping_pong_window_s: f64,
-    /// Minimum time of stay of the learned association (s): no handover within this time of the
-    /// previous one (the step of the handover + ceil(T / Δt) steps, inclusive); the site chosen
-    /// meanwhile is ignored and every site's reward is the serving one's, so the choice gets no
-    /// gradient. 3GPP TR 36.839 calls a handover back within the minimum time of stay (1 s) a
-    /// ping-pong; this makes the learned rule keep it, as A3's hysteresis and time-to-trigger
-    /// do heuristically. 0 = off (the paper: a free choice every decision). Learned association
-    /// only (issue 15; docs/env.md, docs/results.md "What any association can do").
-    pub min_time_of_stay_s: f64,
-    /// Handover margin of the learned association (dB): a decision's choice of another site
-    /// takes effect only if that site's RSRP exceeds the serving one's by at least this much at
-    /// the step the choice is applied; otherwise the serving site stays for the decision, and
-    /// every site's reward says so (a gated site's entry is the serving one's, without a
-    /// handover). A3's entering margin (TS 36.331 §5.5.4.4: Off + Hys; A3 asks for strictly more,
-    /// this for at least the margin) on the policy's own choice, without a time-to-trigger.
-    /// 0 = off (the paper). Learned association only (issue 15; docs/results.md "A handover
-    /// margin on the learned choice").
-    pub handover_margin_db: f64,
     /// The learned site is chosen at every step of a decision, the move every `action_repeat`
     /// steps (issue 15, a departure: the paper's hybrid action holds both for the decision).
     /// The site head scores the sites from their features at each step with the state
-    /// embedding of the decision's observation; the handover margin and the minimum stay apply
-    /// per step, and every site's reward is recorded per step (`Env::step_site_rewards`). Why:
+    /// embedding of the decision's observation, and every site's reward is recorded per step
+    /// (`Env::step_site_rewards`). Why:
     /// held for 5 steps (240 ms) the choice loses SINR that A3 and the oracle, acting every
     /// step, keep (docs/results.md "A handover margin on the learned choice"). Needs
-    /// `ppo.site_head = "equivariant"`, `ppo.site_gradient = "all_sites"`, `ppo.site_horizon =
-    /// "decision"`, no `env.observation.site_trend`. Default true since 2026-11-26 (with
+    /// `ppo.site_head = "equivariant"` and `ppo.site_gradient = "all_sites"`. Default true (with
     /// `handover_reward` = −2: fewer ping-pongs and less SINR loss than the site held per
     /// decision, 3 seeds; docs/results.md "A site chosen every step"); false = the paper.
     /// Learned association only.
@@ -411,8 +370,6 @@ impl Default for EnvConfig {
             association: Association::Learned,
             radio_mode: RadioMode::Cache,
             ping_pong_window_s: 1.0,
-            min_time_of_stay_s: 0.0,
-            handover_margin_db: 0.0,
             site_every_step: true,
             site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
@@ -510,12 +467,6 @@ impl EnvConfig {
         positive("env.time_limit_factor", e.time_limit_factor)?;
         positive("env.ping_pong_window_s", e.ping_pong_window_s)?;
         positive("env.site_regret_threshold_db", e.site_regret_threshold_db)?;
-        if !(e.min_time_of_stay_s.is_finite() && (0.0..=60.0).contains(&e.min_time_of_stay_s)) {
-            return Err(bad("env.min_time_of_stay_s", "must be in [0, 60] s"));
-        }
-        if !(e.handover_margin_db.is_finite() && (0.0..=30.0).contains(&e.handover_margin_db)) {
-            return Err(bad("env.handover_margin_db", "must be in [0, 30] dB"));
-        }
         let rw = &e.reward;
         for (k, v) in [
             ("env.reward.mu1", rw.mu1),
@@ -533,14 +484,6 @@ impl EnvConfig {
             (
                 "env.reward.route_connectivity_weight",
                 rw.route_connectivity_weight,
-            ),
-            (
-                "env.reward.guide_deviation_weight",
-                rw.guide_deviation_weight,
-            ),
-            (
-                "env.reward.guide_deviation_free_m",
-                rw.guide_deviation_free_m,
             ),
         ] {
             if !(v.is_finite() && (0.0..=1e3).contains(&v)) {
@@ -581,12 +524,6 @@ impl ObservationConfig {
         positive("env.observation.goal_scale_m", o.goal_scale_m)?;
         finite("env.observation.rsrp_centre_dbm", o.rsrp_centre_dbm)?;
         positive("env.observation.rsrp_scale_db", o.rsrp_scale_db)?;
-        if o.site_trend && !o.site_features {
-            return Err(bad(
-                "env.observation.site_trend",
-                "is a site feature: set env.observation.site_features to true too",
-            ));
-        }
         if o.site_ping_pong && !o.site_features {
             return Err(bad(
                 "env.observation.site_ping_pong",

@@ -29,16 +29,6 @@ pub enum SiteGradient {
     AllSites,
 }
 
-/// How far the all-sites site advantage looks (see [`PpoConfig::site_horizon`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SiteHorizon {
-    /// Each site's reward of this decision alone (handover cost included): myopic.
-    Decision,
-    /// Plus the discounted value of the best association over the rest of the recorded route
-    /// with that site serving (a dynamic programme with the handover cost; `learner/site_horizon.rs`).
-    Route,
-}
 /// PPO hyperparameters (issue 4; paper Sec. IV-A for lr, γ, ε; the rest CleanRL's
 /// `ppo_continuous_action.py` defaults unless noted).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -83,24 +73,12 @@ pub struct PpoConfig {
     /// and clip with the move), `all_sites` = the exact expected gradient over every site's
     /// reward (the environment evaluates all of them), apart from the move's ratio and clip.
     pub site_gradient: SiteGradient,
-    /// The all-sites advantage's horizon: `decision` = each site's decision reward (myopic: the
-    /// cost of a switch is seen, not the cost of switching back), `route` = plus the best
-    /// association's value over the rest of the recorded route from that site (issue 15,
-    /// docs/training.md "Site learning"). Read only with `site_gradient = "all_sites"`.
-    pub site_horizon: SiteHorizon,
     /// Width of the state embedding the equivariant head appends to each site's features.
     pub site_embed: usize,
     /// Hidden widths of the equivariant head's per-site MLP.
     pub site_hidden: Vec<usize>,
     /// Weight of the all-sites loss (`site_gradient = "all_sites"`).
     pub site_coef: f64,
-    /// With `env.site_every_step`: how many steps of each decision the site loss reads per
-    /// minibatch, drawn uniformly without replacement with the update's RNG (0 = every step).
-    /// 1 (default) keeps the site head's work per update that of a decision-level site (a
-    /// decision's 5 steps × 30 sites through the site MLP every epoch made an update ≈ 6× slower
-    /// on 2 cores); with 4 epochs a step is read 0.8 times per update on average. The estimate
-    /// is unbiased for the mean over a decision's steps.
-    pub site_step_rows: usize,
     /// Initial log-std of the move Gaussian.
     pub init_log_std: f64,
     /// Normalise observations by running mean/variance, clipped to ±obs_clip.
@@ -137,11 +115,9 @@ impl Default for PpoConfig {
             hidden: vec![256, 256],
             site_head: SiteHead::Equivariant,
             site_gradient: SiteGradient::AllSites,
-            site_horizon: SiteHorizon::Decision,
             site_embed: 16,
             site_hidden: vec![32],
             site_coef: 1.0,
-            site_step_rows: 1,
             init_log_std: 0.0,
             normalize_obs: true,
             obs_clip: 10.0,
@@ -237,17 +213,6 @@ impl PpoConfig {
         }
         if e.reward.ping_pong_reward != 0.0
             && e.association == Association::Learned
-            && pp.site_horizon == SiteHorizon::Route
-        {
-            // The route horizon's dynamic programme removes only the handover cost from each
-            // site's reward: a ping-pong cost would be counted twice.
-            return Err(bad(
-                "env.reward.ping_pong_reward",
-                "is not modelled by ppo.site_horizon = \"route\": use \"decision\", or set the cost to 0",
-            ));
-        }
-        if e.reward.ping_pong_reward != 0.0
-            && e.association == Association::Learned
             && !o.site_ping_pong
         {
             return Err(bad(
@@ -265,11 +230,6 @@ impl PpoConfig {
                     pp.site_gradient != SiteGradient::AllSites,
                     "ppo.site_gradient = \"all_sites\"",
                 ),
-                (
-                    pp.site_horizon != SiteHorizon::Decision,
-                    "ppo.site_horizon = \"decision\"",
-                ),
-                (o.site_trend, "env.observation.site_trend = false"),
             ];
             if let Some((_, what)) = need.iter().find(|(missing, _)| *missing) {
                 return Err(bad(
@@ -279,12 +239,6 @@ impl PpoConfig {
                     ),
                 ));
             }
-        }
-        if pp.site_step_rows > 1000 {
-            return Err(bad(
-                "ppo.site_step_rows",
-                "must be in 0..=1000 (0 = every step)",
-            ));
         }
         if !(1..=1024).contains(&pp.site_embed) {
             return Err(bad("ppo.site_embed", "must be in 1..=1024"));

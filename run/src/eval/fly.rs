@@ -116,16 +116,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             }
             // Flown with the observation it was trained on, whatever this configuration's (a
             // policy file of format 3 records it; older ones are matched by length below).
-            let per_step = mcfg.env.site_every_step;
             mcfg = p
                 .configure(&mcfg)
                 .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
-            if per_step && !mcfg.env.site_every_step {
-                tracing::info!(
-                    label = %method.label,
-                    "env.site_every_step off for this policy: it observes the site trend, so it was trained with the site held"
-                );
-            }
             let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim && p.site_head.is_none() && p.observation.is_none()
             {
@@ -232,10 +225,6 @@ fn replay_associations(
                 Kind::Replay(a) => a,
                 _ => Association::Learned,
             };
-            // The hindsight programme keeps its own minimum stay, and its sites are applied as
-            // they are (no margin).
-            rcfg.env.min_time_of_stay_s = 0.0;
-            rcfg.env.handover_margin_db = 0.0;
             let label = format!("{}+{suffix}", method.label);
             let replay = Method {
                 label: label.clone(),
