@@ -342,10 +342,10 @@ mod legacy {
         let table: toml::Table = toml::from_str(config_toml).ok()?;
         let mut written = table.get("env")?.get("observation")?.as_table()?.clone();
         // A key dropped since: its absence is today's layout only when it was off.
-        if let Some(trend) = written.remove("site_trend") {
-            if trend.as_bool() != Some(false) {
-                return None;
-            }
+        if let Some(trend) = written.remove("site_trend")
+            && trend.as_bool() != Some(false)
+        {
+            return None;
         }
         let added = added_after_format_3();
         let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
