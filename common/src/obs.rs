@@ -10,7 +10,7 @@ use std::ops::Range;
 /// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
 /// The optional `path_guide` field (2026-11-26; on by default since that evening) did not bump
 /// it: a layout without it is unchanged, and one with it is 4 values longer and recorded in the
-/// policy (`env.observation.path_guide`, policy file format 4 and later).
+/// policy (`env.observation.path_guide`).
 pub const OBS_VERSION: u32 = 3;
 
 /// Features per site in the `site_features` field, in this order (fixed physical scales, not

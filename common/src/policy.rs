@@ -281,10 +281,10 @@ pub struct PolicyWeights {
     pub log_std: [f32; MOVE_DIM],
     pub obs_norm: ObsNormalizer,
     pub reward_scaler: RewardScaler,
-    /// The observation the policy was trained on (`env.observation`), recorded since policy file
-    /// format 3: flags that give layouts of one length and the scales of its values (sensor
-    /// range, RSRP centre) are not visible in the weights' shapes.
-    /// `None` in a file of an older format, which is checked by its length only
+    /// The observation the policy was trained on (`env.observation`): flags that give layouts
+    /// of one length and the scales of its values (sensor range, RSRP centre) are not visible in
+    /// the weights' shapes. The learner always records it; `None` only in a policy built in
+    /// code without one, which is checked by its length alone and is not flown
     /// ([`PolicyWeights::configure`]).
     pub observation: Option<ObservationConfig>,
 }
@@ -474,34 +474,25 @@ impl PolicyWeights {
 
     /// `cfg` with `env.observation` set to the observation this policy was trained on, checked
     /// on its own ([`ObservationConfig::validate`]; a file is untrusted input): what `dupac eval`
-    /// and `dupac fly` fly it with, whatever the configuration says. For a policy of an older
-    /// file format, which records none, `cfg` with the path guide off (it predates the guide). The error names the invalid key
-    /// (a loaded policy has passed [`PolicyWeights::validate`] already; this also guards one
-    /// built in code). Only the observation is taken: the training-time rules that tie it to
+    /// and `dupac fly` fly it with, whatever the configuration says. The error names the
+    /// invalid key (a loaded policy has passed [`PolicyWeights::validate`] already; this also
+    /// guards one built in code), or says that the policy records none. Only the observation is taken: the training-time rules that tie it to
     /// the reward (a ping-pong cost needs its feature) are not about flying.
     pub fn configure(&self, cfg: &Config) -> Result<Config, String> {
         let mut c = cfg.clone();
-        match &self.observation {
-            Some(o) => {
-                o.validate()
-                    .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
-                c.env.observation = o.clone();
-            }
-            None => {
-                // Written before the observation was recorded (file format 2), so before the
-                // path guide existed (format 4) and with the line of sight cast as rays (format
-                // 6): flown so, whatever today's defaults.
-                c.env.observation.path_guide = false;
-                c.env.observation.site_los = crate::config::SiteLos::Ray;
-                c.env.reward.progress = crate::config::Progress::Straight;
-            }
-        }
+        let o = self
+            .observation
+            .as_ref()
+            .ok_or("the policy records no observation to fly it with")?;
+        o.validate()
+            .map_err(|e| format!("the observation recorded in the policy: {e}"))?;
+        c.env.observation = o.clone();
         Ok(c)
     }
 
     /// Refuses a policy trained on another observation than `cfg`'s (what an actor or a resumed
     /// learner needs: they cannot fly it with another); the error lists the keys that differ.
-    /// A policy of an older file format records none and passes (its length is checked apart).
+    /// A policy that records none (built in code) passes: its length is checked apart.
     pub fn check_observation(&self, cfg: &ObservationConfig) -> Result<(), String> {
         match &self.observation {
             Some(o) if o != cfg => Err(format!(

@@ -45,7 +45,7 @@ fn policy() -> PolicyWeights {
         log_std: [-0.5; MOVE_DIM],
         obs_norm: ObsNormalizer::new(OBS, true, 5.0),
         reward_scaler: RewardScaler::new(true, 0.95, 10.0),
-        // Too small for any observation layout to describe: records none, as format 2 did.
+        // Too small for any observation layout to describe: records none.
         observation: None,
     }
 }
@@ -224,15 +224,10 @@ fn a_policy_is_flown_with_the_observation_it_records() {
         "{e}"
     );
     assert_eq!(p.check_observation(&other), Ok(()));
-    // An older file (format 2) records none: flown with the configuration's, checked by length
-    // elsewhere, without the path guide, which it predates, and with the line of sight cast as
-    // rays, as it was trained.
+    // One built in code without a record: not flown; its length is checked apart.
     p.observation = None;
-    let mut unguided = cfg.clone();
-    unguided.env.observation.path_guide = false;
-    unguided.env.observation.site_los = dupac_common::config::SiteLos::Ray;
-    unguided.env.reward.progress = dupac_common::config::Progress::Straight;
-    assert_eq!(p.configure(&cfg).expect("flown"), unguided);
+    let e = p.configure(&cfg).expect_err("no record");
+    assert!(e.contains("records no observation"), "{e}");
     assert_eq!(p.check_observation(&cfg.env.observation), Ok(()));
     // A hostile record is refused by its key, by validation and by `configure`.
     other.rsrp_scale_db = f64::NAN;

@@ -20,23 +20,16 @@ use std::path::Path;
 use crate::model::ActorCritic;
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
-/// Format 3 records the policy's observation ([`PolicyWeights::observation`]), format 4 with
-/// the path guide's keys, format 5 with the guide's clearance, format 6 with the source of the
-/// sites' line of sight, format 7 without `site_trend`; formats 2 to 6 are still read
-/// ([`legacy`]).
+/// The one format of checkpoint files this build reads and writes: the policy records its
+/// observation ([`PolicyWeights::observation`]: the path guide's keys and clearance, the source
+/// of the sites' line of sight). A file of another format is refused ([`CheckpointError::Format`]).
 const CHECKPOINT_VERSION: u32 = 7;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
+/// The one format of policy files this build reads and writes (as [`CHECKPOINT_VERSION`]).
 const POLICY_VERSION: u32 = 7;
-/// 2026-11-24 to 2026-11-26, read without the observation.
-const FORMAT_2: u32 = 2;
-/// 2026-11-26, the observation without the path guide.
-const FORMAT_3: u32 = 3;
-/// 2026-11-26, the path guide without its clearance (it was `planner.clearance_m`).
-const FORMAT_4: u32 = 4;
-/// The guide with its clearance, the sites' line of sight always cast as rays (no `site_los`).
-const FORMAT_5: u32 = 5;
-/// The observation with `site_trend`.
-const FORMAT_6: u32 = 6;
+/// The commit whose `examples/upgrade_policies.rs` rewrites policy files of formats 2 to 6 in
+/// format 7.
+const UPGRADE_COMMIT: &str = "3b1d9d7";
 /// Largest checkpoint or policy file read (bytes).
 pub const MAX_FILE_BYTES: usize = 512 << 20;
 
@@ -49,6 +42,15 @@ pub enum CheckpointError {
     Record { path: String, message: String },
     #[error("{path}: {message}")]
     Invalid { path: String, message: String },
+    /// A file of another format than this build's.
+    #[error("{path}: {kind} file format {got}; this build reads format {want} only: {what_to_do}")]
+    Format {
+        path: String,
+        kind: &'static str,
+        got: u32,
+        want: u32,
+        what_to_do: String,
+    },
 }
 
 /// Counters and state besides the tensors.
@@ -78,388 +80,16 @@ struct CheckpointFile {
     optim: Vec<u8>,
 }
 
-/// Files of earlier formats (bincode is not self-describing, so each old layout is spelled out
-/// once here and converted): format 2 without [`PolicyWeights::observation`], format 3 with the
-/// observation as it was before the path guide (`env.observation.path_guide`,
-/// `path_lookahead_m`, `path_guide_lambda`), format 4 before the guide's own clearance
-/// (`path_guide_clearance_m`; it used `planner.clearance_m`, which 0 says), format 5 before
-/// `site_los` (rays), format 6 with `site_trend` (a file whose policy observes the trend is
-/// refused: no build since computes it). The tests write old files with these types too.
-mod legacy {
-    use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale, SiteLos};
-    use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
-    use serde::Deserialize;
-
-    /// Keys of `[env.observation]` added after file format 3, with what their absence means: what
-    /// a run written before them did (the guide off; its clearance `planner.clearance_m`, 0; the
-    /// look-ahead 30 m, unused with the guide off but compared on resume). Not today's defaults,
-    /// which turn the guide on.
-    fn added_after_format_3() -> [(&'static str, toml::Value); 5] {
-        [
-            ("site_los", toml::Value::String("ray".into())),
-            ("path_guide", toml::Value::Boolean(false)),
-            // 30 m, the look-ahead of every file that recorded it until 2026-11-27.
-            ("path_lookahead_m", toml::Value::Float(30.0)),
-            ("path_guide_lambda", toml::Value::Float(0.0)),
-            ("path_guide_clearance_m", toml::Value::Float(0.0)),
-        ]
-    }
-
-    /// `env.observation` as format 3 recorded it.
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct ObservationV3 {
-        pub(super) goal: bool,
-        pub(super) sensor_fan: bool,
-        pub(super) rsrp_all: bool,
-        pub(super) rsrp_serving: bool,
-        pub(super) sensor_range_m: f64,
-        pub(super) sensor_scale: SensorScale,
-        pub(super) nearest_obstacle: NearestObstacle,
-        pub(super) geofence: bool,
-        pub(super) goal_scale_m: f64,
-        pub(super) goal_direction: bool,
-        pub(super) rsrp_centre_dbm: f64,
-        pub(super) rsrp_scale_db: f64,
-        pub(super) site_features: bool,
-        pub(super) site_trend: bool,
-        pub(super) site_ping_pong: bool,
-    }
-
-    impl ObservationV3 {
-        /// The guide as a file of format 3 meant it: off (and the look-ahead of those days,
-        /// 30 m), the line of sight from rays.
-        pub(super) fn upgrade(self) -> ObservationV6 {
-            ObservationV6 {
-                v3: self,
-                path_guide: false,
-                path_lookahead_m: 30.0,
-                path_guide_lambda: 0.0,
-                path_guide_clearance_m: 0.0,
-                site_los: SiteLos::Ray,
-            }
-        }
-    }
-
-    /// `env.observation` as format 4 recorded it: format 3's and the guide's first three keys.
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct ObservationV4 {
-        pub(super) v3: ObservationV3,
-        pub(super) path_guide: bool,
-        pub(super) path_lookahead_m: f64,
-        pub(super) path_guide_lambda: f64,
-    }
-
-    impl ObservationV4 {
-        /// The guide's path planned with `planner.clearance_m`, as format 4's was (0).
-        pub(super) fn upgrade(self) -> ObservationV6 {
-            ObservationV6 {
-                path_guide: self.path_guide,
-                path_lookahead_m: self.path_lookahead_m,
-                path_guide_lambda: self.path_guide_lambda,
-                path_guide_clearance_m: 0.0,
-                ..self.v3.upgrade()
-            }
-        }
-    }
-
-    /// `env.observation` as format 5 recorded it: format 4's and the guide's clearance.
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct ObservationV5 {
-        pub(super) v4: ObservationV4,
-        pub(super) path_guide_clearance_m: f64,
-    }
-
-    impl ObservationV5 {
-        /// The sites' line of sight from rays, as format 5's was.
-        pub(super) fn upgrade(self) -> ObservationV6 {
-            ObservationV6 {
-                path_guide_clearance_m: self.path_guide_clearance_m,
-                ..self.v4.upgrade()
-            }
-        }
-    }
-
-    /// `env.observation` as format 6 recorded it: format 3's keys (with `site_trend`), then the
-    /// guide's, its clearance and `site_los`.
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct ObservationV6 {
-        pub(super) v3: ObservationV3,
-        pub(super) path_guide: bool,
-        pub(super) path_lookahead_m: f64,
-        pub(super) path_guide_lambda: f64,
-        pub(super) path_guide_clearance_m: f64,
-        pub(super) site_los: SiteLos,
-    }
-
-    impl ObservationV6 {
-        /// Today's observation; refused when it observes the site trend, which no build of
-        /// format 7 or later computes.
-        pub(super) fn upgrade(self) -> Result<ObservationConfig, String> {
-            let o = self.v3;
-            if o.site_trend {
-                return Err(
-                    "the policy observes the site trend (env.observation.site_trend), which this build no longer computes: retrain it (dupac train)"
-                        .into(),
-                );
-            }
-            Ok(ObservationConfig {
-                goal: o.goal,
-                sensor_fan: o.sensor_fan,
-                rsrp_all: o.rsrp_all,
-                rsrp_serving: o.rsrp_serving,
-                sensor_range_m: o.sensor_range_m,
-                sensor_scale: o.sensor_scale,
-                nearest_obstacle: o.nearest_obstacle,
-                geofence: o.geofence,
-                goal_scale_m: o.goal_scale_m,
-                goal_direction: o.goal_direction,
-                rsrp_centre_dbm: o.rsrp_centre_dbm,
-                rsrp_scale_db: o.rsrp_scale_db,
-                site_features: o.site_features,
-                site_ping_pong: o.site_ping_pong,
-                path_guide: self.path_guide,
-                path_lookahead_m: self.path_lookahead_m,
-                path_guide_lambda: self.path_guide_lambda,
-                path_guide_clearance_m: self.path_guide_clearance_m,
-                site_los: self.site_los,
-            })
-        }
-    }
-
-    /// An observation of format 3 to 6 as today's.
-    pub(super) trait Upgrade {
-        fn observation(self) -> Result<ObservationConfig, String>;
-    }
-    impl Upgrade for ObservationV3 {
-        fn observation(self) -> Result<ObservationConfig, String> {
-            self.upgrade().upgrade()
-        }
-    }
-    impl Upgrade for ObservationV4 {
-        fn observation(self) -> Result<ObservationConfig, String> {
-            self.upgrade().upgrade()
-        }
-    }
-    impl Upgrade for ObservationV5 {
-        fn observation(self) -> Result<ObservationConfig, String> {
-            self.upgrade().upgrade()
-        }
-    }
-    impl Upgrade for ObservationV6 {
-        fn observation(self) -> Result<ObservationConfig, String> {
-            self.upgrade()
-        }
-    }
-
-    /// The policy of formats 2 to 6: `O` = `()` (format 2, none recorded) or
-    /// `Option<ObservationV3>` … `Option<ObservationV6>`.
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct PolicyWeightsOld<O> {
-        pub(super) version: u64,
-        pub(super) obs_version: u32,
-        pub(super) obs_dim: usize,
-        pub(super) n_sites: usize,
-        pub(super) actor: Mlp,
-        pub(super) critic: Mlp,
-        pub(super) site_head: Option<SiteHead>,
-        pub(super) log_std: [f32; dupac_common::policy::MOVE_DIM],
-        pub(super) obs_norm: ObsNormalizer,
-        pub(super) reward_scaler: RewardScaler,
-        /// `()` encodes to nothing: format 2 had no such field.
-        pub(super) observation: O,
-    }
-
-    pub(super) type PolicyWeightsV2 = PolicyWeightsOld<()>;
-    pub(super) type PolicyWeightsV3 = PolicyWeightsOld<Option<ObservationV3>>;
-    pub(super) type PolicyWeightsV4 = PolicyWeightsOld<Option<ObservationV4>>;
-    pub(super) type PolicyWeightsV5 = PolicyWeightsOld<Option<ObservationV5>>;
-    pub(super) type PolicyWeightsV6 = PolicyWeightsOld<Option<ObservationV6>>;
-
-    impl<O> PolicyWeightsOld<O> {
-        /// The policy, with `observation`.
-        pub(super) fn with(self, observation: Option<ObservationConfig>) -> PolicyWeights {
-            PolicyWeights {
-                version: self.version,
-                obs_version: self.obs_version,
-                obs_dim: self.obs_dim,
-                n_sites: self.n_sites,
-                actor: self.actor,
-                critic: self.critic,
-                site_head: self.site_head,
-                log_std: self.log_std,
-                obs_norm: self.obs_norm,
-                reward_scaler: self.reward_scaler,
-                observation,
-            }
-        }
-    }
-
-    impl<O: Upgrade> PolicyWeightsOld<Option<O>> {
-        /// Today's policy; refused when its observation has no equivalent today.
-        pub(super) fn upgrade(mut self) -> Result<PolicyWeights, String> {
-            let o = self.observation.take().map(O::observation).transpose()?;
-            Ok(self.with(o))
-        }
-    }
-
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct CheckpointMetaOld<P> {
-        pub(super) seed: u64,
-        pub(super) update: u64,
-        pub(super) global_step: u64,
-        pub(super) episodes: u64,
-        pub(super) train_seconds: f64,
-        pub(super) config_toml: String,
-        pub(super) policy: P,
-        pub(super) return_acc: Vec<f64>,
-    }
-
-    #[derive(Deserialize)]
-    #[cfg_attr(test, derive(serde::Serialize))]
-    pub(super) struct CheckpointFileOld<P> {
-        pub(super) meta: CheckpointMetaOld<P>,
-        pub(super) model: Vec<u8>,
-        pub(super) optim: Vec<u8>,
-    }
-
-    #[cfg(test)]
-    pub(super) type CheckpointMetaV2 = CheckpointMetaOld<PolicyWeightsV2>;
-    #[cfg(test)]
-    pub(super) type CheckpointFileV2 = CheckpointFileOld<PolicyWeightsV2>;
-
-    /// The observation a run's configuration (TOML) gives, when that is certain: every key of
-    /// today's `[env.observation]` written in it (a key added since — a feature that did not
-    /// exist then — would otherwise take today's default), those added after format 3 apart
-    /// (their absence means what it did then: [`added_after_format_3`]), and the values valid.
-    /// `None` else.
-    pub(super) fn observation_of(config_toml: &str) -> Option<ObservationConfig> {
-        let table: toml::Table = toml::from_str(config_toml).ok()?;
-        let mut written = table.get("env")?.get("observation")?.as_table()?.clone();
-        // A key dropped since: its absence is today's layout only when it was off.
-        if let Some(trend) = written.remove("site_trend")
-            && trend.as_bool() != Some(false)
-        {
-            return None;
-        }
-        let added = added_after_format_3();
-        let today = toml::Value::try_from(ObservationConfig::default()).ok()?;
-        if !today
-            .as_table()?
-            .keys()
-            .filter(|k| !added.iter().any(|(a, _)| a == k))
-            .all(|k| written.contains_key(k))
-        {
-            return None;
-        }
-        for (k, then) in added {
-            written.entry(k).or_insert(then);
-        }
-        let o: ObservationConfig = written.try_into().ok()?;
-        o.validate().ok()?;
-        Some(o)
-    }
-
-    impl<P> CheckpointFileOld<P> {
-        /// The checkpoint with the policy `upgrade` gives from the file's policy and its
-        /// configuration.
-        pub(super) fn upgrade(
-            self,
-            upgrade: impl FnOnce(P, &str) -> Result<PolicyWeights, String>,
-        ) -> Result<super::CheckpointFile, String> {
-            let m = self.meta;
-            let policy = upgrade(m.policy, &m.config_toml)?;
-            Ok(super::CheckpointFile {
-                meta: super::CheckpointMeta {
-                    seed: m.seed,
-                    update: m.update,
-                    global_step: m.global_step,
-                    episodes: m.episodes,
-                    train_seconds: m.train_seconds,
-                    config_toml: m.config_toml,
-                    policy,
-                    return_acc: m.return_acc,
-                },
-                model: self.model,
-                optim: self.optim,
-            })
-        }
-    }
-
-    /// A format-2 checkpoint's policy with the observation of the run's own configuration when
-    /// it is certain ([`observation_of`]); none recorded otherwise (checked by length).
-    pub(super) fn upgrade_v2(
-        p: PolicyWeightsV2,
-        config_toml: &str,
-    ) -> Result<PolicyWeights, String> {
-        let mut policy = p.with(observation_of(config_toml));
-        if policy.observation.is_some() && policy.validate().is_err() {
-            // The configuration disagrees with the weights (a resume that changed the
-            // observation at the same length): not certain either.
-            policy.observation = None;
-        }
-        Ok(policy)
-    }
-}
-
-/// Decodes a checkpoint file of this format or of formats 2 to 6.
+/// Decodes a checkpoint file of this build's format.
 fn decode_checkpoint(bytes: &[u8], what: &str) -> Result<CheckpointFile, CheckpointError> {
-    fn old<P: serde::de::DeserializeOwned>(
-        bytes: &[u8],
-        format: u32,
-        what: &str,
-        upgrade: impl FnOnce(P, &str) -> Result<PolicyWeights, String>,
-    ) -> Result<CheckpointFile, CheckpointError> {
-        codec::decode::<legacy::CheckpointFileOld<P>>(
-            CHECKPOINT_MAGIC,
-            format,
-            bytes,
-            MAX_FILE_BYTES,
-            what,
-        )?
-        .upgrade(upgrade)
-        .map_err(|message| CheckpointError::Invalid {
-            path: what.to_string(),
-            message,
-        })
-    }
-    match codec::decode(
+    codec::decode(
         CHECKPOINT_MAGIC,
         CHECKPOINT_VERSION,
         bytes,
         MAX_FILE_BYTES,
         what,
-    ) {
-        Err(CodecError::Version { got: FORMAT_2, .. }) => {
-            old(bytes, FORMAT_2, what, legacy::upgrade_v2)
-        }
-        Err(CodecError::Version { got: FORMAT_3, .. }) => {
-            old(bytes, FORMAT_3, what, |p: legacy::PolicyWeightsV3, _| {
-                p.upgrade()
-            })
-        }
-        Err(CodecError::Version { got: FORMAT_4, .. }) => {
-            old(bytes, FORMAT_4, what, |p: legacy::PolicyWeightsV4, _| {
-                p.upgrade()
-            })
-        }
-        Err(CodecError::Version { got: FORMAT_5, .. }) => {
-            old(bytes, FORMAT_5, what, |p: legacy::PolicyWeightsV5, _| {
-                p.upgrade()
-            })
-        }
-        Err(CodecError::Version { got: FORMAT_6, .. }) => {
-            old(bytes, FORMAT_6, what, |p: legacy::PolicyWeightsV6, _| {
-                p.upgrade()
-            })
-        }
-        r => r.map_err(older_format),
-    }
+    )
+    .map_err(|e| other_format(e, "checkpoint"))
 }
 
 /// Writes a checkpoint of `model` and `optim` atomically to `path`.
@@ -550,16 +180,26 @@ pub fn save_policy(path: &Path, policy: &PolicyWeights) -> Result<(), Checkpoint
     Ok(())
 }
 
-/// An older format of policy or checkpoint file, named in words: format 1 carried observation
-/// layouts 1–2 and slot site logits only (format 2 is read: [`legacy`]).
-fn older_format(e: CodecError) -> CheckpointError {
+/// A file of another format than this build's, named with what to do; other errors as they are.
+fn other_format(e: CodecError, kind: &'static str) -> CheckpointError {
     match e {
-        CodecError::Version { what, got, want } if got < want => CheckpointError::Invalid {
+        CodecError::Version { what, got, want } => CheckpointError::Format {
             path: what,
-            message: format!(
-                "written by an older DUPAC (file format {got}, observation layout version ≤ 2); this build reads format {want} (observation layout version {}, the equivariant site head of issue 15): retrain with `dupac train`",
-                dupac_common::obs::OBS_VERSION
-            ),
+            kind,
+            got,
+            want,
+            what_to_do: if got >= want {
+                "it was written by a newer DUPAC: read it with that one, or retrain it (dupac train)"
+                    .into()
+            } else if kind == "policy" {
+                format!(
+                    "retrain it (dupac train), or convert it (formats 2 to 6) with the DUPAC of commit {UPGRADE_COMMIT}: cargo run --release --example upgrade_policies -- FILE"
+                )
+            } else {
+                format!(
+                    "retrain it (dupac train), or resume it with the DUPAC of commit {UPGRADE_COMMIT}, which reads formats 2 to 6 and writes format {want}"
+                )
+            },
         },
         e => e.into(),
     }
@@ -572,43 +212,8 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let policy: PolicyWeights = if bytes.starts_with(CHECKPOINT_MAGIC) {
         decode_checkpoint(&bytes, &what)?.meta.policy
     } else {
-        let invalid = |message| CheckpointError::Invalid {
-            path: what.clone(),
-            message,
-        };
-        fn old<P: serde::de::DeserializeOwned>(
-            bytes: &[u8],
-            format: u32,
-            what: &str,
-        ) -> Result<P, CodecError> {
-            codec::decode::<P>(POLICY_MAGIC, format, bytes, MAX_FILE_BYTES, what)
-        }
-        match codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what) {
-            Err(CodecError::Version { got: FORMAT_2, .. }) => {
-                old::<legacy::PolicyWeightsV2>(&bytes, FORMAT_2, &what)?.with(None)
-            }
-            Err(CodecError::Version { got: FORMAT_3, .. }) => {
-                old::<legacy::PolicyWeightsV3>(&bytes, FORMAT_3, &what)?
-                    .upgrade()
-                    .map_err(invalid)?
-            }
-            Err(CodecError::Version { got: FORMAT_4, .. }) => {
-                old::<legacy::PolicyWeightsV4>(&bytes, FORMAT_4, &what)?
-                    .upgrade()
-                    .map_err(invalid)?
-            }
-            Err(CodecError::Version { got: FORMAT_5, .. }) => {
-                old::<legacy::PolicyWeightsV5>(&bytes, FORMAT_5, &what)?
-                    .upgrade()
-                    .map_err(invalid)?
-            }
-            Err(CodecError::Version { got: FORMAT_6, .. }) => {
-                old::<legacy::PolicyWeightsV6>(&bytes, FORMAT_6, &what)?
-                    .upgrade()
-                    .map_err(invalid)?
-            }
-            r => r.map_err(older_format)?,
-        }
+        codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)
+            .map_err(|e| other_format(e, "policy"))?
     };
     policy
         .validate()
@@ -621,13 +226,9 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
 
 #[cfg(test)]
 mod tests {
-    use super::legacy::{
-        CheckpointFileV2, CheckpointMetaV2, ObservationV3, ObservationV4, ObservationV5,
-        ObservationV6, PolicyWeightsOld, PolicyWeightsV2,
-    };
     use super::*;
     use crate::learner::Learner;
-    use dupac_common::config::{Config, SiteLos};
+    use dupac_common::config::Config;
     use dupac_common::obs::ObsLayout;
 
     fn learner(cfg: &Config) -> Learner {
@@ -644,174 +245,9 @@ mod tests {
         cfg
     }
 
-    /// `p` as file format 2 wrote it (without the observation).
-    fn v2(p: &PolicyWeights) -> PolicyWeightsV2 {
-        let p = p.clone();
-        PolicyWeightsV2 {
-            version: p.version,
-            obs_version: p.obs_version,
-            obs_dim: p.obs_dim,
-            n_sites: p.n_sites,
-            actor: p.actor,
-            critic: p.critic,
-            site_head: p.site_head,
-            log_std: p.log_std,
-            obs_norm: p.obs_norm,
-            reward_scaler: p.reward_scaler,
-            observation: (),
-        }
-    }
-
-    /// `p` as file format 3 wrote it (the observation without the path guide's keys).
-    fn v3(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV3>> {
-        let o = p.observation.clone().map(|o| ObservationV3 {
-            goal: o.goal,
-            sensor_fan: o.sensor_fan,
-            rsrp_all: o.rsrp_all,
-            rsrp_serving: o.rsrp_serving,
-            sensor_range_m: o.sensor_range_m,
-            sensor_scale: o.sensor_scale,
-            nearest_obstacle: o.nearest_obstacle,
-            geofence: o.geofence,
-            goal_scale_m: o.goal_scale_m,
-            goal_direction: o.goal_direction,
-            rsrp_centre_dbm: o.rsrp_centre_dbm,
-            rsrp_scale_db: o.rsrp_scale_db,
-            site_features: o.site_features,
-            site_trend: false,
-            site_ping_pong: o.site_ping_pong,
-        });
-        let v2 = v2(p);
-        PolicyWeightsOld {
-            version: v2.version,
-            obs_version: v2.obs_version,
-            obs_dim: v2.obs_dim,
-            n_sites: v2.n_sites,
-            actor: v2.actor,
-            critic: v2.critic,
-            site_head: v2.site_head,
-            log_std: v2.log_std,
-            obs_norm: v2.obs_norm,
-            reward_scaler: v2.reward_scaler,
-            observation: o,
-        }
-    }
-
-    /// `p` as file format 4 wrote it (the path guide without its clearance).
-    fn v4(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV4>> {
-        let o = p.observation.clone();
-        let v3 = v3(p);
-        PolicyWeightsOld {
-            version: v3.version,
-            obs_version: v3.obs_version,
-            obs_dim: v3.obs_dim,
-            n_sites: v3.n_sites,
-            actor: v3.actor,
-            critic: v3.critic,
-            site_head: v3.site_head,
-            log_std: v3.log_std,
-            obs_norm: v3.obs_norm,
-            reward_scaler: v3.reward_scaler,
-            observation: v3.observation.zip(o).map(|(v3, o)| ObservationV4 {
-                v3,
-                path_guide: o.path_guide,
-                path_lookahead_m: o.path_lookahead_m,
-                path_guide_lambda: o.path_guide_lambda,
-            }),
-        }
-    }
-
-    /// `p` as file format 5 wrote it (the sites' line of sight from rays, not recorded).
-    fn v5(p: &PolicyWeights) -> PolicyWeightsOld<Option<ObservationV5>> {
-        let o = p.observation.clone();
-        let v4 = v4(p);
-        PolicyWeightsOld {
-            version: v4.version,
-            obs_version: v4.obs_version,
-            obs_dim: v4.obs_dim,
-            n_sites: v4.n_sites,
-            actor: v4.actor,
-            critic: v4.critic,
-            site_head: v4.site_head,
-            log_std: v4.log_std,
-            obs_norm: v4.obs_norm,
-            reward_scaler: v4.reward_scaler,
-            observation: v4.observation.zip(o).map(|(v4, o)| ObservationV5 {
-                v4,
-                path_guide_clearance_m: o.path_guide_clearance_m,
-            }),
-        }
-    }
-
-    /// `p` as file format 6 wrote it (with `site_trend`, here `trend`).
-    fn v6(p: &PolicyWeights, trend: bool) -> PolicyWeightsOld<Option<ObservationV6>> {
-        let o = p.observation.clone();
-        let v3 = v3(p);
-        PolicyWeightsOld {
-            version: v3.version,
-            obs_version: v3.obs_version,
-            obs_dim: v3.obs_dim,
-            n_sites: v3.n_sites,
-            actor: v3.actor,
-            critic: v3.critic,
-            site_head: v3.site_head,
-            log_std: v3.log_std,
-            obs_norm: v3.obs_norm,
-            reward_scaler: v3.reward_scaler,
-            observation: v3.observation.zip(o).map(|(mut v3, o)| {
-                v3.site_trend = trend;
-                ObservationV6 {
-                    v3,
-                    path_guide: o.path_guide,
-                    path_lookahead_m: o.path_lookahead_m,
-                    path_guide_lambda: o.path_guide_lambda,
-                    path_guide_clearance_m: o.path_guide_clearance_m,
-                    site_los: o.site_los,
-                }
-            }),
-        }
-    }
-
-    /// A format-2 checkpoint of `p` whose configuration is `config_toml`, loaded.
-    fn load_v2_checkpoint(p: &PolicyWeights, config_toml: String) -> LoadedCheckpoint {
-        let file = CheckpointFileV2 {
-            meta: CheckpointMetaV2 {
-                seed: 1,
-                update: 2,
-                global_step: 3,
-                episodes: 4,
-                train_seconds: 5.0,
-                config_toml,
-                policy: v2(p),
-                return_acc: vec![0.5],
-            },
-            model: vec![1, 2],
-            optim: vec![3],
-        };
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("checkpoint.bin");
-        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_2, &file, "checkpoint").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let ck = load_checkpoint(&path).expect("a format-2 checkpoint loads");
-        assert_eq!(ck.meta.update, 2);
-        assert_eq!(ck.meta.return_acc, vec![0.5]);
-        assert_eq!(load_policy(&path).expect("its policy"), ck.meta.policy);
-        ck
-    }
-
     #[test]
-    fn a_policy_records_its_observation_and_an_older_file_still_loads() {
-        let mut cfg = small();
-        // Unguided, as a file of format 3 or older reads (the guide off, λ 0, clearance 0, the
-        // look-ahead of those days, 30 m).
-        cfg.env.observation.path_guide = false;
-        cfg.env.observation.path_guide_lambda = 0.0;
-        cfg.env.observation.path_guide_clearance_m = 0.0;
-        cfg.env.observation.path_lookahead_m = 30.0;
-        cfg.env.reward.progress = dupac_common::config::Progress::Straight;
-        // …and with the line of sight from rays, as every file of format 5 or older reads.
-        cfg.env.observation.site_los = SiteLos::Ray;
-        cfg.validate().expect("valid");
+    fn a_policy_records_its_observation() {
+        let cfg = small();
         let p = learner(&cfg).policy();
         assert_eq!(p.observation.as_ref(), Some(&cfg.env.observation));
         // A record that disagrees with the site head's features is refused.
@@ -828,138 +264,63 @@ mod tests {
         let path = dir.path().join("policy.bin");
         save_policy(&path, &p).expect("save");
         assert_eq!(load_policy(&path).expect("load"), p);
-
-        // Format 2 (no observation recorded) loads, with none.
-        let bytes = codec::encode(POLICY_MAGIC, FORMAT_2, &v2(&p), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let old = load_policy(&path).expect("a format-2 policy loads");
-        assert_eq!(old.observation, None);
-        // It predates the path guide: flown unguided under today's (guided) defaults.
-        let flown = old.configure(&Config::default()).expect("configure");
-        assert!(!flown.env.observation.path_guide);
-        assert_eq!(flown.env.observation.site_los, SiteLos::Ray);
-        assert_eq!(
-            flown.env.reward.progress,
-            dupac_common::config::Progress::Straight
-        );
-        assert!(!flown.env.needs_path());
-        assert_eq!(
-            PolicyWeights {
-                observation: None,
-                ..p.clone()
-            },
-            old
-        );
-
-        // Format 3 (the observation without the path guide) loads, with the guide off.
-        let bytes = codec::encode(POLICY_MAGIC, FORMAT_3, &v3(&p), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let v3_policy = load_policy(&path).expect("a format-3 policy loads");
-        assert_eq!(v3_policy, p);
-        assert!(!v3_policy.observation.as_ref().is_some_and(|o| o.path_guide));
-        // …and a format-3 checkpoint.
-        let file = super::legacy::CheckpointFileOld {
-            meta: super::legacy::CheckpointMetaOld {
-                seed: 1,
-                update: 2,
-                global_step: 3,
-                episodes: 4,
-                train_seconds: 5.0,
-                config_toml: String::new(),
-                policy: v3(&p),
-                return_acc: vec![0.5],
-            },
-            model: vec![1, 2],
-            optim: vec![3],
-        };
-        let ck_path = dir.path().join("checkpoint.bin");
-        let bytes = codec::encode(CHECKPOINT_MAGIC, FORMAT_3, &file, "checkpoint").expect("encode");
-        std::fs::write(&ck_path, bytes).expect("write");
-        let ck = load_checkpoint(&ck_path).expect("a format-3 checkpoint loads");
-        assert_eq!(ck.meta.policy, p);
-        assert_eq!(ck.meta.update, 2);
-
-        // Format 4 (the guide without its clearance) loads, its guide planned with
-        // `planner.clearance_m` (0) as it was — a guided policy too.
-        let mut guided_cfg = small();
-        guided_cfg.env.observation.path_guide_clearance_m = 5.0;
-        guided_cfg.env.observation.site_los = SiteLos::Ray;
-        let guided = learner(&guided_cfg).policy();
-        assert!(guided.observation.as_ref().is_some_and(|o| o.path_guide));
-        let bytes = codec::encode(POLICY_MAGIC, FORMAT_4, &v4(&guided), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let v4_policy = load_policy(&path).expect("a format-4 policy loads");
-        let mut want = guided.clone();
-        if let Some(o) = want.observation.as_mut() {
-            o.path_guide_clearance_m = 0.0;
-        }
-        assert_eq!(v4_policy, want);
-
-        // Format 5 (before `site_los`) loads with the rays it was trained with, under today's
-        // default of the cache's line of sight.
-        let bytes = codec::encode(POLICY_MAGIC, FORMAT_5, &v5(&guided), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let v5_policy = load_policy(&path).expect("a format-5 policy loads");
-        assert_eq!(v5_policy, guided);
-        let flown = v5_policy.configure(&Config::default()).expect("configure");
-        assert_eq!(flown.env.observation.site_los, SiteLos::Ray);
-        assert_eq!(Config::default().env.observation.site_los, SiteLos::Cache);
-
-        // Format 6 (with `site_trend`) loads when the trend is off…
-        let bytes =
-            codec::encode(POLICY_MAGIC, FORMAT_6, &v6(&guided, false), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        assert_eq!(load_policy(&path).expect("a format-6 policy loads"), guided);
-        // …and is refused, naming the file and the key, when the policy observes it.
-        let bytes =
-            codec::encode(POLICY_MAGIC, FORMAT_6, &v6(&guided, true), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let e = load_policy(&path).expect_err("the trend").to_string();
-        assert!(
-            e.contains(&path.display().to_string()) && e.contains("env.observation.site_trend"),
-            "{e}"
-        );
-
-        // Format 1 is refused by name.
-        let bytes = codec::encode(POLICY_MAGIC, 1, &v2(&p), "policy").expect("encode");
-        std::fs::write(&path, bytes).expect("write");
-        let e = load_policy(&path).expect_err("format 1").to_string();
-        assert!(
-            e.contains("older DUPAC") && e.contains("file format 1"),
-            "{e}"
-        );
     }
 
-    /// Format 6's observation is today's with `site_trend` (one byte) after `site_features`,
-    /// format 5's that less its last field (`site_los`, an enum), format 4's that less the 8
-    /// bytes of `path_guide_clearance_m` (an f64), so each old file reads field by field as
-    /// written.
+    /// A file of another format than this build's: refused naming the file, its format and
+    /// today's, and what to do (the conversion's commit for an older policy).
     #[test]
-    fn older_observations_are_todays_with_their_keys_of_then() {
-        let p = learner(&small()).policy();
-        let today = p.observation.clone().expect("recorded");
-        let enc = |bytes: Vec<u8>| bytes[12..].to_vec();
-        let a = enc(codec::encode(b"TESTTEST", 1, &today, "t").expect("encode"));
-        let old6 = v6(&p, false).observation.expect("recorded");
-        let old5 = v5(&p).observation.expect("recorded");
-        let old4 = v4(&p).observation.expect("recorded");
-        let b6 = enc(codec::encode(b"TESTTEST", 1, &old6, "t").expect("encode"));
-        let b5 = enc(codec::encode(b"TESTTEST", 1, &old5, "t").expect("encode"));
-        let b4 = enc(codec::encode(b"TESTTEST", 1, &old4, "t").expect("encode"));
-        // Through `site_features` (bincode, varints): 4 bools, an f64, 2 one-byte enums, a
-        // bool, an f64, a bool, 2 f64 and the bool `site_features`.
-        let at = 4 + 8 + 1 + 1 + 1 + 8 + 1 + 8 + 8 + 1;
-        assert_eq!(b6.len(), a.len() + 1);
-        assert_eq!(b6[..at], a[..at]);
-        assert_eq!(b6[at], 0, "site_trend = false");
-        assert_eq!(b6[at + 1..], a[at..]);
-        let site_los = enc(codec::encode(b"TESTTEST", 1, &today.site_los, "t").expect("encode"));
-        assert_eq!(b6.len(), b5.len() + site_los.len());
-        assert_eq!(b6[..b5.len()], b5[..]);
-        assert_eq!(b6[b5.len()..], site_los[..]);
-        assert_eq!(b5.len(), b4.len() + 8);
-        assert_eq!(b5[..b4.len()], b4[..]);
-        assert_eq!(b5[b4.len()..], today.path_guide_clearance_m.to_le_bytes());
+    fn a_file_of_another_format_is_refused_saying_what_to_do() {
+        let cfg = small();
+        let l = learner(&cfg);
+        let p = l.policy();
+        let dir = tempfile::tempdir().expect("tempdir");
+        let refused = |path: &Path, kind: &str, got: u32| {
+            let e = load_policy(path).expect_err("another format");
+            assert!(
+                matches!(&e, CheckpointError::Format { got: g, want: w, .. } if *g == got && *w == POLICY_VERSION),
+                "{e}"
+            );
+            let e = e.to_string();
+            assert!(
+                e.contains(&path.display().to_string())
+                    && e.contains(&format!("{kind} file format {got}"))
+                    && e.contains(&format!("reads format {POLICY_VERSION} only"))
+                    && e.contains("retrain it (dupac train)"),
+                "{e}"
+            );
+            e
+        };
+        // Older policies (formats 6 and 2).
+        let path = dir.path().join("policy.bin");
+        for old in [6, 2] {
+            let bytes = codec::encode(POLICY_MAGIC, old, &p, "policy").expect("encode");
+            std::fs::write(&path, bytes).expect("write");
+            let e = refused(&path, "policy", old);
+            assert!(
+                e.contains(UPGRADE_COMMIT) && e.contains("--example upgrade_policies"),
+                "{e}"
+            );
+        }
+        // A newer policy.
+        let bytes = codec::encode(POLICY_MAGIC, POLICY_VERSION + 1, &p, "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let e = refused(&path, "policy", POLICY_VERSION + 1);
+        assert!(e.contains("newer DUPAC"), "{e}");
+        // An older checkpoint, read as a checkpoint and for its policy.
+        let ck = dir.path().join("checkpoint.bin");
+        l.save(&ck).expect("save");
+        let mut bytes = std::fs::read(&ck).expect("read");
+        bytes[8..12].copy_from_slice(&6u32.to_le_bytes());
+        std::fs::write(&ck, &bytes).expect("write");
+        let e = refused(&ck, "checkpoint", 6);
+        assert!(e.contains(UPGRADE_COMMIT) && e.contains("resume it"), "{e}");
+        let Err(e) = load_checkpoint(&ck) else {
+            panic!("an older checkpoint loaded");
+        };
+        assert_eq!(
+            e.to_string(),
+            load_policy(&ck).expect_err("older").to_string()
+        );
     }
 
     /// A policy without site outputs (the A3 base method: `n_sites` = 0, the observation still
@@ -983,69 +344,6 @@ mod tests {
         }
         let e = other.validate().expect_err("4 values fewer");
         assert!(e.contains("does not give"), "{e}");
-    }
-
-    #[test]
-    fn a_format_2_checkpoint_takes_its_observation_from_its_configuration_when_certain() {
-        let mut cfg = small();
-        cfg.env.observation.rsrp_scale_db = 17.0;
-        let p = learner(&cfg).policy();
-        let ck = load_v2_checkpoint(&p, cfg.to_toml_string());
-        assert_eq!(
-            ck.meta.policy.observation.as_ref(),
-            Some(&cfg.env.observation)
-        );
-        // Written with the dropped `site_trend`: off, the layout is today's; on, it is not.
-        for (trend, certain) in [(false, true), (true, false)] {
-            let text = cfg.to_toml_string().replacen(
-                "site_ping_pong",
-                &format!("site_trend = {trend}\nsite_ping_pong"),
-                1,
-            );
-            let ck = load_v2_checkpoint(&p, text);
-            assert_eq!(
-                ck.meta.policy.observation.is_some(),
-                certain,
-                "trend {trend}"
-            );
-        }
-        // Written before a key existed (site_ping_pong, 2026-11-26): today's default would be
-        // a guess (on, for a feature that did not exist), so none is recorded.
-        let mut old = cfg.to_toml_string();
-        let line = old
-            .lines()
-            .find(|l| l.starts_with("site_ping_pong"))
-            .expect("the key is written")
-            .to_string();
-        old = old.replace(&format!("{line}\n"), "");
-        let ck = load_v2_checkpoint(&p, old);
-        assert_eq!(ck.meta.policy.observation, None);
-        // An invalid value in it: none either, and the checkpoint still loads.
-        let bad = cfg
-            .to_toml_string()
-            .replace("rsrp_scale_db = 17.0", "rsrp_scale_db = -1.0");
-        let ck = load_v2_checkpoint(&p, bad);
-        assert_eq!(ck.meta.policy.observation, None);
-        // Written before the path guide existed: its absent keys mean the guide off (λ 0,
-        // `planner.clearance_m`), as it was then, not today's defaults (on).
-        let mut unguided = cfg.clone();
-        unguided.env.observation.path_guide = false;
-        unguided.env.observation.path_guide_lambda = 0.0;
-        unguided.env.observation.path_guide_clearance_m = 0.0;
-        unguided.env.observation.path_lookahead_m = 30.0;
-        unguided.env.reward.progress = dupac_common::config::Progress::Straight;
-        let pu = learner(&unguided).policy();
-        let before_guide: String = unguided
-            .to_toml_string()
-            .lines()
-            .filter(|l| !(l.starts_with("path_guide") || l.starts_with("path_lookahead_m")))
-            .map(|l| format!("{l}\n"))
-            .collect();
-        let ck = load_v2_checkpoint(&pu, before_guide);
-        assert_eq!(
-            ck.meta.policy.observation.as_ref(),
-            Some(&unguided.env.observation)
-        );
     }
 
     #[test]

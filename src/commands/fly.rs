@@ -97,7 +97,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         || "the followed weights".to_string(),
         |p| p.display().to_string(),
     );
-    // Fly the policy with the observation it was trained on (recorded since policy format 3).
+    // Fly the policy with the observation it was trained on (every policy records it).
     let cfg = policy
         .configure(&cfg)
         .map_err(|e| anyhow!("{policy_name}: {e}"))?;

@@ -176,8 +176,8 @@ impl Default for RewardConfig {
 ///
 /// Every policy records the one it was trained on ([`crate::policy::PolicyWeights::observation`]),
 /// so this struct is part of the policy and checkpoint file formats (learner `checkpoint.rs`)
-/// and of the weights message ([`crate::msg::SCHEMA_VERSION`]): adding a field means bumping
-/// those versions and reading the previous format as `checkpoint.rs`'s `legacy` module does.
+/// and of the weights message ([`crate::msg::SCHEMA_VERSION`]): adding or removing a field
+/// means bumping those versions (a file of another format is then refused, naming it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ObservationConfig {
@@ -247,8 +247,7 @@ pub struct ObservationConfig {
     pub path_guide_lambda: f64,
     /// Clearance (m) from the building mesh of the guide's planned path: the planner is built
     /// with this clearance for the guide alone (`planner.clearance_m`, 1.5 m, keeps drawing the
-    /// pairs and planning the planner methods). 0 = `planner.clearance_m` (what file format 4
-    /// recorded, and how its policies are flown). A pair whose guide cannot be planned with it
+    /// pairs and planning the planner methods). 0 = `planner.clearance_m`. A pair whose guide cannot be planned with it
     /// is guided along the path planned with `planner.clearance_m` instead (counted in the log).
     /// Default 5 m: paths that pass buildings at 1.5 m taught the policy to squeeze past them
     /// and doubled the collisions (issue 15; docs/env.md "Path guide").
@@ -257,8 +256,8 @@ pub struct ObservationConfig {
     /// site at every step (150 per decision with the site chosen every step: over half of an
     /// actor's time), `cache` = the RSRP cache's grid line of sight, interpolated like the RSRP
     /// the UAV observes beside it (it differs from the ray only within one grid cell of a
-    /// shadow edge; docs/env.md "Observation"). Recorded in the policy: files of format 5 and
-    /// older were trained with `ray` and are flown with it.
+    /// shadow edge; docs/env.md "Observation"). Recorded in the policy: one trained with `ray` is
+    /// flown with it.
     pub site_los: SiteLos,
 }
 

@@ -114,41 +114,18 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                     "env.site_every_step off for this policy: it has no equivariant site head"
                 );
             }
-            // Flown with the observation it was trained on, whatever this configuration's (a
-            // policy file of format 3 records it; older ones are matched by length below).
+            // Flown with the observation it was trained on, whatever this configuration's.
             mcfg = p
                 .configure(&mcfg)
                 .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
-            let mut probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
-            if probe.layout().len() != p.obs_dim && p.site_head.is_none() && p.observation.is_none()
-            {
-                // A policy of the paper's slot head may have been trained without the per-site
-                // features (docs/paper_dupac.toml): fly it with the layout it was trained on.
-                let o = &mut mcfg.env.observation;
-                o.site_features = !o.site_features;
-                probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
-                if probe.layout().len() != p.obs_dim {
-                    mcfg.env.observation.site_features = cfg.env.observation.site_features;
-                } else {
-                    tracing::info!(
-                        label = %method.label,
-                        site_features = mcfg.env.observation.site_features,
-                        "flying the policy with the observation layout it was trained on"
-                    );
-                }
-            }
+            let probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim {
                 return Err(refused!(
-                    "policy {} (seed {}): it expects {} observations, this configuration gives {} ({})",
+                    "policy {} (seed {}): it expects {} observations, this configuration gives {} with its recorded observation: another number of sites (scenario.n_sites)?",
                     method.label,
                     method.seed,
                     p.obs_dim,
                     probe.layout().len(),
-                    if p.observation.is_some() {
-                        "its recorded observation is used: another number of sites (scenario.n_sites)?"
-                    } else {
-                        "evaluate with the configuration it was trained with"
-                    }
                 ));
             }
         }
