@@ -2,7 +2,7 @@
 //! (`distributed.actor_envs` 4 × `chunk_steps` 128 steps, 101 observations, 30 sites) and a
 //! weights message of the default network (2 × 256 tanh actor and critic).
 //!
-//! Run: `cargo bench --bench dist`.
+//! Run: `cargo bench --bench node`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use dupac_common::ActorId;
@@ -131,5 +131,5 @@ fn benches(c: &mut Criterion) {
     eprintln!("chunk {} bytes, weights {} bytes", bytes.len(), wb.len());
 }
 
-criterion_group!(dist, benches);
-criterion_main!(dist);
+criterion_group!(node, benches);
+criterion_main!(node);
