@@ -5,12 +5,13 @@
 //! Run: `cargo bench --bench node`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::{
-    ChunkExpect, EnvTrajectory, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
-    validate_chunk,
+    EnvTrajectory, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
-use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights};
+use dupac_common::validate::{ChunkExpect, validate_chunk};
 use dupac_learner::model::init_plain;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

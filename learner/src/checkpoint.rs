@@ -83,7 +83,8 @@ struct CheckpointFile {
 /// `site_los` (rays). The tests write old files with these types too.
 mod legacy {
     use dupac_common::config::{NearestObstacle, ObservationConfig, SensorScale, SiteLos};
-    use dupac_common::policy::{Mlp, ObsNormalizer, PolicyWeights, RewardScaler, SiteHead};
+    use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+    use dupac_common::policy::{Mlp, PolicyWeights, SiteHead};
     use serde::Deserialize;
 
     /// Keys of `[env.observation]` added after file format 3, with what their absence means: what

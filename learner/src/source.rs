@@ -5,7 +5,7 @@
 //! --single-process`) and trajectory chunks received over Zenoh
 //! (`dupac_node::source::ZenohSource`, `dupac learner`).
 
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::EnvTrajectory;
 use dupac_common::policy::PolicyWeights;
 use std::collections::BTreeMap;

@@ -17,11 +17,11 @@ pub enum RunError {
     /// A refusal with its reason (a run directory in use, nothing to train on, …).
     #[error("{0}")]
     Refused(String),
-    /// A renderer of the binary (the learning curves) failed.
+    /// The learning curves' renderer ([`crate::run_dir::CurveRenderer`]) failed.
     #[error(transparent)]
     Plot(BoxError),
     #[error(transparent)]
-    Train(#[from] dupac_learner::TrainError),
+    Train(#[from] dupac_learner::learner::TrainError),
     #[error(transparent)]
     Checkpoint(#[from] dupac_learner::checkpoint::CheckpointError),
     #[error(transparent)]

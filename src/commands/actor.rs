@@ -6,7 +6,7 @@ use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_node::actor::{ActorOptions, run_actor};
 use dupac_run::scenario::{guide_pairs_cached, make_pool, world_and_cache};
 use std::path::PathBuf;

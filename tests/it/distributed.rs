@@ -4,7 +4,7 @@
 //! they run in parallel.
 
 use crate::support::*;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::{ActorState, LearnerStats, encode_msg};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
