@@ -25,7 +25,7 @@ pub enum RunError {
     #[error(transparent)]
     Checkpoint(#[from] dupac_learner::checkpoint::CheckpointError),
     #[error(transparent)]
-    Radio(#[from] dupac_radio::RadioError),
+    Radio(#[from] dupac_radio::error::RadioError),
     #[error(transparent)]
     Pairs(#[from] dupac_actor::pairs::PairsError),
     #[error(transparent)]
