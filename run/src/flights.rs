@@ -238,3 +238,16 @@ pub fn shortest_with_a3(
     let summary = acc.finish(p.id, p.shortest_m, flight.outcome);
     Ok((flight, summary))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn versions_md_lists_the_distinct_versions_and_counts_the_swaps() {
+        assert_eq!(
+            versions_md(&[3, 3, 5, 5, 3]),
+            "\npolicy versions used: 3, 5 (2 swaps mid-flight; per step in versions.csv)\n"
+        );
+    }
+}
