@@ -8,8 +8,9 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use dupac_actor::env::{Action, Env, Episode, PathGuide};
+use dupac_common::config::Config;
 use dupac_common::geometry::Point;
-use dupac_common::{Config, SiteId};
+use dupac_common::ids::SiteId;
 use dupac_radio::cache::RsrpCache;
 use dupac_radio::world::RadioWorld;
 use rand::{RngExt, SeedableRng};

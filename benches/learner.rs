@@ -7,7 +7,8 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
 use dupac_learner::model::{ActorCritic, init_plain};
 use dupac_learner::ppo::{Batch, Ppo};
 use rand::{RngExt, SeedableRng};
@@ -129,7 +130,7 @@ fn default_update(c: &mut Criterion) {
     let cfg = dupac_common::config::Config::default();
     let (obs_dim, m) = dupac_learner::synthetic::shapes(&cfg, SITES);
     let trajs = dupac_learner::synthetic::trajectories(&cfg, m, 16, 256, 7);
-    let mut l = dupac_learner::Learner::new(cfg, obs_dim, m, &Device::flex());
+    let mut l = dupac_learner::learner::Learner::new(cfg, obs_dim, m, &Device::flex());
     let n: usize = trajs.iter().map(|t| t.len()).sum();
     let mut g = c.benchmark_group("ppo_update_default");
     g.sample_size(10);
@@ -137,16 +138,16 @@ fn default_update(c: &mut Criterion) {
     g.bench_function("update_4096", |b| {
         b.iter(|| {
             let p = l.policy();
-            let segs: Vec<dupac_learner::Segment<'_>> = trajs
+            let segs: Vec<dupac_learner::learner::Segment<'_>> = trajs
                 .iter()
-                .map(|t| dupac_learner::Segment {
-                    actor: dupac_common::ActorId(0),
+                .map(|t| dupac_learner::learner::Segment {
+                    actor: dupac_common::ids::ActorId(0),
                     behaviour_version: p.version,
                     traj: t,
                 })
                 .collect();
             black_box(
-                l.learn(&p, &segs, dupac_learner::Timings::default())
+                l.learn(&p, &segs, dupac_learner::learner::Timings::default())
                     .expect("finite"),
             )
         })

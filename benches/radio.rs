@@ -4,8 +4,9 @@
 //! Run: `cargo bench --bench radio` (from the repository root, so `data/` resolves).
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use dupac_common::config::Config;
 use dupac_common::geometry::Point;
-use dupac_common::{Config, SiteId};
+use dupac_common::ids::SiteId;
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
 use dupac_radio::world::RadioWorld;
 use rand::{RngExt, SeedableRng};

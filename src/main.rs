@@ -2,7 +2,6 @@
 
 mod commands;
 mod io;
-mod plot;
 
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand};
@@ -80,8 +79,8 @@ impl GlobalArgs {
     }
 
     /// The resolved, validated configuration.
-    pub fn config(&self) -> Result<dupac_common::Config> {
-        Ok(dupac_common::Config::load(
+    pub fn config(&self) -> Result<dupac_common::config::Config> {
+        Ok(dupac_common::config::Config::load(
             self.config.as_deref(),
             &self.set,
         )?)

@@ -4,7 +4,6 @@
 //! of `dupac eval` is computed from saved records without flying again.
 
 use crate::env::StepInfo;
-pub use crate::metrics::{FlightMetrics, count_handovers, flight_metrics};
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
 use dupac_radio::class::RsrpClass;
@@ -301,6 +300,7 @@ pub fn wilson95(k: usize, n: usize) -> Rate {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::metrics::{count_handovers, flight_metrics};
 
     /// Cost of `sites` under `hindsight_association`'s objective, or None when a handover comes
     /// sooner than `min_stay` steps after the previous one.

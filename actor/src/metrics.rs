@@ -7,11 +7,11 @@
 //! steps); [`put_domain`] writes them as metrics under one set of keys (`domain/…` for training
 //! episodes, `eval/…` for the held-out evaluation: [`dupac_common::metric`]).
 
-use crate::env::{Outcome, StepInfo};
+use crate::env::StepInfo;
 use crate::eval::FlightRecord;
 use dupac_common::geometry::Point;
 use dupac_common::metric::DomainKeys;
-pub use dupac_common::msg::EpisodeSummary;
+use dupac_common::msg::{EpisodeSummary, Outcome};
 use dupac_radio::class::RsrpClass;
 use serde::Serialize;
 use std::collections::BTreeMap;

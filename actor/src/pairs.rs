@@ -597,8 +597,7 @@ fn validate(
 mod tests {
     use super::*;
     use crate::planner::Planner;
-    use dupac_common::Config;
-    use dupac_common::config::{CityKind, ScenarioConfig};
+    use dupac_common::config::{CityKind, Config, ScenarioConfig};
     use dupac_radio::city::City;
     use std::sync::atomic::{AtomicU64, Ordering};
 

@@ -4,16 +4,15 @@
 //! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
 //! Episode summaries come from [`crate::metrics::EpisodeAccumulator`].
 
-use crate::env::{Action, Env, EnvError, Episode, Outcome, Step, StepInfo};
-pub use crate::metrics::EpisodeAccumulator;
+use crate::env::{Action, Env, EnvError, Episode, Step, StepInfo};
+use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
-use dupac_common::SiteId;
 use dupac_common::geometry::Vector;
-pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
+use dupac_common::ids::SiteId;
+use dupac_common::msg::{EnvTrajectory, EpisodeSummary, Outcome};
 use dupac_common::policy::{
     ActionSample, MOVE_DIM, PolicyWeights, Scratch, argmax, sample_categorical,
 };
-pub use dupac_common::seed::stream_seed;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;

@@ -3,7 +3,7 @@
 //! A cap on a message's bytes is not a cap on what decoding it allocates: an empty
 //! [`crate::msg::EnvTrajectory`] is ≈ 14 bytes on the wire and 330 bytes in memory, a `u32`
 //! site 1 byte and 4. [`crate::codec::decode_budgeted`] therefore runs the decoder with a budget
-//! in bytes (derived from the run's configuration, e.g. [`crate::msg::ChunkExpect::budget_bytes`])
+//! in bytes (derived from the run's configuration, e.g. [`crate::validate::ChunkExpect::budget_bytes`])
 //! and every collection of a network message is decoded through [`vec`] or [`map`], which
 //! charge `len × size_of::<element>()` against it *before* allocating and fail the decode once it
 //! is spent. Outside a budgeted decode (encoding, files) the helpers behave like serde's own.

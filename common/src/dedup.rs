@@ -3,7 +3,7 @@
 //! Each actor process numbers its chunks 0, 1, 2, … ([`crate::msg::Header::seq`]) under a random
 //! id drawn at its start ([`crate::msg::Header::sender_incarnation`]). The learner keeps, per
 //! (actor id, sender incarnation), the highest sequence number it accepted: a chunk at or below
-//! it is a duplicate or a replay and is refused ([`crate::msg::DropReason::Replay`]). Zenoh
+//! it is a duplicate or a replay and is refused ([`crate::validate::DropReason::Replay`]). Zenoh
 //! delivers one publisher's samples in order, so an honest actor's chunks arrive with rising
 //! numbers and a lost chunk only leaves a gap, which is allowed.
 //!

@@ -21,6 +21,3 @@ pub mod obs;
 pub mod policy;
 pub mod seed;
 pub mod validate;
-
-pub use config::{Config, ConfigError};
-pub use ids::{ActorId, SiteId};

@@ -10,10 +10,7 @@
 use crate::codec::{self, CodecError};
 use crate::ids::ActorId;
 use crate::policy::PolicyWeights;
-pub use crate::validate::{
-    ChunkExpect, DropReason, HEADER_BUDGET_BYTES, Rejection, SiteSteps, check_header,
-    validate_chunk, validate_weights,
-};
+use crate::validate::{ChunkExpect, SiteSteps};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -225,7 +222,7 @@ pub struct Header {
     pub seq: u64,
     /// Policy version the data was produced with (weights: the version carried).
     pub policy_version: u64,
-    /// [`crate::Config::env_fingerprint`] of the sender.
+    /// [`crate::config::Config::env_fingerprint`] of the sender.
     pub config_fingerprint: u64,
     /// Sender's wall clock at sending (ms since the Unix epoch): latency figures on one host.
     pub sent_unix_ms: u64,
@@ -412,7 +409,7 @@ impl MsgLimits {
 
     /// Trajectory chunks as the learner expects them: [`ChunkExpect::budget_bytes`] for both,
     /// never above `distributed.max_message_mib`.
-    pub fn chunk(cfg: &crate::Config, x: &ChunkExpect) -> MsgLimits {
+    pub fn chunk(cfg: &crate::config::Config, x: &ChunkExpect) -> MsgLimits {
         let need = x.budget_bytes();
         MsgLimits {
             bytes: need.min(cfg.distributed.max_message_bytes()),
@@ -422,7 +419,7 @@ impl MsgLimits {
 
     /// Weights of a policy with this configuration's networks
     /// ([`crate::policy::weights_budget_bytes`]).
-    pub fn weights(cfg: &crate::Config, obs_dim: usize, n_sites: usize) -> MsgLimits {
+    pub fn weights(cfg: &crate::config::Config, obs_dim: usize, n_sites: usize) -> MsgLimits {
         let p = &cfg.ppo;
         let need = crate::policy::weights_budget_bytes(
             obs_dim,
@@ -438,7 +435,7 @@ impl MsgLimits {
     }
 
     /// Stats and control messages: a header, a metrics row and one row per tracked actor.
-    pub fn small(cfg: &crate::Config) -> MsgLimits {
+    pub fn small(cfg: &crate::config::Config) -> MsgLimits {
         MsgLimits {
             bytes: STATS_BUDGET_BYTES.min(cfg.distributed.max_message_bytes()),
             budget_bytes: STATS_BUDGET_BYTES,
@@ -447,7 +444,7 @@ impl MsgLimits {
 
     /// The largest message of a run with this configuration (a router's or a session's
     /// receive limit: zenoh's `transport/link/rx/max_message_size`).
-    pub fn run_max_bytes(cfg: &crate::Config, obs_dim: usize, n_sites: usize) -> usize {
+    pub fn run_max_bytes(cfg: &crate::config::Config, obs_dim: usize, n_sites: usize) -> usize {
         let x = ChunkExpect {
             run_id: String::new(),
             incarnation: 0,
@@ -493,6 +490,7 @@ pub fn decode_msg<M: Message>(
 mod tests {
     use super::*;
     use crate::policy::MOVE_DIM;
+    use crate::validate::{DropReason, validate_chunk};
 
     fn lim(bytes: usize) -> MsgLimits {
         MsgLimits {

@@ -19,7 +19,7 @@
 //!   hidden activation `h`, so permuting the sites permutes the logits.
 
 use crate::config::{Config, ObservationConfig};
-pub use crate::normalize::{ObsNormalizer, RewardScaler, RunningMeanStd};
+use crate::normalize::{ObsNormalizer, RewardScaler};
 use serde::{Deserialize, Serialize};
 
 /// Dimension of the continuous move action (x, y, z).
@@ -365,7 +365,7 @@ pub fn weights_budget_bytes(
     layers
         .saturating_mul(per_layer)
         .saturating_add(2 * size_of::<f64>() * obs_dim)
-        .saturating_add(crate::msg::HEADER_BUDGET_BYTES)
+        .saturating_add(crate::validate::HEADER_BUDGET_BYTES)
 }
 
 impl PolicyWeights {
@@ -711,6 +711,7 @@ pub fn argmax(v: &[f32]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::normalize::RunningMeanStd;
 
     #[test]
     fn running_mean_std_matches_two_pass_statistics() {

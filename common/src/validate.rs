@@ -129,7 +129,7 @@ pub struct SiteSteps {
 impl SiteSteps {
     /// The per-step site shape of a configuration (`None` unless `env.site_every_step` with the
     /// learned association).
-    pub fn of(cfg: &crate::Config) -> Option<SiteSteps> {
+    pub fn of(cfg: &crate::config::Config) -> Option<SiteSteps> {
         let e = &cfg.env;
         (e.site_every_step && e.association == crate::config::Association::Learned).then(|| {
             SiteSteps {

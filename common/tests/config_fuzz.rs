@@ -4,8 +4,7 @@
 //! arguments. [`Config::from_toml_str`] must never panic, every error must name the file (or the
 //! `--set` argument) and, where the input has one, the key; valid input must still load.
 
-use dupac_common::Config;
-use dupac_common::config::ConfigError;
+use dupac_common::config::{Config, ConfigError};
 use proptest::prelude::*;
 
 const ORIGIN: &str = "fuzz-origin.toml";

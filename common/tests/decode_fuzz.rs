@@ -5,11 +5,12 @@
 //! episode lists, site vectors) are decoded under a counting allocator, and what decoding
 //! allocates must stay within the budget derived from the configuration.
 
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::{
-    ChunkExpect, ControlMsg, EnvTrajectory, EpisodeSummary, Header, MsgLimits, Outcome, StatsMsg,
-    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, validate_chunk,
+    ControlMsg, EnvTrajectory, EpisodeSummary, Header, MsgLimits, Outcome, StatsMsg,
+    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
+use dupac_common::validate::{ChunkExpect, validate_chunk};
 use proptest::prelude::*;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

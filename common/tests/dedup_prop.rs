@@ -2,8 +2,8 @@
 //! deliveries, losses, duplicates and replays of earlier chunks, no chunk is accepted twice,
 //! and every chunk delivered for the first time in its sender's order is accepted.
 
-use dupac_common::ActorId;
 use dupac_common::dedup::{MAX_INCARNATIONS, SeqTracker, Verdict};
+use dupac_common::ids::ActorId;
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 

@@ -3,15 +3,12 @@
 //! fails validation with a message or acts without a panic (a NaN `obs_norm.clip` used to panic
 //! every actor and pilot that received it).
 
-use dupac_common::ActorId;
-use dupac_common::msg::{
-    ChunkExpect, DropReason, Header, MsgLimits, SiteSteps, WeightsMsg, decode_msg, encode_msg,
-    validate_weights,
-};
+use dupac_common::ids::ActorId;
+use dupac_common::msg::{Header, MsgLimits, WeightsMsg, decode_msg, encode_msg};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
 use dupac_common::obs::OBS_VERSION;
-use dupac_common::policy::{
-    Dense, MOVE_DIM, Mlp, ObsNormalizer, PolicyWeights, RewardScaler, Scratch,
-};
+use dupac_common::policy::{Dense, MOVE_DIM, Mlp, PolicyWeights, Scratch};
+use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps, validate_weights};
 use proptest::prelude::*;
 
 const OBS: usize = 6;

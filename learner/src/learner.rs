@@ -15,13 +15,12 @@ use crate::gae::{Trajectory, gae};
 use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
 use crate::source::{Progress, SourceError, TrajectorySource};
-use dupac_common::ActorId;
 use dupac_common::config::{Config, SiteGradient, SiteHead};
+use dupac_common::ids::ActorId;
 use dupac_common::metric;
 use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
-use dupac_common::policy::{
-    MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead as PlainSiteHead,
-};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch, SiteHead as PlainSiteHead};
 use dupac_common::seed::stream_seed;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -1,5 +1,5 @@
 //! The DUPAC learner: the actor-critic on burn, GAE, the PPO update, checkpoints and policy
-//! files, and [`Learner`], the update fed by a [`TrajectorySource`]. It depends on the contract
+//! files, and [`learner::Learner`], the update fed by a [`source::TrajectorySource`]. It depends on the contract
 //! (`dupac-common`) and burn only: no environment, no radio, no network.
 
 pub mod checkpoint;
@@ -9,6 +9,3 @@ pub mod model;
 pub mod ppo;
 pub mod source;
 pub mod synthetic;
-
-pub use learner::{IterationReport, Learner, MetricsRow, Segment, Timings, TrainError};
-pub use source::{Collected, Progress, SourceError, Sourced, TrajectorySource};

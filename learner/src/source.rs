@@ -3,9 +3,9 @@
 //! updates on it and hands the new weights back; it never sees an environment. Two sources
 //! exist: local rollout workers on threads (`dupac_run::local::LocalWorkers`, `dupac train
 //! --single-process`) and trajectory chunks received over Zenoh
-//! (`dupac_dist::source::ZenohSource`, `dupac learner`).
+//! (`dupac_node::source::ZenohSource`, `dupac learner`).
 
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::EnvTrajectory;
 use dupac_common::policy::PolicyWeights;
 use std::collections::BTreeMap;

@@ -6,9 +6,8 @@
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use dupac_common::policy::{
-    HALF_LN_2PI, MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler, Scratch, SiteHead,
-};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+use dupac_common::policy::{HALF_LN_2PI, MOVE_DIM, PolicyWeights, Scratch, SiteHead};
 use dupac_learner::checkpoint::{
     CheckpointMeta, load_checkpoint, load_policy, save_checkpoint, save_policy,
 };
@@ -520,9 +519,9 @@ fn real_weights_fit_the_limits_derived_from_the_configuration() {
         cfg.ppo.hidden = hidden;
         let n_sites = 30;
         let obs_dim = ObsLayout::new(&cfg.env.observation, n_sites).len();
-        let learner = dupac_learner::Learner::new(cfg.clone(), obs_dim, n_sites, &device);
+        let learner = dupac_learner::learner::Learner::new(cfg.clone(), obs_dim, n_sites, &device);
         let msg = WeightsMsg {
-            header: Header::new("r", 1, dupac_common::ActorId::LEARNER, 2),
+            header: Header::new("r", 1, dupac_common::ids::ActorId::LEARNER, 2),
             policy: learner.policy(),
         };
         let bytes = encode_msg(&msg).expect("encode");

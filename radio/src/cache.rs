@@ -22,9 +22,9 @@
 
 use crate::error::RadioError;
 use crate::world::RadioWorld;
-use dupac_common::SiteId;
 use dupac_common::config::CacheConfig;
 use dupac_common::geometry::{Bounds2, Point};
+use dupac_common::ids::SiteId;
 use memmap2::Mmap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

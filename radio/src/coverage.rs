@@ -1,8 +1,7 @@
 //! Coverage maps: best-server RSRP on horizontal slices (issue 2, paper Fig. 2(b)).
 
-use dupac_common::SiteId;
-use dupac_common::geometry::Bounds2;
-use dupac_common::geometry::Point;
+use dupac_common::geometry::{Bounds2, Point};
+use dupac_common::ids::SiteId;
 
 /// One horizontal slice of the best-server map. Cell `(ix, iy)` has its centre at
 /// `(x0_m + (ix + 0.5)·resolution_m, y0_m + (iy + 0.5)·resolution_m)`; arrays are row-major with

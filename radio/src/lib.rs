@@ -20,5 +20,3 @@ pub mod link_calc;
 pub mod pathloss;
 pub mod sites;
 pub mod world;
-
-pub use error::RadioError;

@@ -8,7 +8,7 @@ use crate::city::City;
 use crate::link::{LinkModel, Transmitter};
 use crate::pathloss::Scenario;
 use crate::world::RadioWorld;
-use dupac_common::Config;
+use dupac_common::config::Config;
 use dupac_common::geometry::Point;
 use serde::Deserialize;
 use std::io::{BufRead, Write};

@@ -1,8 +1,8 @@
 //! Ground base stations (GBS): plain data, placement from LTE cell estimates, and user sites files.
 
 use crate::pathloss::Scenario;
-use dupac_common::SiteId;
 use dupac_common::geometry::Point;
+use dupac_common::ids::SiteId;
 use serde::{Deserialize, Serialize};
 
 /// Site class (spec/radio.md §5 item 10): `macro` when the antenna is above the surrounding

@@ -6,9 +6,9 @@ use crate::city::City;
 use crate::error::RadioError;
 use crate::link::{LinkBudget, LinkModel, Transmitter};
 use crate::sites::{Site, place_sites};
-use dupac_common::SiteId;
 use dupac_common::config::{Config, RadioConfig};
 use dupac_common::geometry::Point;
+use dupac_common::ids::SiteId;
 
 /// City, sites and radio model, ready for link queries.
 #[derive(Debug, Clone)]

@@ -8,9 +8,9 @@
 
 use dupac_common::config::{BuildingDetail, CityKind, Config, ScenarioConfig};
 use dupac_common::geometry::Bounds2;
-use dupac_radio::RadioError;
 use dupac_radio::city::osm::parse_buildings;
 use dupac_radio::city::{Building, City};
+use dupac_radio::error::RadioError;
 use dupac_radio::geo::LocalProjection;
 use dupac_radio::sites::{SiteSpec, place_sites, read_cells_csv, read_sites_file};
 use proptest::prelude::*;

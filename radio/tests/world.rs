@@ -1,9 +1,9 @@
 //! Integration tests of the radio world: sites, links with geometric LoS, coverage and the cache,
 //! on hand-built geometry and on the procedural city.
 
-use dupac_common::SiteId;
 use dupac_common::config::{CityKind, Config};
 use dupac_common::geometry::{Bounds2, Point};
+use dupac_common::ids::SiteId;
 use dupac_radio::cache::{GridSpec, Opened, RsrpCache, RsrpSource};
 use dupac_radio::city::{Building, City};
 use dupac_radio::class::RsrpClass;

@@ -17,15 +17,15 @@ pub enum RunError {
     /// A refusal with its reason (a run directory in use, nothing to train on, …).
     #[error("{0}")]
     Refused(String),
-    /// A renderer of the binary (the learning curves) failed.
+    /// The learning curves' renderer ([`crate::run_dir::CurveRenderer`]) failed.
     #[error(transparent)]
     Plot(BoxError),
     #[error(transparent)]
-    Train(#[from] dupac_learner::TrainError),
+    Train(#[from] dupac_learner::learner::TrainError),
     #[error(transparent)]
     Checkpoint(#[from] dupac_learner::checkpoint::CheckpointError),
     #[error(transparent)]
-    Radio(#[from] dupac_radio::RadioError),
+    Radio(#[from] dupac_radio::error::RadioError),
     #[error(transparent)]
     Pairs(#[from] dupac_actor::pairs::PairsError),
     #[error(transparent)]

@@ -4,10 +4,10 @@
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
 use dupac_actor::env::Env;
-use dupac_actor::metrics::EpisodeSummary;
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::fly_policy;
-use dupac_common::Config;
+use dupac_common::config::Config;
+use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::PolicyWeights;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;

@@ -1,18 +1,19 @@
 //! One scripted flight's record, as `dupac plan` and `dupac fly` report it: its summary
 //! against the shortest path ([`FlightSummary`], the Markdown table), the per-step CSV
-//! (`steps.csv`, the columns evaluation re-plots from) and the best RSRP at a point.
+//! (`steps.csv`, the columns evaluation re-plots from), the policy version of each step of a
+//! flight with live weights (`versions.csv`) and the best RSRP at a point.
 
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
-use dupac_actor::env::{Env, Outcome, StepInfo};
-use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
+use dupac_actor::env::{Env, StepInfo};
+use dupac_actor::metrics::EpisodeAccumulator;
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{Flight, fly_waypoints};
 use dupac_actor::planner::Planner;
-use dupac_common::Config;
-use dupac_common::config::Association;
+use dupac_common::config::{Association, Config};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
+use dupac_common::msg::{EpisodeSummary, Outcome};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::world::RadioWorld;
@@ -157,6 +158,36 @@ pub fn write_steps_csv(path: &std::path::Path, steps: &[StepInfo]) -> Result<(),
     Ok(())
 }
 
+/// Writes `versions.csv`: the policy version that chose each step's action (`step,
+/// policy_version`, one row per step of `steps`; `versions[i]` is step `i`'s), atomically.
+pub fn write_versions_csv(
+    path: &std::path::Path,
+    steps: &[StepInfo],
+    versions: &[u64],
+) -> Result<(), RunError> {
+    let mut csv = String::from("step,policy_version\n");
+    for (s, v) in steps.iter().zip(versions) {
+        let _ = writeln!(csv, "{},{v}", s.step);
+    }
+    write_atomic_with(path, |w| w.write_all(csv.as_bytes()))?;
+    Ok(())
+}
+
+/// The line a flight with live weights adds to its summary: the distinct policy versions that
+/// acted (ascending) and how many times the version changed between steps.
+pub fn versions_md(versions: &[u64]) -> String {
+    let distinct: std::collections::BTreeSet<u64> = versions.iter().copied().collect();
+    format!(
+        "\npolicy versions used: {} ({} swaps mid-flight; per step in versions.csv)\n",
+        distinct
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        versions.windows(2).filter(|w| w[0] != w[1]).count()
+    )
+}
+
 /// The Markdown table of episode summaries `rows` (label, summary) under `title` (what `dupac
 /// fly` prints and writes).
 pub fn episodes_md(title: &str, rows: &[(&str, &EpisodeSummary)]) -> String {
@@ -206,4 +237,17 @@ pub fn shortest_with_a3(
     flight.steps.iter().for_each(|s| acc.push(s));
     let summary = acc.finish(p.id, p.shortest_m, flight.outcome);
     Ok((flight, summary))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn versions_md_lists_the_distinct_versions_and_counts_the_swaps() {
+        assert_eq!(
+            versions_md(&[3, 3, 5, 5, 3]),
+            "\npolicy versions used: 3, 5 (2 swaps mid-flight; per step in versions.csv)\n"
+        );
+    }
 }

@@ -13,8 +13,8 @@
 use crate::scenario::guide_clearance_m;
 use dupac_actor::env::PathGuide;
 use dupac_actor::pairs::Pair;
-use dupac_common::Config;
 use dupac_common::codec;
+use dupac_common::config::Config;
 use dupac_common::fingerprint::Fnv64;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

@@ -16,5 +16,3 @@ pub mod progress;
 pub mod run_dir;
 pub mod scenario;
 pub mod train_loop;
-
-pub use error::{Context, RunError};

@@ -4,7 +4,7 @@
 //! the learner's memory over a long run stays flat to within megabytes (the soak test of
 //! docs/reliability.md checks it).
 
-use dupac_learner::MetricsRow;
+use dupac_learner::learner::MetricsRow;
 use std::collections::HashMap;
 
 #[derive(Debug, Default)]

@@ -2,7 +2,7 @@
 //! version, updates/s, env steps/s in total and per actor, policy lag, drops by reason,
 //! training and domain metrics.
 
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::metric;
 use dupac_common::msg::{ActorStats, LearnerStats};
 use std::collections::BTreeMap;

@@ -5,15 +5,16 @@
 
 use crate::error::{BoxError, Context, RunError};
 use crate::metrics_table::MetricsTable;
-use dupac_common::Config;
+use dupac_common::config::Config;
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::metric;
 use dupac_learner::checkpoint::{LoadedCheckpoint, load_checkpoint, save_policy};
-use dupac_learner::{Learner, MetricsRow};
+use dupac_learner::learner::{Learner, MetricsRow};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Draws the learning curves of a run's rows into a PNG (the binary's plot module).
+/// Draws the learning curves of a run's rows into a PNG (`dupac_plot::curves::renderer`, passed
+/// in by the binary: `dupac-plot` depends on this crate, not the other way).
 pub type CurveRenderer = Box<dyn Fn(&MetricsTable, &Path) -> Result<(), BoxError>>;
 
 /// The checkpoint to resume from (`--resume [--checkpoint FILE]`), or an error when a run

@@ -9,8 +9,7 @@ use dupac_actor::pairs::{
     Pair, attach_paths, eval_pairs, plan_path, read_pairs_jsonl, training_pool, write_pairs_jsonl,
 };
 use dupac_actor::planner::Planner;
-use dupac_common::Config;
-use dupac_common::config::RadioMode;
+use dupac_common::config::{Config, RadioMode};
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;

@@ -10,12 +10,13 @@
 
 use crate::error::RunError;
 use crate::run_dir::RunOutput;
-use dupac_actor::metrics::{EpisodeSummary, domain_stats, put_domain};
-use dupac_common::Config;
-use dupac_common::config::Association;
+use dupac_actor::metrics::{domain_stats, put_domain};
+use dupac_common::config::{Association, Config};
 use dupac_common::metric;
+use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::PolicyWeights;
-use dupac_learner::{Learner, MetricsRow, TrajectorySource};
+use dupac_learner::learner::{Learner, MetricsRow};
+use dupac_learner::source::TrajectorySource;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -82,7 +83,7 @@ pub fn train(
         }
         source
             .report(&row, &learner.progress(), last)
-            .map_err(dupac_learner::TrainError::Source)?;
+            .map_err(dupac_learner::learner::TrainError::Source)?;
         if interrupted {
             break;
         }
@@ -98,7 +99,7 @@ pub fn train(
     };
     source
         .finish(&learner.progress(), finish == Finish::Completed)
-        .map_err(dupac_learner::TrainError::Source)?;
+        .map_err(dupac_learner::learner::TrainError::Source)?;
     Ok(finish)
 }
 

@@ -3,8 +3,7 @@
 
 use dupac_actor::pairs::{Pair, training_pool};
 use dupac_actor::planner::Planner;
-use dupac_common::Config;
-use dupac_common::config::{CityKind, RadioMode};
+use dupac_common::config::{CityKind, Config, RadioMode};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use dupac_run::guide_cache::GuideCache;

@@ -6,8 +6,8 @@ use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
-use dupac_common::ActorId;
-use dupac_dist::actor::{ActorOptions, run_actor};
+use dupac_common::ids::ActorId;
+use dupac_node::actor::{ActorOptions, run_actor};
 use dupac_run::scenario::{guide_pairs_cached, make_pool, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -70,7 +70,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         max_chunks: args.max_chunks,
         replay: match &args.replay {
             Some(p) => Some(Arc::new(
-                dupac_dist::actor::read_recording(p)
+                dupac_node::actor::read_recording(p)
                     .with_context(|| format!("--replay {}", p.display()))?,
             )),
             None => None,

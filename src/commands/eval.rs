@@ -5,12 +5,12 @@
 //! ping-pongs, SINR, a Pareto plot of distance overhead against time in excellent RSRP, CSVs of
 //! every figure, and `report.md` with the paper's numbers beside ours (issue 6). `--report-only`
 //! recomputes the report from the saved step records without flying. Flying, records and
-//! statistics live in `dupac_run::eval`; the figures in `plot::eval`.
+//! statistics live in `dupac_run::eval`; the figures in `dupac_plot::eval`.
 
 use crate::GlobalArgs;
-use crate::plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_pareto};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use dupac_plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_pareto};
 use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
 use dupac_run::eval::records::read_records;
@@ -89,7 +89,7 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     if files.is_empty() {
         bail!("{}: no records to report on", records_dir.display());
     }
-    crate::plot::ensure_font()?;
+    dupac_plot::ensure_font()?;
     let (methods, bins) = write_tables(&args.out, &files, &args.dupac_label, &args.base_label)?;
     draw_fig3(&args.out, &methods, &bins)?;
     draw_fig4(&args.out, &methods, &bins)?;

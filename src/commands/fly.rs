@@ -4,20 +4,21 @@
 
 use crate::GlobalArgs;
 use crate::io::write_atomic;
-use crate::plot::plan::render_world_plan;
-use crate::plot::plan::trace_of;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use dupac_actor::env::{Env, Outcome, StepInfo};
+use dupac_actor::env::{Env, StepInfo};
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
-use dupac_dist::actor::Follower;
-use dupac_dist::follow::fly_following;
+use dupac_common::msg::Outcome;
 use dupac_learner::checkpoint::load_policy;
+use dupac_node::actor::Follower;
+use dupac_node::follow::fly_following;
+use dupac_plot::plan::{render_world_plan, trace_of};
 use dupac_radio::class::RsrpThresholds;
-use dupac_run::flights::{env_rsrp_at, episodes_md, shortest_with_a3, write_steps_csv};
+use dupac_run::flights::{
+    env_rsrp_at, episodes_md, shortest_with_a3, versions_md, write_steps_csv, write_versions_csv,
+};
 use dupac_run::scenario::world_and_cache;
-use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -166,27 +167,13 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         &args.out.join("fly.png"),
     )?;
     write_steps_csv(&args.out.join("steps.csv"), &steps)?;
-    let mut vcsv = String::from("step,policy_version\n");
-    for (s, v) in steps.iter().zip(&versions) {
-        let _ = writeln!(vcsv, "{},{v}", s.step);
-    }
-    write_atomic(&args.out.join("versions.csv"), vcsv.as_bytes())?;
-    let distinct: std::collections::BTreeSet<u64> = versions.iter().copied().collect();
+    write_versions_csv(&args.out.join("versions.csv"), &steps, &versions)?;
     let mut md = episodes_md(
         &title,
         &[(method, &summary), ("shortest path (A3)", &base_summary)],
     );
     if follower.is_some() {
-        let _ = writeln!(
-            md,
-            "\npolicy versions used: {} ({} swaps mid-flight; per step in versions.csv)",
-            distinct
-                .iter()
-                .map(|v| v.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            versions.windows(2).filter(|w| w[0] != w[1]).count()
-        );
+        md.push_str(&versions_md(&versions));
     }
     write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");

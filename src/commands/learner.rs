@@ -11,8 +11,8 @@ use crate::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
 use dupac_common::msg::MsgLimits;
-use dupac_dist::learner::{LearnerNode, new_incarnation};
-use dupac_dist::source::ZenohSource;
+use dupac_node::learner::{LearnerNode, new_incarnation};
+use dupac_node::source::ZenohSource;
 use std::process::ExitCode;
 
 #[derive(Args, Debug)]

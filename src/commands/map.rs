@@ -41,7 +41,9 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
     );
     let server = match args.site {
         None => Server::Best,
-        Some(id) if usize::from(id) < world.num_sites() => Server::Site(dupac_common::SiteId(id)),
+        Some(id) if usize::from(id) < world.num_sites() => {
+            Server::Site(dupac_common::ids::SiteId(id))
+        }
         Some(id) => anyhow::bail!(
             "--site {id}: the scenario has sites 0..{}",
             world.num_sites() - 1
@@ -63,7 +65,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         let ny = ((world.city.area_m.max_m.y - world.city.area_m.min_m.y) / cfg.map.resolution_m)
             .floor()
             .max(1.0) as u64;
-        let pb = super::progress_bar(ny, &format!("map at {alt} m"), global.quiet);
+        let pb = dupac_run::progress::progress_bar(ny, &format!("map at {alt} m"), global.quiet);
         let slice = compute_slice(
             &world,
             server,
@@ -84,7 +86,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
             cfg.map.resolution_m,
             world.num_sites()
         );
-        crate::plot::render_coverage_png(
+        dupac_plot::coverage::render_coverage_png(
             &slice,
             &world.city.buildings,
             &world.sites,

@@ -16,5 +16,3 @@ pub mod radio;
 pub mod run_args;
 pub mod train;
 pub mod training;
-
-pub use dupac_run::progress::progress_bar;

@@ -7,7 +7,7 @@ use super::net::{ConnectArgs, stop_flag};
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{ActorStats, LearnerStats, StatsMsg, decode_msg};
 use dupac_run::monitor::render;

@@ -4,7 +4,7 @@
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use dupac_dist::net::{ConnectOpts, Mode};
+use dupac_node::net::{ConnectOpts, Mode};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -69,7 +69,7 @@ impl ConnectArgs {
         loop {
             match opts.open() {
                 Ok(s) => return Ok(s),
-                Err(dupac_dist::net::NetError::Open(e)) if !stop.load(Ordering::Relaxed) => {
+                Err(dupac_node::net::NetError::Open(e)) if !stop.load(Ordering::Relaxed) => {
                     if !logged {
                         tracing::warn!("cannot join the zenoh network yet ({e}); retrying");
                         logged = true;

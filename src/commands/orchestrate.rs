@@ -116,7 +116,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         ..ConnectArgs::default()
     };
     let total = cfg.train.total_timesteps;
-    let pb = super::progress_bar(total, "timesteps", global.quiet);
+    let pb = dupac_run::progress::progress_bar(total, "timesteps", global.quiet);
     let keys = KeySpace::new(&cfg.distributed.run);
     // Connected lazily: the learner may still be starting, or may fail before it listens.
     let mut session: Option<zenoh::Session> = None;

@@ -3,7 +3,6 @@
 
 use crate::GlobalArgs;
 use crate::io::write_atomic;
-use crate::plot::plan::{render_world_plan, trace_of};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode, PathGuide};
@@ -12,6 +11,7 @@ use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
 use dupac_common::geometry::{Point, distance_m as dist};
+use dupac_plot::plan::{render_world_plan, trace_of};
 use dupac_radio::cache::{RsrpCache, RsrpSource};
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
@@ -86,7 +86,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         .context("planning the shortest flyable path")?;
     // The radio map only after the endpoints are known to be good (it may take a while).
     let grid_rows = dupac_radio::cache::GridSpec::covering(world.city.area_m, &cfg.cache).ny;
-    let pb = super::progress_bar(grid_rows as u64, "RSRP cache", global.quiet);
+    let pb = dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.quiet);
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     let cache: Arc<dyn RsrpSource + Send + Sync> = Arc::new(cache);

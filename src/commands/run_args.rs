@@ -4,10 +4,9 @@
 use crate::GlobalArgs;
 use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
-use dupac_common::Config;
-use dupac_common::config::Association;
+use dupac_common::config::{Association, Config};
 use dupac_common::metric;
-use dupac_learner::MetricsRow;
+use dupac_learner::learner::MetricsRow;
 use std::path::PathBuf;
 
 /// Which association the policy trains with (`env.association`).

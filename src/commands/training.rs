@@ -8,8 +8,9 @@ use crate::GlobalArgs;
 use anyhow::Result;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
-use dupac_common::Config;
-use dupac_learner::{Learner, TrajectorySource};
+use dupac_common::config::Config;
+use dupac_learner::learner::Learner;
+use dupac_learner::source::TrajectorySource;
 use dupac_radio::world::RadioWorld;
 use dupac_run::evaluate::evaluate;
 use dupac_run::local::LocalWorkers;
@@ -79,7 +80,7 @@ impl Training {
             "{method}, seed {}: {}{how}",
             cfg.train.seed, world.city.name
         );
-        let out = RunOutput::open(&cfg, learner.update, crate::plot::curves::renderer(title))?;
+        let out = RunOutput::open(&cfg, learner.update, dupac_plot::curves::renderer(title))?;
         Ok(Training {
             cfg,
             world,

@@ -4,7 +4,7 @@
 //! they run in parallel.
 
 use crate::support::*;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::{ActorState, LearnerStats, encode_msg};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -670,8 +670,8 @@ fn last_weights_before_stop(round: u32) -> u64 {
     use dupac_common::keys::KeySpace;
     use dupac_common::msg::{MsgLimits, WeightsMsg, decode_msg};
     use dupac_common::obs::ObsLayout;
-    use dupac_dist::learner::LearnerNode;
-    use dupac_dist::net::{ConnectOpts, Mode};
+    use dupac_node::learner::LearnerNode;
+    use dupac_node::net::{ConnectOpts, Mode};
     use std::sync::mpsc;
     use zenoh::Wait;
 

@@ -3,7 +3,7 @@
 //! checkpoint write, and a disk that fills up under a run.
 
 use crate::support::*;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::ActorState;
 use std::path::Path;
 use std::process::Command;
@@ -451,7 +451,8 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
     let config = write_config(dir.path(), "faults-hostile-config", 1000);
     let pairs_out = dir.path().join("pairs.jsonl").display().to_string();
     let defaults: toml::Table =
-        toml::from_str(&dupac_common::Config::default().to_toml_string()).expect("defaults");
+        toml::from_str(&dupac_common::config::Config::default().to_toml_string())
+            .expect("defaults");
     let mut keys = Vec::new();
     fn walk(prefix: &str, t: &toml::Table, out: &mut Vec<String>) {
         for (k, v) in t {

@@ -5,7 +5,7 @@
 //! process without a certificate.
 
 use crate::support::*;
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{
     ActorState, Command as Control, ControlMsg, Header, WeightsMsg, decode_msg, encode_msg,

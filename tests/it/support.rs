@@ -3,7 +3,7 @@
 //! [`small_run_args`], a policy trained once per binary: [`trained_run`]), a small procedural run config, child processes killed when a test ends, and
 //! the test's own Zenoh client (stats watcher and rogue publisher).
 
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{
     EnvTrajectory, Header, LearnerStats, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg,

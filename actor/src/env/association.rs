@@ -1,7 +1,7 @@
 //! How the serving GBS is chosen each step (spec/env.md "Association").
 
-use dupac_common::SiteId;
 use dupac_common::config::Association;
+use dupac_common::ids::SiteId;
 use dupac_radio::a3::{A3Params, A3State};
 
 /// Association state of one episode.

@@ -1,11 +1,11 @@
 //! What every step reports besides the observation: the record evaluation is built from.
 
-use dupac_common::SiteId;
 use dupac_common::geometry::Point;
+use dupac_common::ids::SiteId;
 use dupac_radio::class::RsrpClass;
 use serde::{Deserialize, Serialize};
 
-pub use dupac_common::msg::Outcome;
+use dupac_common::msg::Outcome;
 
 /// One step's record (spec/env.md "Metrics").
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

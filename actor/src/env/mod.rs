@@ -17,12 +17,13 @@ mod reward;
 use crate::metrics::HandoverCounter;
 pub use association::{Associator, argmax};
 pub use guide::{GuideFix, PathGuide};
-pub use info::{Outcome, StepInfo};
+pub use info::StepInfo;
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 
-use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config, EnvConfig, Progress};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
+use dupac_common::ids::SiteId;
+use dupac_common::msg::Outcome;
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS, field};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;

@@ -3,9 +3,9 @@
 //! per-site features the equivariant site head reads, written once per decision.
 
 use super::{Env, RSRP_FLOOR_DBM, argmax};
-use dupac_common::SiteId;
 use dupac_common::config::{NearestObstacle, SiteLos};
 use dupac_common::geometry::{Bounds2, Point, Vector};
+use dupac_common::ids::SiteId;
 use dupac_common::obs::{site_feature, site_features_per_site};
 
 impl Env {

@@ -1,6 +1,5 @@
 use super::*;
-use dupac_common::Config;
-use dupac_common::config::{CityKind, ScenarioConfig};
+use dupac_common::config::{CityKind, Config, ScenarioConfig};
 use dupac_radio::city::Building;
 
 /// A box building `[x0, x1] × [y0, y1] × [z0, z1]` (CCW ring).

@@ -1,4 +1,4 @@
-//! DUPAC over Zenoh (issue 5): the only crate that names zenoh.
+//! The zenoh nodes of the actor and learner processes: the only crate that names zenoh.
 //!
 //! - [`net`]: the connection options every process takes (zenoh's examples' shared arguments).
 //! - [`actor`]: an actor process's node: environments stepped with the newest weights,

@@ -2,15 +2,16 @@
 //! (`distributed.actor_envs` 4 × `chunk_steps` 128 steps, 101 observations, 30 sites) and a
 //! weights message of the default network (2 × 256 tanh actor and critic).
 //!
-//! Run: `cargo bench --bench dist`.
+//! Run: `cargo bench --bench node`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use dupac_common::ActorId;
+use dupac_common::ids::ActorId;
 use dupac_common::msg::{
-    ChunkExpect, EnvTrajectory, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
-    validate_chunk,
+    EnvTrajectory, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
-use dupac_common::policy::{MOVE_DIM, ObsNormalizer, PolicyWeights, RewardScaler};
+use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights};
+use dupac_common::validate::{ChunkExpect, validate_chunk};
 use dupac_learner::model::init_plain;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -131,5 +132,5 @@ fn benches(c: &mut Criterion) {
     eprintln!("chunk {} bytes, weights {} bytes", bytes.len(), wb.len());
 }
 
-criterion_group!(dist, benches);
-criterion_main!(dist);
+criterion_group!(node, benches);
+criterion_main!(node);

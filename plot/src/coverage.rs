@@ -1,61 +1,30 @@
-//! Coverage maps as PNG (issue 2, paper Fig. 2(b)): a best-server RSRP heatmap of one horizontal
+//! Coverage maps as PNG (paper Fig. 2(b)): a best-server RSRP heatmap of one horizontal
 //! slice with building footprints, sites, axes in metres (equal aspect) and a colour bar.
 //!
 //! The colour scale is fixed to −130 … −50 dBm (viridis) so that maps at different altitudes are
 //! comparable; the RSRP class boundaries −80 and −100 dBm (spec/radio.md §3, the defaults of
 //! `radio.rsrp_excellent_dbm` / `radio.rsrp_poor_dbm`) are marked on the colour bar.
 
-pub mod curves;
-pub mod eval;
-pub mod plan;
-
-use anyhow::{Context, Result, anyhow, bail};
+use crate::error::{Context, PlotError, Result};
+use crate::{
+    FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, ensure_font, fmt_num, pe,
+    write_png_atomic,
+};
 use dupac_common::geometry::Bounds2;
 use dupac_radio::city::Building;
-use dupac_radio::class::{RsrpClass, RsrpThresholds};
+use dupac_radio::class::RsrpThresholds;
 use dupac_radio::coverage::CoverageSlice;
 use dupac_radio::sites::{Site, SiteKind};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::FontTransform;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use plotters::style::{FontStyle, FontTransform};
 use std::path::Path;
-use std::sync::OnceLock;
 
 /// Lower end of the colour scale (dBm); weaker values are drawn in its colour.
 pub const RSRP_SCALE_MIN_DBM: f64 = -130.0;
 /// Upper end of the colour scale (dBm); stronger values are drawn in its colour.
 pub const RSRP_SCALE_MAX_DBM: f64 = -50.0;
-/// The RSRP classes as every figure draws them (spec/radio.md §3), from the configured
-/// thresholds (`radio.rsrp_excellent_dbm`, `radio.rsrp_poor_dbm`), never from literals: each
-/// class with the band it covers between `lo_dbm` and `hi_dbm` (the plot's range) and its
-/// legend label.
-pub fn class_bands(
-    t: &RsrpThresholds,
-    lo_dbm: f64,
-    hi_dbm: f64,
-) -> [(RsrpClass, f64, f64, String); 3] {
-    [
-        (
-            RsrpClass::Excellent,
-            t.excellent_dbm,
-            hi_dbm,
-            format!("excellent (≥ {} dBm)", fmt_num(t.excellent_dbm)),
-        ),
-        (
-            RsrpClass::Mediocre,
-            t.poor_dbm,
-            t.excellent_dbm,
-            "mediocre".to_string(),
-        ),
-        (
-            RsrpClass::Poor,
-            lo_dbm,
-            t.poor_dbm,
-            format!("poor (< {} dBm)", fmt_num(t.poor_dbm)),
-        ),
-    ]
-}
 
 /// Image width and largest height (px); the height shrinks for areas wider than tall.
 const WIDTH: u32 = 1400;
@@ -70,52 +39,6 @@ const SIDE_W: i32 = 270;
 const MARGIN: i32 = 14;
 const X_LABEL_AREA: i32 = 78;
 const Y_LABEL_AREA: i32 = 100;
-pub(crate) const FONT: &str = "sans-serif";
-
-/// The one palette of every figure. RSRP classes (ColorBrewer-like green / orange / red, in
-/// [`RsrpClass::ALL`] order) wherever a class is drawn.
-pub(crate) const CLASS_COLOURS: [RGBColor; 3] = [
-    RGBColor(26, 152, 80),
-    RGBColor(240, 140, 20),
-    RGBColor(215, 25, 35),
-];
-/// Series of a chart (methods, metrics): matplotlib's tab10.
-pub(crate) const SERIES: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
-/// Paths drawn over class-coloured segments (plan figures): away from the class colours.
-pub(crate) const TRACES: [RGBColor; 6] = [
-    RGBColor(30, 80, 190),
-    RGBColor(150, 45, 170),
-    RGBColor(25, 25, 25),
-    RGBColor(0, 165, 205),
-    RGBColor(135, 85, 50),
-    RGBColor(120, 120, 120),
-];
-
-/// The colour of an RSRP class.
-pub(crate) fn class_colour(c: RsrpClass) -> RGBColor {
-    CLASS_COLOURS[c.index()]
-}
-
-/// The colour of chart series `i`.
-pub(crate) fn series_colour(i: usize) -> RGBColor {
-    SERIES[i % SERIES.len()]
-}
-
-/// The colour of plan path `i`.
-pub(crate) fn trace_colour(i: usize) -> RGBColor {
-    TRACES[i % TRACES.len()]
-}
 const TITLE_PX: f64 = 32.0;
 /// Height of the title strip (px).
 const TITLE_H: i32 = 64;
@@ -128,8 +51,6 @@ const OUTSIDE_GRID: RGBColor = RGBColor(235, 235, 235);
 const OUTLINE: RGBColor = RGBColor(35, 35, 35);
 const TALL_FILL: RGBColor = RGBColor(70, 70, 70);
 const TALL_ALPHA: f64 = 0.45;
-const MACRO_FILL: RGBColor = RGBColor(230, 35, 55);
-const MICRO_FILL: RGBColor = RGBColor(255, 255, 255);
 
 /// Matplotlib's viridis at 0, 0.1, …, 1 (perceptually uniform, colour-blind safe).
 const VIRIDIS: [[u8; 3]; 11] = [
@@ -168,80 +89,6 @@ fn rsrp_colour(rsrp_dbm: f64) -> RGBColor {
     }
     viridis((rsrp_dbm - RSRP_SCALE_MIN_DBM) / (RSRP_SCALE_MAX_DBM - RSRP_SCALE_MIN_DBM))
 }
-
-/// Registers the bundled DejaVu Sans as `sans-serif` (the ab_glyph text backend has no system
-/// fonts); once per process.
-pub(crate) fn ensure_font() -> Result<()> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        plotters::style::register_font(
-            FONT,
-            FontStyle::Normal,
-            include_bytes!("../../assets/DejaVuSans.ttf"),
-        )
-        .is_ok()
-    });
-    if ok {
-        Ok(())
-    } else {
-        bail!("cannot register the bundled font assets/DejaVuSans.ttf")
-    }
-}
-
-/// Plotters' errors carry the backend type; flatten them into anyhow with a message.
-pub(crate) fn pe<E: std::fmt::Display>(e: E) -> anyhow::Error {
-    anyhow!("drawing failed: {e}")
-}
-
-/// Number with a typographic minus sign.
-pub(crate) fn fmt_num(v: f64) -> String {
-    format!("{v:.0}").replace('-', "\u{2212}")
-}
-
-/// Clips a polygon ring (open) to the rectangle `[x0, x1] × [y0, y1]` (Sutherland–Hodgman).
-pub(crate) fn clip_ring(ring: &[[f64; 2]], r: Bounds2) -> Vec<[f64; 2]> {
-    // Each edge: (axis, bound, keep if coordinate ≥ bound when `lower`).
-    let edges = [
-        (0usize, r.min_m.x, true),
-        (0, r.max_m.x, false),
-        (1, r.min_m.y, true),
-        (1, r.max_m.y, false),
-    ];
-    let mut poly: Vec<[f64; 2]> = ring.to_vec();
-    for (axis, bound, lower) in edges {
-        if poly.is_empty() {
-            break;
-        }
-        let inside = |p: &[f64; 2]| {
-            if lower {
-                p[axis] >= bound
-            } else {
-                p[axis] <= bound
-            }
-        };
-        let mut out = Vec::with_capacity(poly.len() + 4);
-        for i in 0..poly.len() {
-            let cur = poly[i];
-            let prev = poly[(i + poly.len() - 1) % poly.len()];
-            let (ci, pi) = (inside(&cur), inside(&prev));
-            if ci != pi {
-                let t = (bound - prev[axis]) / (cur[axis] - prev[axis]);
-                let mut q = [
-                    prev[0] + t * (cur[0] - prev[0]),
-                    prev[1] + t * (cur[1] - prev[1]),
-                ];
-                q[axis] = bound;
-                out.push(q);
-            }
-            if ci {
-                out.push(cur);
-            }
-        }
-        poly = out;
-    }
-    poly
-}
-
 /// Renders one coverage slice to a PNG 1400 px wide and up to 1200 px high at `path` (written to a temporary file
 /// in the same directory, then renamed).
 ///
@@ -264,20 +111,20 @@ pub fn render_coverage_png(
     let corners = area_m.to_array();
     let [x_min, y_min, x_max, y_max] = corners;
     if !(corners.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
-        bail!(
+        return Err(PlotError::Invalid(format!(
             "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
-        );
+        )));
     }
     let expected = slice.nx.checked_mul(slice.ny);
     if expected != Some(slice.rsrp_dbm.len()) {
-        bail!(
+        return Err(PlotError::Invalid(format!(
             "cannot plot {}: coverage slice has {} values for a {}×{} grid",
             path.display(),
             slice.rsrp_dbm.len(),
             slice.nx,
             slice.ny
-        );
+        )));
     }
     ensure_font()?;
 
@@ -285,24 +132,6 @@ pub fn render_coverage_png(
         draw(slice, buildings, sites, area_m, thresholds, title, tmp)
     })
     .with_context(|| format!("cannot write coverage map {}", path.display()))
-}
-
-/// Renders with `draw` into a temporary `.png` next to `path` (the bitmap encoder picks the
-/// format from the extension), then commits it like every other file
-/// ([`dupac_common::fsio::write_atomic_via_path`]): a reader never sees half a PNG.
-pub(crate) fn write_png_atomic(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let mut failure = None;
-    let written = dupac_common::fsio::write_atomic_via_path(path, |tmp| {
-        draw(tmp).map_err(|e| {
-            let io = std::io::Error::other(format!("{e:#}"));
-            failure = Some(e);
-            io
-        })
-    });
-    match (written, failure) {
-        (_, Some(e)) => Err(e),
-        (r, None) => Ok(r?),
-    }
 }
 
 /// Draws the whole figure into `file` (a .png path).
@@ -397,7 +226,7 @@ fn draw(
         }
     }
     let bitmap = BitMapElement::with_owned_buffer((base_x, base_y), (pw, ph), buf)
-        .ok_or_else(|| anyhow!("heatmap buffer has the wrong size"))?;
+        .ok_or_else(|| PlotError::Invalid("heatmap buffer has the wrong size".into()))?;
     root.draw(&bitmap).map_err(pe)?;
 
     // Buildings, clipped to the area.
@@ -482,74 +311,6 @@ fn draw(
     draw_side(&side, slice.altitude_m, thresholds, MARGIN, ph as i32)?;
 
     root.present().map_err(pe)?;
-    Ok(())
-}
-
-/// A site marker centred at pixel `c` on `area` (pixel coordinates).
-pub(crate) fn draw_site_marker(
-    area: &DrawingArea<BitMapBackend, Shift>,
-    c: (i32, i32),
-    kind: SiteKind,
-) -> Result<()> {
-    match kind {
-        SiteKind::Macro => {
-            let r = 11.0_f64;
-            let pts: Vec<(i32, i32)> = [90.0_f64, 210.0, 330.0]
-                .iter()
-                .map(|a| {
-                    let t = a.to_radians();
-                    (
-                        c.0 + (r * t.cos()).round() as i32,
-                        c.1 - (r * t.sin()).round() as i32 + 2,
-                    )
-                })
-                .collect();
-            area.draw(&Polygon::new(pts.clone(), MACRO_FILL.filled()))
-                .map_err(pe)?;
-            let mut closed = pts;
-            closed.push(closed[0]);
-            area.draw(&PathElement::new(closed, BLACK.stroke_width(2)))
-                .map_err(pe)?;
-        }
-        SiteKind::Micro => {
-            area.draw(&Circle::new(c, 7, MICRO_FILL.filled()))
-                .map_err(pe)?;
-            area.draw(&Circle::new(c, 7, BLACK.stroke_width(2)))
-                .map_err(pe)?;
-        }
-    }
-    Ok(())
-}
-
-/// Black text with a one-pixel white halo, so it reads on any colour.
-pub(crate) fn draw_halo_text(
-    area: &DrawingArea<BitMapBackend, Shift>,
-    text: &str,
-    pos: (i32, i32),
-    font: &FontDesc,
-    h: HPos,
-    v: VPos,
-) -> Result<()> {
-    let halo = font.color(&WHITE).pos(Pos::new(h, v));
-    for (ox, oy) in [
-        (-1, -1),
-        (0, -1),
-        (1, -1),
-        (-1, 0),
-        (1, 0),
-        (-1, 1),
-        (0, 1),
-        (1, 1),
-        (2, 0),
-        (-2, 0),
-        (0, 2),
-        (0, -2),
-    ] {
-        area.draw_text(text, &halo, (pos.0 + ox, pos.1 + oy))
-            .map_err(pe)?;
-    }
-    let style = font.color(&BLACK).pos(Pos::new(h, v));
-    area.draw_text(text, &style, pos).map_err(pe)?;
     Ok(())
 }
 
@@ -687,12 +448,11 @@ fn draw_side(
         .map_err(pe)?;
     Ok(())
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dupac_common::SiteId;
     use dupac_common::geometry::Point;
+    use dupac_common::ids::SiteId;
     use dupac_radio::sites::Mount;
 
     fn synthetic(n: usize, res: f64) -> (CoverageSlice, Vec<Building>, Vec<Site>, Bounds2) {
@@ -757,16 +517,6 @@ mod tests {
             sites,
             Bounds2::new(-half, -half, half, half),
         )
-    }
-
-    #[test]
-    fn clip_ring_keeps_inside_and_cuts_outside() {
-        let sq = vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-        assert_eq!(clip_ring(&sq, Bounds2::new(-2.0, -2.0, 2.0, 2.0)), sq);
-        let c = clip_ring(&sq, Bounds2::new(0.0, 0.0, 5.0, 5.0));
-        let a = dupac_radio::city::signed_area_m2(&c);
-        assert!((a - 1.0).abs() < 1e-12, "{c:?}");
-        assert!(clip_ring(&sq, Bounds2::new(3.0, 3.0, 5.0, 5.0)).is_empty());
     }
 
     #[test]

@@ -4,12 +4,11 @@
 //! decode task ([`decode_task`], on the node's network side) decodes each within its
 //! allocation budget, validates it, drops replays and queues it for PPO.
 
-use dupac_common::ActorId;
 use dupac_common::dedup::{SeqTracker, Verdict};
+use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
-use dupac_common::msg::{
-    ChunkExpect, DropReason, MsgLimits, TrajectoryChunk, decode_msg, validate_chunk,
-};
+use dupac_common::msg::{MsgLimits, TrajectoryChunk, decode_msg};
+use dupac_common::validate::{ChunkExpect, DropReason, validate_chunk};
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};

@@ -2,8 +2,8 @@
 //! bands against the distance flown, sharing the distance axis.
 
 use super::*;
-use crate::plot::{FONT, class_bands, fmt_num, pe};
-use anyhow::Result;
+use crate::error::Result;
+use crate::{FONT, class_bands, fmt_num, pe};
 use dupac_radio::class::RsrpThresholds;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 

@@ -2,7 +2,7 @@
 //! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
 use super::{FONT, series_colour};
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use dupac_common::metric;
 use dupac_run::metrics_table::MetricsTable;
 use dupac_run::run_dir::CurveRenderer;
@@ -52,8 +52,8 @@ pub fn renderer(title: String) -> CurveRenderer {
 
 /// Draws the panels of [`PANELS`] that have data into `path` (atomically).
 pub fn render_curves(rows: &MetricsTable, title: &str, path: &Path) -> Result<()> {
-    crate::plot::ensure_font()?;
-    crate::plot::write_png_atomic(path, |tmp| draw(rows, title, tmp))
+    crate::ensure_font()?;
+    crate::write_png_atomic(path, |tmp| draw(rows, title, tmp))
         .with_context(|| format!("cannot write learning curves {}", path.display()))
 }
 

@@ -7,12 +7,11 @@
 //! above the serving-RSRP profile, sharing the distance axis. Each trace keeps one identity colour
 //! throughout: the outline of its path on the map and its line in both profiles.
 
-use crate::plot::{FONT, class_colour, ensure_font, pe, trace_colour};
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, PlotError, Result};
+use crate::{FONT, class_colour, ensure_font, pe, trace_colour};
 use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::Building;
-use dupac_radio::class::RsrpClass;
-use dupac_radio::class::RsrpThresholds;
+use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::sites::Site;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -135,50 +134,50 @@ fn validate(area_m: Bounds2, traces: &[FlightTrace], path: &Path) -> Result<()> 
     let corners = area_m.to_array();
     let [x_min, y_min, x_max, y_max] = corners;
     if !(corners.iter().all(|v| v.is_finite()) && x_max > x_min && y_max > y_min) {
-        bail!(
+        return Err(PlotError::Invalid(format!(
             "cannot plot {}: flight area {area_m} is empty or not finite",
             path.display()
-        );
+        )));
     }
     for t in traces {
         let n = t.points_m.len();
         if t.serving_rsrp_dbm.len() != n || t.class.len() != n {
-            bail!(
+            return Err(PlotError::Invalid(format!(
                 "cannot plot {}: trace '{}' has {} points, {} RSRP values and {} classes",
                 path.display(),
                 t.label,
                 n,
                 t.serving_rsrp_dbm.len(),
                 t.class.len()
-            );
+            )));
         }
         if let Some(k) = t
             .points_m
             .iter()
             .position(|p| !p.iter().all(|v| v.is_finite()))
         {
-            bail!(
+            return Err(PlotError::Invalid(format!(
                 "cannot plot {}: trace '{}' has a non-finite position {:?} at point {k}",
                 path.display(),
                 t.label,
                 t.points_m[k]
-            );
+            )));
         }
         if let Some(k) = t.serving_rsrp_dbm.iter().position(|v| !v.is_finite()) {
-            bail!(
+            return Err(PlotError::Invalid(format!(
                 "cannot plot {}: trace '{}' has a non-finite RSRP {} at point {k}",
                 path.display(),
                 t.label,
                 t.serving_rsrp_dbm[k]
-            );
+            )));
         }
     }
     if !traces.iter().any(|t| t.points_m.len() >= 2) {
         let labels: Vec<&str> = traces.iter().map(|t| t.label.as_str()).collect();
-        bail!(
+        return Err(PlotError::Invalid(format!(
             "cannot plot {}: no trace has two or more points (traces: {labels:?})",
             path.display()
-        );
+        )));
     }
     Ok(())
 }
@@ -205,7 +204,7 @@ pub fn render_plan_png(
     validate(area_m, traces, path)?;
     ensure_font()?;
 
-    crate::plot::write_png_atomic(path, |tmp| {
+    crate::write_png_atomic(path, |tmp| {
         draw(buildings, sites, area_m, traces, thresholds, title, tmp)
     })
     .with_context(|| format!("cannot write path plot {}", path.display()))
@@ -502,10 +501,9 @@ pub fn trace_of(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plot::{class_bands, fmt_num};
-    use dupac_common::SiteId;
-    use dupac_radio::sites::Mount;
-    use dupac_radio::sites::SiteKind;
+    use crate::{class_bands, fmt_num};
+    use dupac_common::ids::SiteId;
+    use dupac_radio::sites::{Mount, SiteKind};
 
     fn bld(id: &str, x: f64, y: f64, w: f64, h: f64, z: f64) -> Building {
         Building {

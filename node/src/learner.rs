@@ -5,7 +5,7 @@
 //!   limit unread and queues the rest under byte budgets per sender and in total
 //!   ([`InboxBudget`]; over budget, the sender's own oldest message goes, then the biggest
 //!   holder's: `overflow`). A decode task decodes each within its allocation budget
-//!   ([`MsgLimits::chunk`], issue 16), validates it ([`dupac_common::msg::validate_chunk`]),
+//!   ([`MsgLimits::chunk`], issue 16), validates it ([`dupac_common::validate::validate_chunk`]),
 //!   drops replays ([`SeqTracker`]: at most once per (actor, sender incarnation, seq)) and
 //!   queues it for PPO (at most `distributed.queue_chunks`).
 //! * [`LearnerNode::next_batch`] takes queued chunks until the batch (`train.num_envs ×
@@ -20,15 +20,16 @@
 
 use crate::inbox::{Inbox, InboxBudget, decode_task};
 use crate::netside::{Latest, NetSide};
-use dupac_common::ActorId;
 use dupac_common::config::Config;
 use dupac_common::dedup::MAX_TRACKED_SENDERS;
+use dupac_common::ids::ActorId;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    ActorRow, ActorState, ChunkExpect, Command, ControlMsg, DropReason, Header, LearnerStats,
-    MsgLimits, SiteSteps, StatsMsg, TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
+    ActorRow, ActorState, Command, ControlMsg, Header, LearnerStats, MsgLimits, StatsMsg,
+    TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
+use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};

@@ -6,8 +6,8 @@
 
 use crate::learner::{LearnerNode, NodeError};
 use dupac_common::metric;
-use dupac_common::msg::DropReason;
 use dupac_common::policy::PolicyWeights;
+use dupac_common::validate::DropReason;
 use dupac_learner::source::{Collected, Progress, SourceError, Sourced, TrajectorySource};
 use std::collections::BTreeMap;
 use std::sync::Arc;

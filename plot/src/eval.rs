@@ -5,11 +5,12 @@
 
 use super::plan::{FlightTrace, render_world_plan};
 use super::{CLASS_COLOURS, FONT, series_colour};
-use crate::io::write_atomic_with;
-use anyhow::{Context, Result};
-use dupac_actor::env::Outcome;
-use dupac_actor::eval::{FlightMetrics, MeanCi};
+use crate::error::{Context, Result};
+use dupac_actor::eval::MeanCi;
+use dupac_actor::metrics::FlightMetrics;
+use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
+use dupac_common::msg::Outcome;
 use dupac_run::eval::records::RecordsFile;
 use dupac_run::eval::report::MethodData;
 use plotters::prelude::*;
@@ -17,7 +18,7 @@ use std::path::Path;
 
 pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
     let path = out.join("fig3.png");
-    crate::plot::write_png_atomic(&path, |tmp| {
+    crate::write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1800, 620)).into_drawing_area();
         root.fill(&WHITE)?;
         let panels = root.split_evenly((1, 3));
@@ -113,7 +114,7 @@ pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
 
 pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
     let path = out.join("fig4.png");
-    crate::plot::write_png_atomic(&path, |tmp| {
+    crate::write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1800, 700)).into_drawing_area();
         root.fill(&WHITE)?;
         let nm = data.len().max(1) as f64;
@@ -213,7 +214,7 @@ pub fn draw_pareto(out: &Path, data: &[MethodData]) -> Result<()> {
         }
         Ok(())
     })?;
-    crate::plot::write_png_atomic(&path, |tmp| {
+    crate::write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1100, 800)).into_drawing_area();
         root.fill(&WHITE)?;
         let hw = |c: &MeanCi| {

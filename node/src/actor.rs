@@ -14,15 +14,18 @@
 use crate::netside::{Every, Latest, NetSide};
 use dupac_actor::env::{Env, EnvError};
 use dupac_actor::pairs::Pair;
-use dupac_actor::rollout::{EnvTrajectory, RolloutError, Worker, stream_seed};
-use dupac_common::ActorId;
+use dupac_actor::rollout::{RolloutError, Worker};
 use dupac_common::config::Config;
+use dupac_common::ids::ActorId;
 use dupac_common::keys::{KeySpace, Role};
+use dupac_common::msg::EnvTrajectory;
 use dupac_common::msg::{
-    ActorStats, ChunkExpect, Command, ControlMsg, DropReason, Header, MsgLimits, SiteSteps,
-    StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg, unix_ms, validate_weights,
+    ActorStats, Command, ControlMsg, Header, MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg,
+    decode_msg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
+use dupac_common::seed::stream_seed;
+use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps, validate_weights};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;

@@ -2,12 +2,11 @@
 //! each path coloured by RSRP class, with its legend.
 
 use super::*;
-use crate::plot::{FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, fmt_num, pe};
-use anyhow::Result;
+use crate::error::Result;
+use crate::{FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, fmt_num, pe};
 use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::Building;
-use dupac_radio::class::RsrpClass;
-use dupac_radio::class::RsrpThresholds;
+use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::sites::{Site, SiteKind};
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -86,7 +85,7 @@ pub(super) fn draw_icon(
             ))
             .map_err(pe)?;
             let third = w / 3;
-            for (k, c) in crate::plot::CLASS_COLOURS.into_iter().enumerate() {
+            for (k, c) in crate::CLASS_COLOURS.into_iter().enumerate() {
                 let k = k as i32;
                 area.draw(&PathElement::new(
                     vec![(x + k * third, y), (x + (k + 1) * third, y)],
