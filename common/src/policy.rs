@@ -343,9 +343,10 @@ pub struct Scratch {
 /// Upper bound (bytes) on what a [`PolicyWeights`] of this shape allocates decoded (and on its
 /// encoded size): every dense layer of the actor, the critic and the site head bounded by the
 /// widest width `w` of the configuration, `(w + 1) · w` f32 parameters each, plus the
-/// observation normaliser (two f64 vectors). Loose by design (a 10× margin on the default
-/// network); it exists so that a weights message a peer sends cannot make an actor or pilot
-/// allocate more than its own configuration could ever need (issue 16).
+/// observation normaliser (two f64 vectors); the weights message adds its header
+/// (`MsgLimits::weights`). Loose by design (a 10× margin on the default network): a weights
+/// message a peer sends cannot make an actor or pilot allocate more than its own configuration
+/// could ever need.
 pub fn weights_budget_bytes(
     obs_dim: usize,
     n_sites: usize,
@@ -365,7 +366,6 @@ pub fn weights_budget_bytes(
     layers
         .saturating_mul(per_layer)
         .saturating_add(2 * size_of::<f64>() * obs_dim)
-        .saturating_add(crate::validate::HEADER_BUDGET_BYTES)
 }
 
 impl PolicyWeights {

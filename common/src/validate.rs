@@ -4,10 +4,12 @@
 //! [`DropReason`] (counted by the learner) with the detail of what was wrong ([`Rejection`]).
 
 use crate::codec::CodecError;
+use crate::config::{Association, Config};
 use crate::msg::{
-    EnvTrajectory, EpisodeSummary, Header, SCHEMA_VERSION, TrajectoryChunk, WeightsMsg,
+    EnvTrajectory, EpisodeSummary, HEADER_BUDGET_BYTES, Header, MsgLimits, SCHEMA_VERSION,
+    STATS_BUDGET_BYTES, TrajectoryChunk, WeightsMsg,
 };
-use crate::policy::MOVE_DIM;
+use crate::policy::{MOVE_DIM, weights_budget_bytes};
 use std::fmt;
 
 /// Why a received message was not used. Counted by name in [`LearnerStats::drops`].
@@ -129,13 +131,11 @@ pub struct SiteSteps {
 impl SiteSteps {
     /// The per-step site shape of a configuration (`None` unless `env.site_every_step` with the
     /// learned association).
-    pub fn of(cfg: &crate::config::Config) -> Option<SiteSteps> {
+    pub fn of(cfg: &Config) -> Option<SiteSteps> {
         let e = &cfg.env;
-        (e.site_every_step && e.association == crate::config::Association::Learned).then(|| {
-            SiteSteps {
-                per_decision: e.action_repeat as usize,
-                features: crate::obs::site_features_per_site(&e.observation),
-            }
+        (e.site_every_step && e.association == Association::Learned).then(|| SiteSteps {
+            per_decision: e.action_repeat as usize,
+            features: crate::obs::site_features_per_site(&e.observation),
         })
     }
 }
@@ -165,8 +165,61 @@ impl ChunkExpect {
     }
 }
 
-/// Decoding budget of a header and a small message (stats, control): run names are short.
-pub const HEADER_BUDGET_BYTES: usize = 64 * 1024;
+/// [`MsgLimits`] from a receiver's configuration: the most it reads of each message kind.
+impl MsgLimits {
+    /// Trajectory chunks as the learner expects them: [`ChunkExpect::budget_bytes`] for both,
+    /// never above `distributed.max_message_mib`.
+    pub fn chunk(cfg: &Config, x: &ChunkExpect) -> MsgLimits {
+        let need = x.budget_bytes();
+        MsgLimits {
+            bytes: need.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: need,
+        }
+    }
+
+    /// Weights of a policy with this configuration's networks: its
+    /// [`weights_budget_bytes`] and a header.
+    pub fn weights(cfg: &Config, obs_dim: usize, n_sites: usize) -> MsgLimits {
+        let p = &cfg.ppo;
+        let need = weights_budget_bytes(obs_dim, n_sites, &p.hidden, p.site_embed, &p.site_hidden)
+            .saturating_add(HEADER_BUDGET_BYTES);
+        MsgLimits {
+            bytes: need.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: need,
+        }
+    }
+
+    /// Stats and control messages: a header, a metrics row and one row per tracked actor.
+    pub fn small(cfg: &Config) -> MsgLimits {
+        MsgLimits {
+            bytes: STATS_BUDGET_BYTES.min(cfg.distributed.max_message_bytes()),
+            budget_bytes: STATS_BUDGET_BYTES,
+        }
+    }
+
+    /// The largest message of a run with this configuration (a router's or a session's
+    /// receive limit: zenoh's `transport/link/rx/max_message_size`).
+    pub fn run_max_bytes(cfg: &Config, obs_dim: usize, n_sites: usize) -> usize {
+        let x = ChunkExpect {
+            run_id: String::new(),
+            incarnation: 0,
+            fingerprint: 0,
+            obs_dim,
+            n_sites,
+            max_envs: cfg.distributed.actor_envs.max(cfg.train.num_envs),
+            max_steps: cfg.distributed.chunk_steps.max(cfg.train.num_steps),
+            site_steps: SiteSteps::of(cfg),
+        };
+        [
+            MsgLimits::chunk(cfg, &x).bytes,
+            MsgLimits::weights(cfg, obs_dim, n_sites).bytes,
+            MsgLimits::small(cfg).bytes,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0)
+    }
+}
 
 fn reject(reason: DropReason, detail: impl Into<String>) -> Rejection {
     Rejection {
@@ -371,4 +424,333 @@ pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ids::ActorId;
+    use crate::msg::{
+        Command, ControlMsg, EnvTrajectory, EpisodeSummary, Outcome, decode_msg, encode_msg,
+    };
+
+    fn lim(bytes: usize) -> MsgLimits {
+        MsgLimits {
+            bytes,
+            budget_bytes: bytes,
+        }
+    }
+
+    fn expect() -> ChunkExpect {
+        ChunkExpect {
+            run_id: "r".into(),
+            incarnation: 7,
+            fingerprint: 9,
+            obs_dim: 2,
+            n_sites: 3,
+            max_envs: 4,
+            max_steps: 8,
+            site_steps: None,
+        }
+    }
+
+    fn chunk() -> TrajectoryChunk {
+        let mut h = Header::new("r", 7, ActorId(1), 9);
+        h.policy_version = 3;
+        TrajectoryChunk {
+            header: h,
+            trajectories: vec![EnvTrajectory {
+                env: 0,
+                obs_dim: 2,
+                obs: vec![0.0; 4],
+                moves: vec![0.0; 6],
+                sites: vec![0, 2],
+                logprobs: vec![-1.0; 2],
+                site_logprobs: vec![0.0; 2],
+                site_rewards: vec![],
+                decision_steps: vec![],
+                step_site_features: vec![],
+                step_site_rewards: vec![],
+                values: vec![0.5; 2],
+                rewards: vec![1.0; 2],
+                terminated: vec![false, true],
+                truncated: vec![false; 2],
+                next_values: vec![0.5, 0.0],
+                bootstrap_obs: vec![0.0; 2],
+                episodes: vec![],
+            }],
+        }
+    }
+
+    #[test]
+    fn a_valid_chunk_round_trips_and_passes() {
+        let c = chunk();
+        let bytes = encode_msg(&c).expect("encode");
+        let d: TrajectoryChunk = decode_msg(&bytes, lim(1 << 20), "k").expect("decode");
+        assert_eq!(d, c);
+        assert_eq!(validate_chunk(&d, &expect()), Ok(()));
+    }
+
+    #[test]
+    fn every_defect_has_its_reason() {
+        let x = expect();
+        let reason = |f: &dyn Fn(&mut TrajectoryChunk)| {
+            let mut c = chunk();
+            f(&mut c);
+            validate_chunk(&c, &x).map_err(|r| r.reason)
+        };
+        assert_eq!(
+            reason(&|c| c.header.run_id = "x".into()),
+            Err(DropReason::WrongRun)
+        );
+        assert_eq!(
+            reason(&|c| c.header.schema_version = 0),
+            Err(DropReason::Schema)
+        );
+        assert_eq!(
+            reason(&|c| c.header.config_fingerprint = 1),
+            Err(DropReason::Fingerprint)
+        );
+        assert_eq!(
+            reason(&|c| c.header.learner_incarnation = 1),
+            Err(DropReason::Incarnation)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].obs.push(0.0)),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].sites[1] = 3),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].obs_dim = 3),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories = vec![c.trajectories[0].clone(); 5]),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].env = 4),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].rewards[0] = f32::NAN),
+            Err(DropReason::NonFinite)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].bootstrap_obs[1] = f32::INFINITY),
+            Err(DropReason::NonFinite)
+        );
+    }
+
+    #[test]
+    fn decoding_names_garbage_schema_and_size() {
+        let bytes = encode_msg(&chunk()).expect("encode");
+        let e = decode_msg::<TrajectoryChunk>(b"not a message at all", lim(1 << 20), "k")
+            .expect_err("garbage");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+        let mut old = bytes.clone();
+        old[8..12].copy_from_slice(&0u32.to_le_bytes());
+        let e = decode_msg::<TrajectoryChunk>(&old, lim(1 << 20), "k").expect_err("schema");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Schema);
+        let e = decode_msg::<TrajectoryChunk>(&bytes, lim(16), "k").expect_err("size");
+        assert_eq!(DropReason::of_codec(&e), DropReason::TooLarge);
+        let mut cut = bytes.clone();
+        cut.truncate(bytes.len() - 3);
+        let e = decode_msg::<TrajectoryChunk>(&cut, lim(1 << 20), "k").expect_err("cut");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+        // A message of another kind is not a chunk.
+        let w = encode_msg(&ControlMsg {
+            header: Header::new("r", 7, ActorId::LEARNER, 9),
+            command: Command::Stop,
+        })
+        .expect("encode");
+        let e = decode_msg::<TrajectoryChunk>(&w, lim(1 << 20), "k").expect_err("kind");
+        assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
+    }
+
+    /// A chunk with every vector at its largest: `max_envs × max_steps` steps, site rewards,
+    /// one episode per step.
+    fn maximal(x: &ChunkExpect) -> TrajectoryChunk {
+        let t = x.max_steps;
+        let summary = EpisodeSummary {
+            pair_id: u64::MAX,
+            outcome: Outcome::TimeLimit,
+            episodic_return: 1.0,
+            length: u32::MAX,
+            distance_flown_m: 1.0,
+            shortest_m: 1.0,
+            remaining_m: 1.0,
+            mean_rsrp_dbm: -70.0,
+            frac_excellent: 1.0,
+            frac_mediocre: 0.0,
+            frac_poor: 0.0,
+            handovers: u32::MAX,
+            ping_pongs: u32::MAX,
+            mean_site_regret_db: 0.0,
+            frac_site_regret_high: 0.0,
+            frac_class_regret: 0.0,
+        };
+        let mut h = Header::new(&"r".repeat(64), u64::MAX, ActorId(u32::MAX), u64::MAX);
+        h.seq = u64::MAX;
+        h.sender_incarnation = u64::MAX;
+        // Per-step site rows (every decision at its longest) or decision-level site rewards.
+        let (steps, rows, feats) = x.site_steps.map_or((0, 0, 0), |k| {
+            (k.per_decision, t * k.per_decision, k.features)
+        });
+        TrajectoryChunk {
+            header: h,
+            trajectories: (0..x.max_envs)
+                .map(|k| EnvTrajectory {
+                    env: k as u32,
+                    obs_dim: x.obs_dim,
+                    obs: vec![1.0; t * x.obs_dim],
+                    moves: vec![1.0; t * MOVE_DIM],
+                    sites: vec![x.n_sites as u32 - 1; t],
+                    logprobs: vec![1.0; t],
+                    site_logprobs: vec![1.0; t],
+                    site_rewards: if steps == 0 {
+                        vec![1.0; t * x.n_sites]
+                    } else {
+                        vec![]
+                    },
+                    decision_steps: vec![steps as u16; if steps == 0 { 0 } else { t }],
+                    step_site_features: vec![1.0; rows * x.n_sites * feats],
+                    step_site_rewards: vec![1.0; rows * x.n_sites],
+                    values: vec![1.0; t],
+                    rewards: vec![1.0; t],
+                    terminated: vec![true; t],
+                    truncated: vec![false; t],
+                    next_values: vec![1.0; t],
+                    bootstrap_obs: vec![1.0; x.obs_dim],
+                    episodes: vec![summary.clone(); t],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn the_largest_valid_chunk_fits_its_derived_limits() {
+        let x = ChunkExpect {
+            run_id: "r".repeat(64),
+            obs_dim: 404,
+            n_sites: 30,
+            max_envs: 4,
+            max_steps: 128,
+            site_steps: None,
+            ..expect()
+        };
+        let c = maximal(&x);
+        let bytes = encode_msg(&c).expect("encode");
+        let need = x.budget_bytes();
+        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
+        let limits = MsgLimits {
+            bytes: need,
+            budget_bytes: need,
+        };
+        let d: TrajectoryChunk = decode_msg(&bytes, limits, "k").expect("fits its budget");
+        assert_eq!(d.samples(), 4 * 128);
+        // The bound is not wildly loose either: within 2× of the real size.
+        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
+        // With a site chosen every step (5 steps per decision, 10 features per site).
+        let per_step = ChunkExpect {
+            site_steps: Some(SiteSteps {
+                per_decision: 5,
+                features: 10,
+            }),
+            ..x.clone()
+        };
+        let c = maximal(&per_step);
+        let bytes = encode_msg(&c).expect("encode");
+        let need = per_step.budget_bytes();
+        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
+        let d: TrajectoryChunk =
+            decode_msg(&bytes, MsgLimits::both(need), "k").expect("fits its budget");
+        assert_eq!(d, c);
+        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
+        // The per-step budget does not admit it without per-step fields expected.
+        assert!(x.budget_bytes() < bytes.len());
+    }
+
+    /// The per-step site fields (`env.site_every_step`) are checked against their shape: each
+    /// defect is refused with a message naming the field, and none is accepted when the run
+    /// does not choose the site every step.
+    #[test]
+    fn per_step_site_fields_are_checked_against_their_shape() {
+        let x = ChunkExpect {
+            site_steps: Some(SiteSteps {
+                per_decision: 2,
+                features: 4,
+            }),
+            ..expect()
+        };
+        let good = |c: &mut TrajectoryChunk| {
+            let tr = &mut c.trajectories[0];
+            tr.decision_steps = vec![2, 1];
+            tr.step_site_features = vec![0.5; 3 * 3 * 4];
+            tr.step_site_rewards = vec![-1.0; 3 * 3];
+        };
+        let mut c = chunk();
+        good(&mut c);
+        assert_eq!(validate_chunk(&c, &x), Ok(()));
+        let message = |f: &dyn Fn(&mut EnvTrajectory)| {
+            let mut c = chunk();
+            good(&mut c);
+            f(&mut c.trajectories[0]);
+            validate_chunk(&c, &x).map(|_| ()).map_err(|r| {
+                assert_eq!(r.reason, DropReason::Dimensions);
+                r.detail
+            })
+        };
+        let err = |f: &dyn Fn(&mut EnvTrajectory), want: &str| {
+            let e = message(f).expect_err(want);
+            assert!(e.contains(want), "{e:?} should name {want}");
+        };
+        err(
+            &|t| t.decision_steps = vec![2],
+            "decision_steps has 1 values",
+        );
+        err(&|t| t.decision_steps = vec![3, 0], "a decision of 3 steps");
+        err(&|t| t.decision_steps = vec![0, 2], "a decision of 0 steps");
+        err(
+            &|t| {
+                t.step_site_features.pop();
+            },
+            "step_site_features",
+        );
+        err(&|t| t.step_site_rewards.push(0.0), "step_site_rewards");
+        err(
+            &|t| t.site_rewards = vec![0.0; 6],
+            "site_rewards with per-step",
+        );
+        let mut nan = chunk();
+        good(&mut nan);
+        nan.trajectories[0].step_site_rewards[4] = f32::NAN;
+        assert_eq!(
+            validate_chunk(&nan, &x).map_err(|r| r.reason),
+            Err(DropReason::NonFinite)
+        );
+        // A run without per-step sites refuses them.
+        let r = validate_chunk(&c, &expect()).expect_err("not expected");
+        assert!(r.detail.contains("env.site_every_step is off"), "{r:?}");
+    }
+
+    #[test]
+    fn an_amplifying_chunk_is_refused_while_decoding() {
+        // 200 000 empty trajectories: ≈ 3 MB on the wire, ≈ 70 MB decoded. Under a byte
+        // limit that admits it, the budget of a 4 × 128-step chunk refuses it.
+        let x = expect();
+        let mut c = chunk();
+        c.trajectories = vec![EnvTrajectory::default(); 200_000];
+        let bytes = encode_msg(&c).expect("encode");
+        let limits = MsgLimits {
+            bytes: 64 << 20,
+            budget_bytes: x.budget_bytes(),
+        };
+        let e = decode_msg::<TrajectoryChunk>(&bytes, limits, "k").expect_err("amplifying");
+        assert!(e.to_string().contains("budget"), "{e}");
+        assert_eq!(DropReason::of_codec(&e), DropReason::TooLarge);
+    }
 }
