@@ -1,7 +1,7 @@
 //! Environment steps per second per core on the default Midtown scenario with the cached radio
-//! map and the full sensor fan (issue 3 target ≥ 50 k steps/s/core, goal ≥ 100 k). Each episode
-//! has its shortest flyable path as its guide (the path guide is on by default since
-//! 2026-11-26: the step tracks the UAV's place on it and observes it).
+//! map and the full sensor fan (target ≥ 50 k steps/s/core, goal ≥ 100 k). Each episode
+//! has its shortest flyable path as its guide (the path guide is on by default: the step
+//! tracks the UAV's place on it and observes it).
 //!
 //! Run: `cargo bench --bench env` (from the repository root; builds `out/cache/rsrp.bin` once
 //! if it is missing, ≈ 30 s).
@@ -72,7 +72,7 @@ fn benches(c: &mut Criterion) {
     }
 
     // The peer in the same run: the same episodes without their path, the guide off and the
-    // straight-line progress (the unguided defaults until 2026-11-26 evening).
+    // straight-line progress (the unguided settings).
     let mut unguided_cfg = cfg.clone();
     unguided_cfg.env.observation.path_guide = false;
     unguided_cfg.env.reward.progress = dupac_common::config::Progress::Straight;

@@ -1,4 +1,4 @@
-//! Learner throughput (issue 4): PPO update samples/s at the default sizes (obs 101, 2 × 256
+//! Learner throughput: PPO update samples/s at the default sizes (obs 101, 2 × 256
 //! tanh, 3 move + 30 site outputs, minibatch 512, global grad-norm clip, Adam) on burn's `flex`
 //! CPU backend, and the actors' policy inference calls/s at batch 1 and 64 (the hand-written
 //! forward pass over exported weights, and burn's forward at batch 64 for comparison).
@@ -123,7 +123,7 @@ fn benches(c: &mut Criterion) {
     g.finish();
 }
 
-/// One whole update of today's defaults (`Config::default()`: the 438-value observation, the
+/// One whole update of the defaults (`Config::default()`: the 438-value observation, the
 /// equivariant site head over 30 sites, the all-sites gradient over per-step site rows,
 /// 4 epochs × 8 minibatches of 512) on 16 × 256 synthetic decisions, batch assembly included.
 fn default_update(c: &mut Criterion) {

@@ -1,4 +1,4 @@
-//! The wire (issue 5): encode, decode and validate a trajectory chunk of the default size
+//! The wire: encode, decode and validate a trajectory chunk of the default size
 //! (`distributed.actor_envs` 4 × `chunk_steps` 128 steps, 101 observations, 30 sites) and a
 //! weights message of the default network (2 × 256 tanh actor and critic).
 //!

@@ -1,4 +1,4 @@
-//! Radio benchmarks on the default Midtown scenario (issue 2 targets on the 2-core machine):
+//! Radio benchmarks on the default Midtown scenario (targets on the 2-core machine):
 //! exact links (LoS ray cast + gain + path loss) per second, cache build, cached all-site queries.
 //!
 //! Run: `cargo bench --bench radio` (from the repository root, so `data/` resolves).

@@ -1,4 +1,4 @@
-//! Decoding under an allocation budget (issue 16, "memory bounded by design").
+//! Decoding under an allocation budget ("memory bounded by design").
 //!
 //! A cap on a message's bytes is not a cap on what decoding it allocates: an empty
 //! [`crate::msg::EnvTrajectory`] is ≈ 14 bytes on the wire and 330 bytes in memory, a `u32`

@@ -1,4 +1,4 @@
-//! At-most-once acceptance of trajectory chunks (issue 16).
+//! At-most-once acceptance of trajectory chunks.
 //!
 //! Each actor process numbers its chunks 0, 1, 2, … ([`crate::msg::Header::seq`]) under a random
 //! id drawn at its start ([`crate::msg::Header::sender_incarnation`]). The learner keeps, per

@@ -1,4 +1,4 @@
-//! Fault injection for the reliability tests (issue 7, docs/reliability.md): a process started
+//! Fault injection for the reliability tests (docs/reliability.md): a process started
 //! with `DUPAC_FAULT=<point>:<n>` aborts (SIGABRT, no unwinding, no destructors: as a power cut
 //! or a SIGKILL would leave it) the n-th time (1-based) it passes the crash point `<point>`.
 //! Unset, a crash point costs one relaxed atomic load.

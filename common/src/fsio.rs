@@ -1,4 +1,4 @@
-//! The one atomic file writer of DUPAC (issue 16): every result, checkpoint, cache, pairs file
+//! The one atomic file writer of DUPAC: every result, checkpoint, cache, pairs file
 //! and figure is written through [`write_atomic_with`].
 //!
 //! A write goes to a temporary file in the target's directory (a unique random name holding

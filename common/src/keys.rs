@@ -1,4 +1,4 @@
-//! Every Zenoh key expression of DUPAC (issue 5). Nothing else formats keys.
+//! Every Zenoh key expression of DUPAC. Nothing else formats keys.
 //!
 //! ```text
 //! dupac/<run>/traj/<actor>            trajectory chunks (actor → learner, Block)

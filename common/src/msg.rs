@@ -63,7 +63,7 @@ pub struct EpisodeSummary {
     pub frac_poor: f64,
     pub handovers: u32,
     pub ping_pongs: u32,
-    /// Mean site regret over the steps: best RSRP − serving RSRP (dB, issue 15).
+    /// Mean site regret over the steps: best RSRP − serving RSRP (dB).
     pub mean_site_regret_db: f64,
     /// Fraction of steps whose site regret exceeds `env.site_regret_threshold_db`.
     pub frac_site_regret_high: f64,
@@ -121,10 +121,10 @@ pub struct EnvTrajectory {
     pub site_logprobs: Vec<f32>,
     /// Every site's decision reward `[T × n_sites]`, site-major per step: the reward the decision
     /// would have had with site k serving (`site_rewards[t·M + sites[t]] == rewards[t]`); empty
-    /// when the site is not learned (issue 15, `Env::site_rewards`).
+    /// when the site is not learned (`Env::site_rewards`).
     #[serde(deserialize_with = "crate::budget::vec")]
     pub site_rewards: Vec<f32>,
-    /// With `env.site_every_step` (issue 15; empty otherwise, `site_rewards` then empty too):
+    /// With `env.site_every_step` (empty otherwise, `site_rewards` then empty too):
     /// the steps each decision ran (1..=`env.action_repeat`) `[T]`; each of those steps' site
     /// features `[R × n_sites·F]` and every site's reward of that step `[R × n_sites]`
     /// (`Env::step_site_features`, `Env::step_site_rewards`), R = Σ `decision_steps`, decisions
@@ -162,7 +162,7 @@ pub struct EnvTrajectory {
 
 impl EnvTrajectory {
     /// The first non-finite number of the trajectory, named (`"rewards[3] = NaN"`), or `None`
-    /// when every number is finite (issue 7: a NaN or inf never reaches the learner's update).
+    /// when every number is finite (a NaN or inf never reaches the learner's update).
     pub fn first_non_finite(&self) -> Option<String> {
         let fields = [
             ("obs", &self.obs),
@@ -212,7 +212,7 @@ pub struct Header {
     pub actor: ActorId,
     /// Random id of the sending process, new on every start (an actor restarted under the same
     /// id restarts `seq`): the learner keeps a sequence high-water mark per (actor, sender
-    /// incarnation) and drops replays ([`crate::dedup`], issue 16).
+    /// incarnation) and drops replays ([`crate::dedup`]).
     pub sender_incarnation: u64,
     /// Per-sender sequence number (chunks: 0, 1, 2, …).
     pub seq: u64,
@@ -311,7 +311,7 @@ pub struct LearnerStats {
     pub updates_per_s: f64,
     pub env_steps_per_s: f64,
     pub accepted_chunks: u64,
-    /// Dropped messages by [`DropReason`] name.
+    /// Dropped messages by drop-reason name (`validate::DropReason`).
     #[serde(deserialize_with = "crate::budget::map")]
     pub drops: BTreeMap<String, u64>,
     #[serde(deserialize_with = "crate::budget::vec")]

@@ -1,4 +1,4 @@
-//! The normalisers an exported policy carries (issue 4): running observation statistics
+//! The normalisers an exported policy carries: running observation statistics
 //! ([`RunningMeanStd`], [`ObsNormalizer`]: the statistics that acted on a batch are the ones its
 //! update uses) and the reward scaler (a running variance of the discounted return per stream).
 //! They travel with the weights, so an actor normalises exactly as the learner did.

@@ -8,13 +8,12 @@ use std::ops::Range;
 /// Version of the observation layout; bump on any change of order, scaling or meaning.
 /// 2: the goal direction field (`goal_direction`) and the geofence in the sensors
 /// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
-/// The optional `path_guide` field (2026-11-26; on by default since that evening) did not bump
-/// it: a layout without it is unchanged, and one with it is 4 values longer and recorded in the
-/// policy (`env.observation.path_guide`).
+/// The optional `path_guide` field does not bump it: a layout without it is unchanged, and one
+/// with it is 4 values longer and recorded in the policy (`env.observation.path_guide`).
 pub const OBS_VERSION: u32 = 3;
 
 /// Features per site in the `site_features` field, in this order (fixed physical scales, not
-/// the running normaliser; issue 15):
+/// the running normaliser):
 pub mod site_feature {
     /// (RSRP − rsrp_centre_dbm) / rsrp_scale_db, clipped to ±10.
     pub const RSRP: usize = 0;
@@ -245,7 +244,7 @@ mod tests {
         assert_eq!(l.range(field::SENSOR_FAN), Some(21..47));
         assert_eq!(l.range(field::SERVING_ONE_HOT), Some(47..77));
         assert_eq!(l.range(field::RSRP_SERVING), Some(107..108));
-        // Without the guide, the layout of observation version 3 before it.
+        // Without the guide: the version-3 layout with no guide field.
         let unguided = ObservationConfig {
             path_guide: false,
             ..Default::default()

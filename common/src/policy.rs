@@ -7,12 +7,12 @@
 //! and `learner` proves with a test that this forward pass and the burn model give the same
 //! outputs to 1e-5 for the same weights.
 //!
-//! Network (issue 4): separate MLPs `obs → hidden… → out` with tanh hidden activations, reading
+//! Network: separate MLPs `obs → hidden… → out` with tanh hidden activations, reading
 //! the observation without its `site_features` tail ([`crate::obs::ObsLayout::trunk_len`]). The
 //! actor outputs 3 Gaussian means (the move, before clipping to [−1, 1]³); the move's log-std is
 //! state-independent. The critic outputs one value. The categorical site choice (absent,
 //! `n_sites = 0`, for the base method whose site A3 chooses) has `n_sites` logits from one of two
-//! heads (issue 15):
+//! heads:
 //! - slots (the paper): `n_sites` more outputs of the actor MLP, one per site index;
 //! - equivariant ([`SiteHead`]): one MLP shared by all sites scores site k from its own features
 //!   (the tail of the observation, fixed scales) and an embedding `tanh(E·h)` of the actor's last
@@ -171,7 +171,7 @@ impl Mlp {
     }
 }
 
-/// The permutation-equivariant site head (issue 15): `logit_k = g([f_k, tanh(E·h)])` with `f_k`
+/// The permutation-equivariant site head: `logit_k = g([f_k, tanh(E·h)])` with `f_k`
 /// site k's `features` values of the observation's tail, `h` the actor's last hidden activation
 /// and `g` an MLP (tanh hidden, one output) shared by every site.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -275,7 +275,7 @@ pub struct PolicyWeights {
     /// logits unless `site_head` scores the sites.
     pub actor: Mlp,
     pub critic: Mlp,
-    /// The equivariant site head (issue 15); `None` = slot logits of `actor` (the paper).
+    /// The equivariant site head; `None` = slot logits of `actor` (the paper).
     pub site_head: Option<SiteHead>,
     /// Log standard deviation of the move Gaussian, per axis.
     pub log_std: [f32; MOVE_DIM],
@@ -601,7 +601,7 @@ impl PolicyWeights {
     }
 
     /// The site logits at a later step of the decision last acted on with `s`
-    /// (`env.site_every_step`, issue 15): the site head over this step's `feats` (`n_sites ×
+    /// (`env.site_every_step`): the site head over this step's `feats` (`n_sites ×
     /// features`, the `site_features` layout) with the actor's hidden activation of the
     /// decision's observation, which [`PolicyWeights::act_sample`] and
     /// [`PolicyWeights::act_deterministic`] leave in `s` ([`PolicyWeights::value`] does not

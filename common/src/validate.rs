@@ -1,4 +1,4 @@
-//! Validation of received messages (issue 5, issue 16): nothing reaches PPO or an actor's
+//! Validation of received messages: nothing reaches PPO or an actor's
 //! policy before it is checked against what the receiver expects ([`ChunkExpect`]): wrong run,
 //! incarnation, fingerprint or schema, wrong dimensions, non-finite numbers. Each refusal is a
 //! [`DropReason`] (counted by the learner) with the detail of what was wrong ([`Rejection`]).
@@ -12,7 +12,8 @@ use crate::msg::{
 use crate::policy::{MOVE_DIM, weights_budget_bytes};
 use std::fmt;
 
-/// Why a received message was not used. Counted by name in [`LearnerStats::drops`].
+/// Why a received message was not used. Counted by name in
+/// [`crate::msg::LearnerStats::drops`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum DropReason {
     /// Larger than its limit on the wire, or decoding it would allocate more than its budget
@@ -38,7 +39,7 @@ pub enum DropReason {
     /// was dropped), or the learner already tracks `dedup::MAX_TRACKED_SENDERS` senders.
     Overflow,
     /// A chunk whose (actor, sender incarnation, sequence number) was already accepted: a
-    /// duplicate or a replay (at-most-once, issue 16).
+    /// duplicate or a replay (at-most-once).
     Replay,
 }
 

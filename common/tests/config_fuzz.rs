@@ -1,4 +1,4 @@
-//! Property tests of the configuration parser (issue 7, "bad input, fuzzed"): arbitrary TOML text,
+//! Property tests of the configuration parser ("bad input, fuzzed"): arbitrary TOML text,
 //! the default configuration with bytes flipped, cut or extended, every value replaced by a
 //! hostile one (NaN, ±inf, huge, negative, zero, wrong type), and arbitrary `--set KEY=VALUE`
 //! arguments. [`Config::from_toml_str`] must never panic, every error must name the file (or the
@@ -243,7 +243,7 @@ fn dropped_keys_are_refused_as_unknown() {
             .unwrap_err()
             .to_string();
         assert!(msg.contains(leaf) && msg.contains("unknown"), "{msg}");
-        // Nor written by today's configuration.
+        // Nor written by the default configuration.
         assert!(
             !valid_text().contains(leaf),
             "{leaf} in the default configuration"
@@ -445,7 +445,7 @@ fn regression_unknown_key_by_set_names_the_override() {
     );
 }
 
-/// Issue 16: values that passed validation and then panicked or aborted later.
+/// Values that pass validation and then panic or abort later.
 #[test]
 fn regression_values_that_sized_memory_or_time_without_bound_are_refused() {
     for (set, key) in [
@@ -498,7 +498,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(512))]
 
     /// Any configuration that validates (hostile values on one or two keys) gives durations,
-    /// message limits and batch sizes that convert without a panic (issue 16).
+    /// message limits and batch sizes that convert without a panic.
     #[test]
     fn what_a_valid_configuration_sizes_never_panics(
         picks in prop::collection::vec((any::<prop::sample::Index>(), prop::sample::select(HOSTILE)), 1..3),

@@ -1,7 +1,7 @@
-//! Property tests of the network decoder (issue 5's "network input never panics a process"):
+//! Property tests of the network decoder ("network input never panics a process"):
 //! arbitrary bytes, and valid messages with bytes flipped, cut or extended, either decode to a
 //! value the validator can judge or give an error: never a panic, never an unbounded allocation.
-//! Issue 16: inputs large enough to amplify (hundreds of thousands of empty trajectories,
+//! Inputs large enough to amplify (hundreds of thousands of empty trajectories,
 //! episode lists, site vectors) are decoded under a counting allocator, and what decoding
 //! allocates must stay within the budget derived from the configuration.
 

@@ -1,4 +1,4 @@
-//! Property test of at-most-once acceptance (issue 16): whatever the interleaving of honest
+//! Property test of at-most-once acceptance: whatever the interleaving of honest
 //! deliveries, losses, duplicates and replays of earlier chunks, no chunk is accepted twice,
 //! and every chunk delivered for the first time in its sender's order is accepted.
 

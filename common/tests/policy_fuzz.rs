@@ -1,7 +1,7 @@
-//! Property tests of policies as files and weights messages carry them (issue 16): a policy
+//! Property tests of policies as files and weights messages carry them: a policy
 //! with any one field set to a hostile value, or a weights message with bytes flipped, either
-//! fails validation with a message or acts without a panic (a NaN `obs_norm.clip` used to panic
-//! every actor and pilot that received it).
+//! fails validation with a message or acts without a panic (e.g. a NaN `obs_norm.clip`, which
+//! would panic every actor and pilot that received it).
 
 use dupac_common::ids::ActorId;
 use dupac_common::msg::{Header, MsgLimits, WeightsMsg, decode_msg, encode_msg};
@@ -195,7 +195,7 @@ proptest! {
     }
 }
 
-/// The observation a policy records (issue 15: scales and flags its weights' shapes do not
+/// The observation a policy records (scales and flags its weights' shapes do not
 /// show) is what it is flown with, and what an actor or a resumed learner must share; a hostile
 /// one is refused by key.
 #[test]

@@ -41,8 +41,8 @@ fn spec_env_toml_is_the_spec_environment() {
     assert_eq!(cfg, spec);
 }
 
-/// `docs/paper_dupac.toml` restores the paper's site learning (issue 15): it must load, pass the
-/// configuration's checks against today's defaults (the site chosen every step is on by default
+/// `docs/paper_dupac.toml` restores the paper's site learning: it must load, pass the
+/// configuration's checks against the defaults (the site chosen every step is on by default
 /// and needs the equivariant head: the file turns it off), and change only the site learning.
 #[test]
 fn paper_dupac_toml_is_the_papers_site_learning() {
@@ -58,8 +58,7 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.env.observation.site_features = false;
     paper.ppo.site_head = SiteHead::Slots;
     paper.ppo.site_gradient = SiteGradient::Sampled;
-    // The path guide (a default since 2026-11-26) off: the paper's UAV has no map.
-    // λ and the clearance as files before the guide read (0), so an older run resumes with it.
+    // The path guide (a default) off: the paper's UAV has no map; λ and the clearance at 0.
     paper.env.observation.path_guide = false;
     paper.env.observation.path_guide_lambda = 0.0;
     paper.env.observation.path_guide_clearance_m = 0.0;

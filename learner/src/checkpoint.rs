@@ -1,4 +1,4 @@
-//! Checkpoints and exported policies (issue 4).
+//! Checkpoints and exported policies.
 //!
 //! A checkpoint holds everything a run needs to continue its learning curve: the model (burn
 //! record, parameter ids kept so the optimiser state matches), the Adam state, the normalisers

@@ -1,5 +1,5 @@
 //! Generalised advantage estimation (Schulman et al. 2016) with termination and truncation kept
-//! apart (issue 4).
+//! apart.
 //!
 //! For one environment's steps in time order, with `next_value[t]` = V(s_{t+1}) of the state the
 //! step actually reached (the final observation when the episode ended there):

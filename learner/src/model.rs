@@ -1,8 +1,8 @@
 //! The actor-critic in burn: separate MLPs (default 2 × 256, tanh) over the observation without
 //! its site-features tail, orthogonal init (gain √2 hidden, 0.01 policy head, 1.0 value head,
 //! zero biases), a state-independent log-std for the 3D move Gaussian and an optional categorical
-//! head over the M sites (issue 4): slot logits of the actor MLP (the paper), or the
-//! permutation-equivariant [`SiteHeadModule`] (issue 15, mirrored by
+//! head over the M sites: slot logits of the actor MLP (the paper), or the
+//! permutation-equivariant [`SiteHeadModule`] (mirrored by
 //! [`dupac_common::policy::SiteHead`]).
 //!
 //! Layers are written here rather than taken from `burn::nn::Linear` because burn's orthogonal

@@ -1,9 +1,9 @@
-//! The PPO update (issue 4), readable top to bottom like CleanRL's `ppo_continuous_action.py`:
+//! The PPO update, readable top to bottom like CleanRL's `ppo_continuous_action.py`:
 //! epochs × shuffled minibatches, per-minibatch advantage normalisation, clipped surrogate,
 //! clipped value loss, separately weighted entropy bonuses of the move and site heads, Adam with a
 //! caller-annealed learning rate, *global* gradient-norm clipping, optional target-KL early stop.
 //!
-//! The site head learns in one of two ways (`ppo.site_gradient`, issue 15):
+//! The site head learns in one of two ways (`ppo.site_gradient`):
 //! - `sampled` (the paper): the site's log-prob joins the move's in one ratio and one clip;
 //! - `all_sites`: the move alone is PPO's ratio and clip; the site head minimises
 //!   `−site_coef · mean_b Σ_k π(k|s_b) · Â_{b,k}` with `Â_{b,k}` the decision reward of site k
@@ -42,7 +42,7 @@ pub struct Batch {
     pub site_rewards: Vec<f32>,
     /// Sites per row of `site_rewards` (and of the per-step rows).
     pub n_sites: usize,
-    /// With `env.site_every_step` (issue 15): decision i's steps are the rows
+    /// With `env.site_every_step`: decision i's steps are the rows
     /// `step_offsets[i]..step_offsets[i + 1]` (`len + 1` entries; empty otherwise) of each
     /// step's raw site features `[R × n_sites·F]` and every site's reward of that step, scaled
     /// like the rewards, `[R × n_sites]`; the site head learns from those rows instead of

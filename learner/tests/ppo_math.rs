@@ -1,4 +1,4 @@
-//! The PPO maths against hand-computed values and closed forms (issue 4): clipped objective at
+//! The PPO maths against hand-computed values and closed forms: clipped objective at
 //! the clip edges, clipped value loss, the hybrid distribution's log-probability and entropy,
 //! global gradient-norm clipping, the burn model against the actors' plain forward pass, and
 //! checkpoint round trips.
@@ -233,7 +233,7 @@ fn burn_model_and_plain_forward_agree() {
     }
 }
 
-/// The equivariant site head (issue 15): the burn model and the actors' plain forward give the
+/// The equivariant site head: the burn model and the actors' plain forward give the
 /// same log-probabilities of every site to 1e-5, and permuting the sites' features permutes the
 /// logits (and nothing else: the move means and the value stay).
 #[test]
@@ -292,7 +292,7 @@ fn equivariant_site_head_matches_plain_forward_and_permutes_with_the_sites() {
     }
 }
 
-/// The all-sites loss (issue 15) against a hand-computed case: its gradient in the logits is
+/// The all-sites loss against a hand-computed case: its gradient in the logits is
 /// −π_j (A_j − Σ_k π_k A_k) / B, and `site_advantages` subtracts each row's best and divides by
 /// the root mean square.
 #[test]
@@ -501,7 +501,7 @@ fn corrupt_checkpoint_is_a_clear_error() {
     assert!(e.contains("bad.bin") && e.contains("magic"), "{e}");
 }
 
-/// Issue 16: the weights limit an actor derives from its configuration admits the learner's
+/// The weights limit an actor derives from its configuration admits the learner's
 /// real weights (for both site heads and wider networks), so a tight limit never drops them.
 #[test]
 fn real_weights_fit_the_limits_derived_from_the_configuration() {
@@ -538,7 +538,7 @@ fn real_weights_fit_the_limits_derived_from_the_configuration() {
     }
 }
 
-/// `env.site_every_step` (issue 15): a later step of a decision is scored with the decision's
+/// `env.site_every_step`: a later step of a decision is scored with the decision's
 /// state embedding and that step's own site features. The actors' `step_site_logits` equal the
 /// plain forward of an observation with the decision's trunk and the step's features, and the
 /// burn model's `step_site_logp` over the decision's actor hidden activation gives the same

@@ -1,4 +1,4 @@
-//! The actor's side of the Zenoh actor/learner system (issue 5).
+//! The actor's side of the Zenoh actor/learner system.
 //!
 //! An actor joins a run, fetches the latest weights by query, announces itself with a
 //! liveliness token, steps `distributed.actor_envs` environments on its own thread pool (not on

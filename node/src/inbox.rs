@@ -1,4 +1,4 @@
-//! The learner's inbox (issue 16): zenoh's receive callback queues raw trajectory messages
+//! The learner's inbox: zenoh's receive callback queues raw trajectory messages
 //! under byte budgets per sender and in total ([`InboxBudget`]; over budget the sender's own
 //! oldest message goes, then the biggest holder's: `overflow`), without ever blocking; the
 //! decode task ([`decode_task`], on the node's network side) decodes each within its
@@ -32,7 +32,7 @@ pub(crate) struct Raw {
     pub(crate) charge: usize,
 }
 
-/// Byte budgets of the inbox (issue 16): what one sender, and all together, may hold queued
+/// Byte budgets of the inbox: what one sender, and all together, may hold queued
 /// (received and not yet decoded, or decoded and not yet trained), counted in message bytes.
 #[derive(Debug, Clone, Copy)]
 pub struct InboxBudget {

@@ -1,11 +1,11 @@
-//! The learner's side of the Zenoh actor/learner system (issue 5).
+//! The learner's side of the Zenoh actor/learner system.
 //!
 //! * zenoh's receive callback takes `dupac/<run>/traj/*` without ever blocking (a blocked
 //!   `Block` sender gets its transport closed after 5 s): it drops messages over the chunk
 //!   limit unread and queues the rest under byte budgets per sender and in total
 //!   ([`InboxBudget`]; over budget, the sender's own oldest message goes, then the biggest
 //!   holder's: `overflow`). A decode task decodes each within its allocation budget
-//!   ([`MsgLimits::chunk`], issue 16), validates it ([`dupac_common::validate::validate_chunk`]),
+//!   ([`MsgLimits::chunk`]), validates it ([`dupac_common::validate::validate_chunk`]),
 //!   drops replays ([`SeqTracker`]: at most once per (actor, sender incarnation, seq)) and
 //!   queues it for PPO (at most `distributed.queue_chunks`).
 //! * [`LearnerNode::next_batch`] takes queued chunks until the batch (`train.num_envs ×
@@ -188,7 +188,7 @@ impl LearnerNode {
     ) -> Result<LearnerNode, NodeError> {
         let d = &cfg.distributed;
         let keys = KeySpace::new(&d.run);
-        // One learner per run name (issue 16): actors would flip between two.
+        // One learner per run name: actors would flip between two.
         if let Some(key) = live_learner(&session, &keys)? {
             return Err(NodeError::AnotherLearner {
                 run: d.run.clone(),

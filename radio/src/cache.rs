@@ -1,6 +1,6 @@
 //! The per-site RSRP cache: a precomputed 3D grid of every site's RSRP over the flight area and
 //! altitude band, saved once, memory-mapped by every process, and queried by trilinear
-//! interpolation (issue 2). [`RadioWorld`] is the exact mode (a ray cast per query) it is
+//! interpolation. [`RadioWorld`] is the exact mode (a ray cast per query) it is
 //! validated against; both implement [`RsrpSource`].
 //!
 //! File format (little-endian):

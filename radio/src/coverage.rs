@@ -1,4 +1,4 @@
-//! Coverage maps: best-server RSRP on horizontal slices (issue 2, paper Fig. 2(b)).
+//! Coverage maps: best-server RSRP on horizontal slices (paper Fig. 2(b)).
 
 use dupac_common::geometry::{Bounds2, Point};
 use dupac_common::ids::SiteId;
@@ -110,7 +110,7 @@ pub fn compute_slice(
     slice
 }
 
-/// Summary of one slice over the cells outside buildings (issue 2 table).
+/// Summary of one slice over the cells outside buildings.
 #[derive(Debug, Clone, Serialize)]
 pub struct SliceSummary {
     pub altitude_m: f64,

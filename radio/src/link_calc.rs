@@ -265,7 +265,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(256))]
 
-        /// Issue 16: any bytes, and a valid line with bytes flipped, never panic; every
+        /// Any bytes, and a valid line with bytes flipped, never panic; every
         /// non-blank line is answered or refused with one error line, and good lines around
         /// it are still answered.
         #[test]

@@ -132,7 +132,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Reads LTE cell estimates (`data/nyc_midtown_cells.csv`: columns `lat`, `lon`, `enb_id`, …) and
-/// merges the cells of each eNodeB into one site at their mean position (issue 2).
+/// merges the cells of each eNodeB into one site at their mean position.
 pub fn read_cells_csv(
     path: &Path,
     projection: &LocalProjection,
@@ -293,7 +293,7 @@ pub fn read_sites_file(path: &Path) -> Result<Vec<(u64, SiteSpec)>, RadioError> 
     Ok(specs)
 }
 
-/// Places the scenario's M sites (issue 2): from the user's sites file when given, else the
+/// Places the scenario's M sites: from the user's sites file when given, else the
 /// `n_sites` cell-site estimates (or procedural candidates) nearest the centre, each mounted on
 /// the nearest roof within `roof_search_m` (antenna = roof + `roof_mast_m`) or on a pole, and
 /// classed macro/micro against the median rooftop within `macro_radius_m`.

@@ -1,4 +1,4 @@
-//! Property tests of the radio crate's file loaders (issue 7, "bad input, fuzzed"): the GeoJSON
+//! Property tests of the radio crate's file loaders ("bad input, fuzzed"): the GeoJSON
 //! buildings loader ([`parse_buildings`]), the LTE cells CSV ([`read_cells_csv`]) and the user
 //! sites file ([`read_sites_file`], and through [`place_sites`] the per-site checks). Arbitrary
 //! text, valid files with bytes flipped, cut or extended, and valid files with one value replaced
@@ -834,7 +834,7 @@ fn regression_sites_toml_error_names_the_line_not_the_site_number() {
 
 #[test]
 fn regression_sites_csv_blank_line_shifts_the_reported_line() {
-    // Lines were counted as record number + 2, wrong after a blank line or a quoted line break.
+    // The reported line counts blank lines and quoted line breaks (not record number + 2).
     let text = format!("{SITES_HEADER}\n\na,10,20,30,,,,\n\"b\nc\",1,2,3,,,,\nd,5,,,,,,\n");
     let msg = judge_sites(".csv", text.as_bytes()).expect_err("no y_m");
     assert!(msg.contains(".csv:6:") && msg.contains("y_m"), "{msg}");
@@ -842,9 +842,8 @@ fn regression_sites_csv_blank_line_shifts_the_reported_line() {
 
 #[test]
 fn regression_sites_csv_type_error_names_the_column() {
-    // The CSV deserialiser names the 0-based field index ("field 2"), not the column; for `kind`
-    // and `boresights_deg` it named nothing ("invalid type: integer `18446744073709551616` as
-    // u128, expected any value").
+    // The error names the column, not the CSV deserialiser's 0-based field index ("field 2"),
+    // also for `kind` and `boresights_deg`, which the deserialiser's message does not name.
     let text = format!("{SITES_HEADER}\na,10,abc,30,,,,\n");
     let msg = judge_sites(".csv", text.as_bytes()).expect_err("abc");
     assert!(
@@ -864,8 +863,8 @@ fn regression_sites_csv_type_error_names_the_column() {
 
 #[test]
 fn regression_geojson_kind_of_the_wrong_type_is_an_error() {
-    // A `kind` that is not a string was read as "building"; a `has_parts` that is not a bool as
-    // false (so an outline was extruded on top of its own parts).
+    // A `kind` that is not a string, or a `has_parts` that is not a bool, is an error (not
+    // "building" or false, which would extrude an outline on top of its own parts).
     for (pointer, raw, name) in [
         ("/features/0/properties/kind", "5", "kind"),
         ("/features/0/properties/kind", "[\"building\"]", "kind"),
@@ -883,7 +882,7 @@ fn regression_geojson_kind_of_the_wrong_type_is_an_error() {
 #[test]
 fn regression_cells_csv_blank_line_shifts_the_reported_line() {
     // The reader's record position is taken before the blank lines it skips: a bad row after a
-    // blank line was reported one line early.
+    // blank line is reported on its own line, not one line early.
     let text = format!("{CELLS_HEADER}\n40.75,-73.98,LTE,,,1,7,1,,x\n\n40.75,NaN,LTE,,,2,8,1,,x\n");
     let (e, path) = judge_cells(text.as_bytes()).expect_err("NaN");
     let msg = e.to_string();
@@ -895,8 +894,8 @@ fn regression_cells_csv_blank_line_shifts_the_reported_line() {
 
 #[test]
 fn regression_geojson_ring_around_the_globe_is_rejected() {
-    // A footprint spanning the globe was accepted; the footprint index then sized its grid by it
-    // and the process aborted ("memory allocation of 23336352326448 bytes failed").
+    // A footprint spanning the globe is refused: the footprint index would size its grid by it
+    // and abort the process ("memory allocation of 23336352326448 bytes failed").
     let mut v = valid_geojson();
     v["features"][0]["geometry"]["coordinates"] =
         json!([[[-180, -90], [180, -90], [180, 90], [-180, 90], [-180, -90]]]);
@@ -908,8 +907,8 @@ fn regression_geojson_ring_around_the_globe_is_rejected() {
 
 #[test]
 fn regression_geojson_hole_outside_the_outer_ring_is_rejected() {
-    // A hole beside (or larger than) its outer ring was accepted: a negative footprint area and
-    // walls where the footprint has none.
+    // A hole beside (or larger than) its outer ring is refused: it would give a negative
+    // footprint area and walls where the footprint has none.
     let outer = rect(LON0, LAT0, 1e-4, 1e-4)[0].clone();
     for hole in [
         rect(LON0 + 1e-3, LAT0, 1e-4, 1e-4)[0].clone(),

@@ -331,7 +331,7 @@ fn sites_file_overrides_placement_and_bad_files_name_the_line() {
     assert_ne!(sites[1].mount, Mount::User, "no z_m: mounted by the rule");
     assert_eq!(sites[1].tx_power_dbm, 15.2);
 
-    // Out of physical range (issue 16): a position 1e308 m away, an antenna 5 km up, 200 dBm.
+    // Out of physical range: a position 1e308 m away, an antenna 5 km up, 200 dBm.
     for (row, what) in [
         ("a,1e308,20,30", "from the scenario centre"),
         ("a,10,20,5000", "z_m"),

@@ -1,4 +1,4 @@
-//! The table `dupac monitor` shows (issue 5), from the run's statistics messages: policy
+//! The table `dupac monitor` shows, from the run's statistics messages: policy
 //! version, updates/s, env steps/s in total and per actor, policy lag, drops by reason,
 //! training and domain metrics.
 

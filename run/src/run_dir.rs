@@ -48,7 +48,7 @@ pub struct RunOutput {
     rows: MetricsTable,
     metrics: std::fs::File,
     curves: CurveRenderer,
-    /// `<out>/.lock`, held exclusively while the run directory is in use (issue 16: one
+    /// `<out>/.lock`, held exclusively while the run directory is in use (one
     /// learner per run directory); released when the process ends, however it ends.
     _lock: std::fs::File,
 }

@@ -323,7 +323,7 @@ pub fn make_pool(cfg: &Config, planners: &Planners, quiet: bool) -> Result<Vec<P
 mod tests {
     use super::*;
 
-    /// Under today's defaults (a λ = 1 guide planned with 5 m) the pairs' planner (1.5 m), the
+    /// Under the defaults (a λ = 1 guide planned with 5 m) the pairs' planner (1.5 m), the
     /// guide's fallback, needs the coverage classes too, or a pair the guide cannot join would
     /// stop the run (`PlanError::NoCoverage`) instead of falling back.
     #[test]

@@ -1,4 +1,4 @@
-//! Learning is proven, not assumed (issue 4): on a small procedural Manhattan grid with short
+//! Learning is proven, not assumed: on a small procedural Manhattan grid with short
 //! pairs, a fixed seed and a bounded budget, PPO's deterministic policy reaches the goal far more
 //! often than a uniformly random policy and than itself at initialisation.
 
@@ -40,7 +40,7 @@ fn config(association: Association, updates: u64) -> Config {
     cfg.train.pool_size = 200;
     cfg.ppo.num_minibatches = 4;
     cfg.ppo.hidden = vec![64, 64];
-    // Unguided (the path guide, a default since 2026-11-26, off; the paper's straight-line
+    // Unguided (the path guide, a default, off; the paper's straight-line
     // progress): the bounds below were measured so, and the pool's pairs here carry only the
     // sampler's shortest paths. A guided run is trained by tests/it `train.rs`
     // (`a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided`).
@@ -82,11 +82,10 @@ fn random_policy_success(
 
 /// Budget (PPO updates) of the learning runs.
 const UPDATES: u64 = 150;
-/// Budget of the run with the site chosen every step (today's default), where the learned site
-/// must beat A3: at 150 updates it ties or trails A3 (0.741 against 0.603 dB with a ping-pong
-/// cost of −4); at 800 it is ahead on every seed tried (2026-11-26, seeds 3, 4, 5: with today's
-/// cost of −8 0.363/0.352/0.301 against 0.549/0.578/0.569 dB; with −4 0.298/0.333/0.306 against
-/// 0.538/0.671/0.550 dB).
+/// Budget of the run with the site chosen every step (the default), where the learned site
+/// must beat A3: at 150 updates it ties or trails A3; at 800 it is ahead on every seed tried
+/// (seeds 3, 4, 5 with a ping-pong cost of −8: 0.363/0.352/0.301 against 0.549/0.578/0.569 dB
+/// site regret).
 const UPDATES_SITE_EVERY_STEP: u64 = 800;
 
 fn learns(association: Association, site_every_step: bool) {
@@ -146,9 +145,9 @@ fn learns(association: Association, site_every_step: bool) {
     assert!(trained.success_rate >= random + 0.3, "random {random:.2}");
     assert!(trained.success_rate >= init + 0.3, "init {init:.2}");
     if association == Association::Learned {
-        // Issue 15: the learned site choice keeps the site regret (best − serving RSRP) under
+        // The learned site choice keeps the site regret (best − serving RSRP) under
         // 1 dB on the held-out pairs, from the several dB of the untrained head; with the site
-        // chosen every step (today's default, 800 updates) it beats A3's regret on the same
+        // chosen every step (the default, 800 updates) it beats A3's regret on the same
         // policy flown with A3 choosing the site.
         let policy = trainer.policy();
         let regret = |assoc: Association| {
@@ -173,7 +172,7 @@ fn learns(association: Association, site_every_step: bool) {
         );
         assert!((learned - trained.site_regret_db).abs() < 1e-9);
         // At 150 updates the site held per decision trails A3 here (0.590 against 0.556 dB with
-        // today's rewards): only the bound is asserted for it.
+        // the default rewards): only the bound is asserted for it.
         assert!(
             learned <= 1.0 && learned < 0.5 * init_stats.site_regret_db,
             "learned site regret {learned:.2} dB (untrained {:.2} dB)",
@@ -209,7 +208,7 @@ fn ppo_learns_to_reach_the_goal_on_a_small_procedural_city() {
     learns(Association::Learned, false);
 }
 
-/// Issue 15, `env.site_every_step` (the default since 2026-11-26; the test above turns it off):
+/// `env.site_every_step` (the default; the test above turns it off):
 /// the same learning run with the site chosen at every step, at 800 updates, learns to reach the
 /// goal and keeps a lower site regret than the same policy flown with A3 (the per-step rows
 /// through the learner, the per-step choice through the actors). ≈ 60 s on the 2-core machine

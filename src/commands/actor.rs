@@ -1,4 +1,4 @@
-//! `dupac actor`: one actor process of a Zenoh run (issue 5): simulates UAV episodes with the
+//! `dupac actor`: one actor process of a Zenoh run: simulates UAV episodes with the
 //! newest weights and publishes trajectory chunks to the learner.
 
 use super::net::{ConnectArgs, stop_flag};

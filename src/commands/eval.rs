@@ -3,7 +3,7 @@
 //! coverage-aware paths over a λ sweep), records every step, and writes a report directory:
 //! the paper's Fig. 3 and Fig. 4 data and figures, success/collision/timeout rates, handovers and
 //! ping-pongs, SINR, a Pareto plot of distance overhead against time in excellent RSRP, CSVs of
-//! every figure, and `report.md` with the paper's numbers beside ours (issue 6). `--report-only`
+//! every figure, and `report.md` with the paper's numbers beside ours. `--report-only`
 //! recomputes the report from the saved step records without flying. Flying, records and
 //! statistics live in `dupac_run::eval`; the figures in `dupac_plot::eval`.
 

@@ -1,4 +1,4 @@
-//! `dupac learner`: the central PPO learner of a Zenoh run (issue 5). Receives trajectory
+//! `dupac learner`: the central PPO learner of a Zenoh run. Receives trajectory
 //! chunks from any number of actors, updates, publishes weights, serves the latest by query:
 //! the one training loop (`commands::training`) over a Zenoh trajectory source, writing the
 //! run directory like `dupac train --single-process`, and stopping cleanly on Ctrl-C

@@ -1,4 +1,4 @@
-//! `dupac map`: best-server coverage maps on horizontal slices (issue 2, paper Fig. 2(b)).
+//! `dupac map`: best-server coverage maps on horizontal slices (paper Fig. 2(b)).
 
 use crate::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};

@@ -1,4 +1,4 @@
-//! `dupac monitor`: a read-only view of a run from any machine (issue 5): policy version,
+//! `dupac monitor`: a read-only view of a run from any machine: policy version,
 //! updates/s, env steps/s in total and per actor, policy lag, drops by reason, training and
 //! domain metrics; a refreshing table on the terminal and, with `--jsonl`, every stats message
 //! as a JSON line.

@@ -57,7 +57,7 @@ impl ConnectArgs {
 
     /// Opens the session, retrying every second until `stop` while the endpoint is not up yet
     /// (a client started before its router). zenoh drops received messages over
-    /// `rx_max_message_bytes` (the run's largest message, issue 16).
+    /// `rx_max_message_bytes` (the run's largest message).
     pub fn open_retrying(
         &self,
         stop: &AtomicBool,

@@ -1,5 +1,5 @@
 //! `dupac train` (default): the learner and N actor processes on this machine over loopback
-//! Zenoh (issue 5). The learner is the Zenoh router of the run (listening on a free loopback
+//! Zenoh. The learner is the Zenoh router of the run (listening on a free loopback
 //! port, multicast scouting off); actors join as clients. This process prepares what every
 //! child needs once (RSRP cache, held-out pairs, training pool), starts the children, shows a
 //! progress bar from the learner's stats, forwards Ctrl-C (the learner writes its checkpoint)

@@ -1,5 +1,5 @@
 //! `dupac train`: by default a learner and actor processes over Zenoh on this machine
-//! (`commands::orchestrate`, issue 5); with `--single-process`, PPO in one process (issue 4):
+//! (`commands::orchestrate`); with `--single-process`, PPO in one process:
 //! local rollout workers on threads as the trajectory source of the one training loop
 //! (`commands::training`), bit-reproducible from `train.seed`.
 

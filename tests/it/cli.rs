@@ -487,7 +487,7 @@ fn plan_rejects_an_endpoint_off_the_map() {
     );
 }
 
-/// Issue 16: every line of `dupac radio link` is judged on its own: a line that is not UTF-8, one
+/// Every line of `dupac radio link` is judged on its own: a line that is not UTF-8, one
 /// longer than 64 KiB, coordinates out of physical range, a UAV below the ground and a carrier
 /// frequency outside the models' range are each an error naming the line; the other lines are
 /// answered, and the exit status says some failed.

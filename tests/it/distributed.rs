@@ -1,4 +1,4 @@
-//! End-to-end tests of the Zenoh actor/learner system (issue 5): real `dupac learner` and
+//! End-to-end tests of the Zenoh actor/learner system: real `dupac learner` and
 //! `dupac actor` processes over loopback TCP, a real Zenoh session in the test to watch the
 //! learner's stats and to play a rogue publisher. Each test uses its own run name and port, so
 //! they run in parallel.
@@ -220,7 +220,7 @@ fn peak_rss_bytes(pid: u32) -> u64 {
 }
 
 /// A chunk of `n` empty trajectories, written straight as bytes (building it as a value would
-/// take the test `n × 330` bytes): the amplifying message of issue 16.
+/// take the test `n × 330` bytes): an amplifying message.
 fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Vec<u8> {
     let mut c = valid_chunk(w, actor, w.policy.version);
     c.trajectories.clear();
@@ -244,7 +244,7 @@ fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Ve
     bytes
 }
 
-/// Issue 16's hostile peer: a client of the learner's router sends, for a bounded time,
+/// A hostile peer: a client of the learner's router sends, for a bounded time,
 /// messages at the configured cap (48 MiB of empty trajectories: 1.6 GB if decoded), amplifying
 /// chunks just under the learner's chunk limit, garbage, well-formed chunks under 300 invented
 /// actor ids and replays of a real actor's chunk. The learner's peak resident memory stays
@@ -345,7 +345,7 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
     p.signal_and_wait("learner", "-INT");
 }
 
-/// One learner per run (issue 16): a second learner on the same run directory is refused by the
+/// One learner per run: a second learner on the same run directory is refused by the
 /// directory's lock, naming the directory and the holder; one on another directory but the same
 /// run name is refused by the live learner's liveliness token, naming it. The first learner
 /// trains on untouched. (Checked to fail with the lock, then the liveliness check, removed.)

@@ -91,7 +91,7 @@ fn fly_flies_a_held_out_pair_beside_the_shortest_path() {
     assert!(String::from_utf8_lossy(&fly.stdout).contains("shortest path (A3)"));
 }
 
-/// Every method, the replays of the learned-site policy's moves (issue 15: route against
+/// Every method, the replays of the learned-site policy's moves (route against
 /// association), the hindsight references, the tables, the figures and `failures.csv`.
 #[test]
 fn eval_flies_every_method_and_replays_the_association() {

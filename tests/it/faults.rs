@@ -1,4 +1,4 @@
-//! Faults survived (issue 7, docs/reliability.md), with real processes over loopback: actors
+//! Faults survived (docs/reliability.md), with real processes over loopback: actors
 //! killed and restarted again and again, a router restart, a learner that dies inside a
 //! checkpoint write, and a disk that fills up under a run.
 
@@ -342,7 +342,7 @@ fn metric_rows(run: &Path) -> usize {
         .unwrap_or(0)
 }
 
-/// Durable writes (issue 16): an atomic write syncs the temporary file before renaming it over
+/// Durable writes: an atomic write syncs the temporary file before renaming it over
 /// the target, then syncs the directory, so the new file survives a power loss (a crash test
 /// cannot tell: the page cache survives a killed process). Checked from the system calls of a
 /// real `dupac cache build` under `strace`; fails with either fsync removed from
@@ -421,12 +421,11 @@ fn an_atomic_write_syncs_the_file_then_renames_then_syncs_the_directory() {
     );
 }
 
-/// Issue 16: a configuration that validates builds its world (`dupac cache build`: the radio
+/// A configuration that validates builds its world (`dupac cache build`: the radio
 /// world and its RSRP cache; then `dupac pairs`: the planner's voxel grid and the held-out
 /// pairs) or stops with an error; never a panic, an abort or a hang. Every key of the
 /// configuration gets three hostile values (NaN, ±inf, huge, negative, zero, …, chosen
-/// round-robin) on top of the small test configuration. (It found the hang of
-/// `scenario.macro_radius_m = 4294967296`, now bounded.)
+/// round-robin) on top of the small test configuration.
 #[test]
 fn no_value_that_validation_accepts_panics_building_the_world() {
     const HOSTILE: &[&str] = &[

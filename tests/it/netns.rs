@@ -20,7 +20,7 @@ fn distributed_run_across_network_namespaces() {
     run_script(&[]);
 }
 
-/// Issue 7: actor 2's link goes down for 12 s (longer than the zenoh lease) while actor 1
+/// Actor 2's link goes down for 12 s (longer than the zenoh lease) while actor 1
 /// trains on, then comes back: the learner sees it leave and rejoin, and it acts with newer
 /// versions after the partition; the script reports the drops the learner counted.
 #[test]

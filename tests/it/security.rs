@@ -1,4 +1,4 @@
-//! Secured multi-machine runs (issue 7): mutual TLS and access control by certificate, set up
+//! Secured multi-machine runs: mutual TLS and access control by certificate, set up
 //! with `deploy/tls/make-certs.sh` and the configs it writes, proven with real processes over
 //! loopback: a `dupac router` that only speaks TLS, a learner and an actor with their role
 //! certificates, and the test's own Zenoh sessions playing a monitor, a rogue actor and a
@@ -32,7 +32,7 @@ fn open(c: zenoh::Config) -> zenoh::Result<zenoh::Session> {
 /// TCP to the router is not offered (it listens on TLS only); an authenticated actor that publishes weights (and a Stop) is
 /// denied at the router: subscribers never see the forged weights, the learner's weights and run
 /// go on; a monitor that publishes trajectories is denied too (the learner never sees them).
-/// Least privilege (issue 16): a monitor subscribing to trajectories receives none; actor 0's
+/// Least privilege: a monitor subscribing to trajectories receives none; actor 0's
 /// certificate can neither publish on actor 1's key nor declare actor 7's token; a flood of
 /// weights queries gets replies at the learner's rate. Checked to fail with each rule widened in
 /// the router's config (see docs/reliability.md).
@@ -149,7 +149,7 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
         "the router listens on {listen}"
     );
 
-    // Least privilege (issue 16): a monitor reads no trajectory, though actor 1 is sending.
+    // Least privilege: a monitor reads no trajectory, though actor 1 is sending.
     let traj_tap = monitor
         .session
         .declare_subscriber(keys.traj_all())

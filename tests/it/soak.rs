@@ -1,4 +1,4 @@
-//! The short CI variant of the soak test (`deploy/soak/run.sh`, issue 7): a learner and three
+//! The short CI variant of the soak test (`deploy/soak/run.sh`): a learner and three
 //! actors on loopback train 600 updates of a small procedural run while actors are killed with
 //! SIGKILL and restarted every 2–4 s and the learner is killed and `--resume`d half-way; then
 //! the same budget without faults. The script checks that both runs complete with an unbroken

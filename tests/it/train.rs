@@ -88,7 +88,7 @@ fn train_writes_its_run_directory_and_resume_continues_the_curve() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("checkpoint.bin"));
 }
 
-/// `env.site_every_step` (issue 15) through the distributed run: `dupac train` (a learner
+/// `env.site_every_step` through the distributed run: `dupac train` (a learner
 /// process and its actors over Zenoh) carries the per-step site fields in every trajectory
 /// chunk, within the limits derived from the configuration, and the learner trains the site
 /// head on them (`losses/site_loss` reported, no chunk dropped); the policy then flies and is
@@ -145,7 +145,7 @@ fn a_site_chosen_every_step_trains_over_zenoh_and_flies() {
     );
 }
 
-/// The path guide (issue 15, docs/env.md "Path guide"), on by default since 2026-11-26: a run of
+/// The path guide (docs/env.md "Path guide"), on by default: a run of
 /// the defaults, guided along the coverage-aware path planned with the guide's 5 m clearance and
 /// paid the path progress, trains (in one process, and over Zenoh, where the actors plan the
 /// pool's paths themselves); its policy records the guide, so `dupac eval` and `dupac fly` fly it

@@ -1,4 +1,4 @@
-//! `[distributed]`: the Zenoh actor/learner system (issue 5, docs/distributed.md).
+//! `[distributed]`: the Zenoh actor/learner system (docs/distributed.md).
 
 use super::ConfigError;
 #[allow(unused_imports)]
@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 #[allow(unused_imports)]
 use std::path::PathBuf;
 
-/// The Zenoh actor/learner system (`dupac train`, `dupac learner`, `dupac actor`; issue 5).
+/// The Zenoh actor/learner system (`dupac train`, `dupac learner`, `dupac actor`).
 /// The learner's batch is still `train.num_envs × train.num_steps` samples, whatever the number
 /// of actors: it is filled with chunks of `actor_envs × chunk_steps` samples.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -50,7 +50,7 @@ pub struct DistributedConfig {
     pub stats_every_s: f64,
     /// Replies per second the learner's weights queryable gives at most (each copies the whole
     /// policy), with a burst of twice that: actors and pilots query once when they join, a
-    /// flood of queries is left unanswered (issue 16).
+    /// flood of queries is left unanswered.
     pub weights_replies_per_s: f64,
 }
 
@@ -138,7 +138,7 @@ impl DistributedConfig {
         Ok(())
     }
 
-    /// Upper bounds of `[distributed]` values that size time or memory (issue 16).
+    /// Upper bounds of `[distributed]` values that size time or memory.
     pub(crate) fn validate_bounds(&self) -> Result<(), ConfigError> {
         let d = self;
         within(

@@ -107,18 +107,13 @@ pub struct RewardConfig {
     /// that is indifferent among sites switches freely. With `site_regret_weight` = 1 and the
     /// site chosen every step (`env.site_every_step`, the default) a switch pays when the new
     /// site is ≥ 2 dB stronger at that step; with the site held for a decision (5 steps), ≥ 0.4 dB
-    /// (docs/env.md, docs/results.md "A site chosen every step", issue 15; −3 until 2026-11-26).
+    /// (docs/env.md).
     pub handover_reward: f64,
-    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −8 since 2026-11-26, −4 before):
-    /// a handover back to the site the previous handover left, within `env.ping_pong_window_s`
-    /// (the metric's definition), on top of `handover_reward`. A departure tried against the ping-pongs (issue 15): the all-sites
-    /// estimator is myopic, so a switch is never charged the switch back that undoes it; this
-    /// charges the switch back itself, when it is made, so returning to a site within a second
-    /// needs a larger lead than leaving it (a hysteresis on returns only, as a causal rule can
-    /// know). Needs `env.observation.site_ping_pong` with the learned association (the site
-    /// head must see which site would be a ping-pong). With h = −2 a return within the window
-    /// is charged 10, what 10 dB-steps of site regret cost (docs/results.md "The −8 cost
-    /// (adopted)").
+    /// Reward added per *ping-pong* (≤ 0; 0 = off; default −8): a handover back to the site the
+    /// previous handover left within `env.ping_pong_window_s`, on top of `handover_reward`. A
+    /// departure: a hysteresis on returns, since the myopic all-sites estimator never charges a
+    /// switch the switch back that undoes it (docs/training.md "Site learning"). Needs
+    /// `env.observation.site_ping_pong` with the learned association.
     pub ping_pong_reward: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
@@ -136,7 +131,7 @@ pub struct RewardConfig {
     /// distance to the destination (the paper), `path` = the decrease of the distance still to
     /// fly along the episode's planned path (`env.observation.path_guide_lambda`): the distance
     /// to the UAV's tracked place on it plus the path beyond, which does not pay for flying into
-    /// a courtyard that points at the goal. A departure (issue 15; docs/env.md "Path guide").
+    /// a courtyard that points at the goal. A departure (docs/env.md "Path guide").
     /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
     /// `path` to about the planned path's length.
     pub progress: Progress,
@@ -148,7 +143,7 @@ pub struct RewardConfig {
 pub enum Progress {
     /// Straight-line distance to the destination (paper Eq. 8).
     Straight,
-    /// Distance still to fly along the episode's planned path (the default since 2026-11-26).
+    /// Distance still to fly along the episode's planned path (the default).
     #[default]
     Path,
 }
@@ -217,28 +212,25 @@ pub struct ObservationConfig {
     /// Per-site features for the permutation-equivariant site head (`ppo.site_head =
     /// "equivariant"`), [`crate::obs::SITE_FEATURES`] values per site on a fixed physical scale,
     /// at the end of the observation; the actor and critic MLPs do not read them. Written only
-    /// under `env.association = "learned"` (zeros otherwise). A departure (issue 15).
+    /// under `env.association = "learned"` (zeros otherwise). A departure.
     pub site_features: bool,
     /// One more site feature (with `site_features`): 1 for the site that serving next would be a
     /// ping-pong (the site the last handover left, within `env.ping_pong_window_s`), else 0
-    /// ([`crate::obs::site_feature::ping_pong`]). On by default since 2026-11-26; needed by
-    /// `env.reward.ping_pong_reward` (issue 15).
+    /// ([`crate::obs::site_feature::ping_pong`]). On by default; needed by
+    /// `env.reward.ping_pong_reward`.
     pub site_ping_pong: bool,
     /// Observe the episode's planned path (`path_guide`, 4 values after the goal fields): the
     /// unit direction to the point `path_lookahead_m` further along the planned path
     /// (`path_guide_lambda`) than the UAV's tracked place on it, and the path distance still to
     /// fly / `goal_scale_m`.
     /// Map knowledge the paper's UAV does not have (its sensors see 50 m): a departure against
-    /// the timeouts of a reactive policy stuck behind a building (issue 15; docs/env.md "Path
-    /// guide"). On by default since 2026-11-26, by the rule written before its runs
-    /// (`results/issue15/guide/RULE.md`); `docs/paper_dupac.toml` turns it off.
+    /// the timeouts of a reactive policy stuck behind a building (docs/env.md "Path
+    /// guide"). On by default; `docs/paper_dupac.toml` turns it off.
     pub path_guide: bool,
-    /// How far along the planned path the guide's direction points (m). 10 m by default since
-    /// 2026-11-27 (30 m before): a chord between points L/2 before and after a right-angle
-    /// corner of the path passes L/(2√2) inside it, 3.5 m for L = 10, what the guide's 5 m
-    /// clearance leaves the 1.5 m training sphere; with 30 m the observed direction cut a
-    /// corner through a roof the path keeps 5 m above (`results/issue15/keep/RULE.md`,
-    /// docs/results.md). Recorded in the policy: one trained with 30 m is flown with 30 m.
+    /// How far along the planned path the guide's direction points (m; default 10): a chord
+    /// between points L/2 before and after a right-angle corner of the path passes L/(2√2)
+    /// inside it, 3.5 m for L = 10, what the guide's 5 m clearance leaves the 1.5 m training
+    /// sphere (docs/env.md "Path guide"). Recorded in the policy, which is flown with its own.
     pub path_lookahead_m: f64,
     /// The planned path of the guide (and of `env.reward.progress = "path"`): 0 = the shortest
     /// flyable path; λ > 0 = the coverage-aware planner's path with this λ (`planner.penalty_*`),
@@ -250,7 +242,7 @@ pub struct ObservationConfig {
     /// pairs and planning the planner methods). 0 = `planner.clearance_m`. A pair whose guide cannot be planned with it
     /// is guided along the path planned with `planner.clearance_m` instead (counted in the log).
     /// Default 5 m: paths that pass buildings at 1.5 m taught the policy to squeeze past them
-    /// and doubled the collisions (issue 15; docs/env.md "Path guide").
+    /// and doubled the collisions (docs/env.md "Path guide").
     pub path_guide_clearance_m: f64,
     /// Where each site's line-of-sight site feature comes from: `ray` = a ray cast from every
     /// site at every step (150 per decision with the site chosen every step: over half of an
@@ -335,19 +327,17 @@ pub struct EnvConfig {
     /// A return to the previous site within this time is a ping-pong (s).
     pub ping_pong_window_s: f64,
     /// The learned site is chosen at every step of a decision, the move every `action_repeat`
-    /// steps (issue 15, a departure: the paper's hybrid action holds both for the decision).
+    /// steps (a departure: the paper's hybrid action holds both for the decision).
     /// The site head scores the sites from their features at each step with the state
     /// embedding of the decision's observation, and every site's reward is recorded per step
     /// (`Env::step_site_rewards`). Why:
     /// held for 5 steps (240 ms) the choice loses SINR that A3 and the oracle, acting every
-    /// step, keep (docs/results.md "A handover margin on the learned choice"). Needs
-    /// `ppo.site_head = "equivariant"` and `ppo.site_gradient = "all_sites"`. Default true (with
-    /// `handover_reward` = −2: fewer ping-pongs and less SINR loss than the site held per
-    /// decision, 3 seeds; docs/results.md "A site chosen every step"); false = the paper.
+    /// step, keep (docs/training.md "Site learning"). Needs `ppo.site_head = "equivariant"` and
+    /// `ppo.site_gradient = "all_sites"`. Default true; false = the paper.
     /// Learned association only.
     pub site_every_step: bool,
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
-    /// metric `pct_site_regret_high` (dB; issue 15: a metric threshold, not part of the reward).
+    /// metric `pct_site_regret_high` (dB; a metric threshold, not part of the reward).
     pub site_regret_threshold_db: f64,
     pub reward: RewardConfig,
     pub observation: ObservationConfig,

@@ -1,4 +1,4 @@
-//! `[ppo]` (the update and its site head, issue 4 and 15) and `[train]` (the run).
+//! `[ppo]` (the update and its site head) and `[train]` (the run).
 
 use super::ConfigError;
 #[allow(unused_imports)]
@@ -29,7 +29,7 @@ pub enum SiteGradient {
     AllSites,
 }
 
-/// PPO hyperparameters (issue 4; paper Sec. IV-A for lr, γ, ε; the rest CleanRL's
+/// PPO hyperparameters (paper Sec. IV-A for lr, γ, ε; the rest CleanRL's
 /// `ppo_continuous_action.py` defaults unless noted).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -67,7 +67,7 @@ pub struct PpoConfig {
     /// Hidden layer widths of both MLPs.
     pub hidden: Vec<usize>,
     /// The site head: `slots` = M logits of the actor MLP (the paper), `equivariant` = one small
-    /// network shared by all sites scoring each from its own features (issue 15).
+    /// network shared by all sites scoring each from its own features.
     pub site_head: SiteHead,
     /// How the site head learns: `sampled` = the paper's PPO on the sampled site (one joint ratio
     /// and clip with the move), `all_sites` = the exact expected gradient over every site's
@@ -90,7 +90,7 @@ pub struct PpoConfig {
     /// Consecutive updates skipped for numerical faults (a non-finite observation, reward or
     /// value in the batch, or non-finite weights after the update) before the run stops with an
     /// error; 0 = never stop. A skipped update leaves the weights, optimiser and normalisers as
-    /// they were (issue 7, docs/reliability.md).
+    /// they were (docs/reliability.md).
     pub max_bad_updates: u32,
 }
 
@@ -258,7 +258,7 @@ impl PpoConfig {
         Ok(())
     }
 
-    /// Upper bounds of `[ppo]` values that size time or memory (issue 16).
+    /// Upper bounds of `[ppo]` values that size time or memory.
     pub(crate) fn validate_bounds(&self) -> Result<(), ConfigError> {
         let pp = self;
         at_most("ppo.update_epochs", pp.update_epochs as u64, 1_000)?;

@@ -1,7 +1,7 @@
 //! The one DUPAC configuration: a TOML file whose every key has a serde default, that rejects
 //! unknown keys, and that `--set a.b=v` overrides from the command line.
 //!
-//! Defaults follow `spec/radio.md` (radio), `spec/env.md` (scenario) and issue 2 (maps, cache).
+//! Defaults follow `spec/radio.md` (radio) and `spec/env.md` (scenario).
 //! [`Config::load`] parses, applies overrides and validates once; everything downstream receives a
 //! resolved, valid [`Config`].
 
@@ -78,7 +78,7 @@ impl Config {
     /// Identifies everything that makes one process's environment steps and policy shapes
     /// differ from another's: the radio world (`world_fingerprint`: city, sites, RSRP
     /// parameters), the radio, cache, environment, pairs and planner sections and the network
-    /// widths. Actors whose fingerprint differs from the learner's are refused (issue 5); the
+    /// widths. Actors whose fingerprint differs from the learner's are refused; the
     /// PPO hyperparameters, seeds and output paths do not count.
     pub fn env_fingerprint(&self, world_fingerprint: u64) -> u64 {
         let mut h = crate::fingerprint::Fnv64::new();
@@ -215,7 +215,7 @@ impl Config {
         self.validate_bounds()
     }
 
-    /// Upper bounds on every value that sizes memory or time (issue 16): a value that passes
+    /// Upper bounds on every value that sizes memory or time: a value that passes
     /// validation never panics a conversion (`Duration`, an allocation size) later. The bounds
     /// are far above any sensible run; each error names the key and the bound. The sections'
     /// own bounds, then those that involve several sections.

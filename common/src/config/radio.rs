@@ -1,4 +1,4 @@
-//! `[radio]` (path loss, antenna, A3; spec/radio.md), `[map]` and `[cache]` (issue 2).
+//! `[radio]` (path loss, antenna, A3; spec/radio.md), `[map]` and `[cache]`.
 
 use super::ConfigError;
 #[allow(unused_imports)]
@@ -244,7 +244,7 @@ impl RadioConfig {
         Ok(())
     }
 
-    /// Upper bounds of `[radio]` values that size time or memory (issue 16).
+    /// Upper bounds of `[radio]` values that size time or memory.
     pub(crate) fn validate_bounds(&self) -> Result<(), ConfigError> {
         let r = self;
         // TR 38.901 §7.4 (the models TR 36.777 builds on) hold for 0.5–100 GHz.
