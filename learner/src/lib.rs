@@ -2,6 +2,7 @@
 //! files, and [`Learner`], the update fed by a [`TrajectorySource`]. It depends on the contract
 //! (`dupac-common`) and burn only: no environment, no radio, no network.
 
+pub mod batch;
 pub mod checkpoint;
 pub mod gae;
 pub mod learner;
@@ -10,5 +11,6 @@ pub mod ppo;
 pub mod source;
 pub mod synthetic;
 
-pub use learner::{IterationReport, Learner, MetricsRow, Segment, Timings, TrainError};
+pub use batch::Segment;
+pub use learner::{IterationReport, Learner, MetricsRow, Timings, TrainError};
 pub use source::{Collected, Progress, SourceError, Sourced, TrajectorySource};
