@@ -4,11 +4,13 @@
 //! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
 //! Episode summaries come from [`crate::metrics::EpisodeAccumulator`].
 
-use crate::env::{Action, Env, EnvError, Episode, Outcome, Step, StepInfo};
+use crate::env::{Action, Env, EnvError, Episode, Step};
 pub use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
+use crate::record::StepInfo;
 use dupac_common::SiteId;
 use dupac_common::geometry::Vector;
+use dupac_common::msg::Outcome;
 pub use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
 use dupac_common::policy::{
     ActionSample, MOVE_DIM, PolicyWeights, Scratch, argmax, sample_categorical,

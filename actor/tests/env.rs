@@ -1,9 +1,10 @@
 //! Environment tests on hand-built geometry with a scripted RSRP field.
 
-use dupac_actor::env::{Action, Env, EnvError, Episode, Outcome};
+use dupac_actor::env::{Action, Env, EnvError, Episode};
 use dupac_common::SiteId;
 use dupac_common::config::{ActionClip, Association, Config};
 use dupac_common::geometry::{Bounds2, Point, Vector};
+use dupac_common::msg::Outcome;
 use dupac_common::obs::field;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::{Building, City};

@@ -2,12 +2,13 @@
 //! shortest flyable path of every held-out evaluation pair of Midtown (the real data, the default
 //! seed and K = 50 per bin) reaches the goal without a collision.
 
-use dupac_actor::env::{Env, Outcome};
+use dupac_actor::env::Env;
 use dupac_actor::pairs::eval_pairs;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Association, Config, RadioMode};
 use dupac_common::geometry::Point;
+use dupac_common::msg::Outcome;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;

@@ -3,9 +3,11 @@
 //! received, so a user watches a policy improve during training.
 
 use crate::actor::{ActorError, Follower};
-use dupac_actor::env::{Env, Episode, Outcome, StepInfo};
+use dupac_actor::env::{Env, Episode};
 use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
+use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::{SitePick, decide};
+use dupac_common::msg::Outcome;
 use dupac_common::policy::{PolicyWeights, Scratch};
 use std::time::Duration;
 

@@ -4,15 +4,17 @@
 
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
-use dupac_actor::env::{Env, Outcome, StepInfo};
+use dupac_actor::env::Env;
 use dupac_actor::metrics::{EpisodeAccumulator, EpisodeSummary};
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{Flight, fly_waypoints};
 use dupac_actor::planner::Planner;
+use dupac_actor::record::StepInfo;
 use dupac_common::Config;
 use dupac_common::config::Association;
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
+use dupac_common::msg::Outcome;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::world::RadioWorld;

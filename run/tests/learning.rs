@@ -2,7 +2,7 @@
 //! pairs, a fixed seed and a bounded budget, PPO's deterministic policy reaches the goal far more
 //! often than a uniformly random policy and than itself at initialisation.
 
-use dupac_actor::env::{Action, Env, Outcome};
+use dupac_actor::env::{Action, Env};
 use dupac_actor::metrics::domain_stats;
 use dupac_actor::pairs::{Pair, eval_pairs, training_pool};
 use dupac_actor::planner::Planner;
@@ -10,6 +10,7 @@ use dupac_actor::rollout::fly_policy;
 use dupac_common::SiteId;
 use dupac_common::config::{Association, CityKind, Config, RadioMode};
 use dupac_common::geometry::Vector;
+use dupac_common::msg::Outcome;
 use dupac_learner::Learner;
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;

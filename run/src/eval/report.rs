@@ -5,12 +5,11 @@
 
 use super::records::RecordsFile;
 use crate::error::RunError;
-use dupac_actor::env::Outcome;
-use dupac_actor::eval::{
-    FlightMetrics, MeanCi, NOISE_PER_RE_DBM, Rate, flight_metrics, mean_ci95, wilson95,
-};
+use dupac_actor::eval::{MeanCi, NOISE_PER_RE_DBM, Rate, mean_ci95, wilson95};
+use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::{Point, norm};
+use dupac_common::msg::Outcome;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
