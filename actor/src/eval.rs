@@ -33,11 +33,12 @@ pub fn sinr_db(rsrp_all_dbm: &[f64], serving: usize, noise_dbm: f64) -> f64 {
 
 /// The hindsight association of a recorded route: the serving site of every step that minimises
 /// Σ_t (best RSRP_t − RSRP_t(site_t)) + `handover_cost_db` × handovers (dB·steps per handover,
-/// the site-regret and handover terms of the reward with κ_s = 1, `env.reward`),
-/// subject to a minimum time of stay: a handover at least `min_stay_steps` steps after the
-/// previous one (0: none; the ping-pong window + 1 forbids every ping-pong of
-/// [`crate::metrics::count_handovers`]). Exact dynamic programme over (site, steps since the last handover ≤
-/// `min_stay_steps`), O(T · M · (min_stay_steps + 1)); ties keep the lower site index.
+/// the site-regret and handover terms of the reward with κ_s = 1, `env.reward`), subject to a
+/// minimum time of stay: a handover at least `min_stay_steps` steps after the previous one (0:
+/// none; the ping-pong window + 1 forbids every ping-pong of
+/// [`crate::metrics::count_handovers`]). Exact dynamic programme over (site, steps since the
+/// last handover ≤ `min_stay_steps`), O(T · M · (min_stay_steps + 1)); ties keep the lower site
+/// index.
 /// `rsrp_dbm` is row-major, one row of the `m` sites' RSRP (dBm) per step; `start` is the site
 /// serving before the first step (it has just been selected, so the stay counts as complete).
 /// An evaluation reference that knows the whole route in advance, not a realisable rule: it

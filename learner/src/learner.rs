@@ -1,10 +1,10 @@
 //! The learner: PPO with its normalisers and counters, fed with trajectories from anywhere.
 //! [`Learner`] assembles each batch ([`crate::batch`]: reward scaling, GAE, the decoupled-PPO
 //! correction for older data), runs the update, keeps the normalisers and counters, writes the
-//! update's metrics and checkpoints; it never sees an environment. [`Learner::iterate`] takes one batch from a
-//! [`TrajectorySource`](crate::source::TrajectorySource) (local rollout workers, or chunks over
-//! Zenoh) and updates on it; the run layer (`dupac-run`) owns the loop that decides when to
-//! evaluate, log and checkpoint.
+//! update's metrics and checkpoints; it never sees an environment. [`Learner::iterate`] takes
+//! one batch from a [`TrajectorySource`](crate::source::TrajectorySource) (local rollout
+//! workers, or chunks over Zenoh) and updates on it; the run layer (`dupac-run`) owns the loop
+//! that decides when to evaluate, log and checkpoint.
 //!
 //! Determinism: the network init and the minibatch shuffles derive from `train.seed` and the
 //! update index ([`stream_seed`]), so with a deterministic source one seed reproduces a run bit
