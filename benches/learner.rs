@@ -138,9 +138,9 @@ fn default_update(c: &mut Criterion) {
     g.bench_function("update_4096", |b| {
         b.iter(|| {
             let p = l.policy();
-            let segs: Vec<dupac_learner::learner::Segment<'_>> = trajs
+            let segs: Vec<dupac_learner::batch::Segment<'_>> = trajs
                 .iter()
-                .map(|t| dupac_learner::learner::Segment {
+                .map(|t| dupac_learner::batch::Segment {
                     actor: dupac_common::ids::ActorId(0),
                     behaviour_version: p.version,
                     traj: t,

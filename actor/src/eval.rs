@@ -1,13 +1,10 @@
-//! Evaluation records and metrics (issue 6, spec/env.md "Metrics"): what one flight recorded at
-//! every step, the per-flight metrics derived from it, and the statistics across flights (means
-//! with 95 % t intervals, Wilson intervals for rates). Pure functions over plain data: the report
-//! of `dupac eval` is computed from saved records without flying again.
+//! Evaluation's computations over recorded flights (spec/env.md "Metrics"; the records are
+//! [`crate::record`], the per-flight metrics [`crate::metrics`]): the SINR of a step, the
+//! hindsight association of a recorded route, and the statistics across flights (means with
+//! 95 % t intervals, Wilson intervals for rates). Pure functions over plain data: the report of
+//! `dupac eval` is computed from saved records without flying again.
 
-use crate::env::StepInfo;
-use dupac_common::geometry::Point;
-use dupac_common::msg::Outcome;
-use dupac_radio::class::RsrpClass;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 /// Thermal noise per LTE resource element (dBm): −174 dBm/Hz + 10·log10(15 kHz) + a UE noise
 /// figure of 9 dB. RSRP is a per-resource-element power, so SINR from RSRPs uses this noise.
@@ -34,79 +31,14 @@ pub fn sinr_db(rsrp_all_dbm: &[f64], serving: usize, noise_dbm: f64) -> f64 {
     10.0 * (s / (i + mw(noise_dbm))).log10()
 }
 
-/// One step of a flight, as evaluation keeps it (f32 positions and powers: 40 bytes a step).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct StepRecord {
-    /// UAV position after the move (m).
-    pub position_m: [f32; 3],
-    pub serving: u16,
-    pub serving_rsrp_dbm: f32,
-    /// The strongest site here and its RSRP.
-    pub best_site: u16,
-    pub best_rsrp_dbm: f32,
-    /// SINR of the serving site against all others ([`sinr_db`]).
-    pub sinr_db: f32,
-    pub class: RsrpClass,
-    /// Class of the best site's RSRP (class regret: best excellent, serving not).
-    pub best_class: RsrpClass,
-    /// Geometric line of sight to the serving site.
-    pub los: bool,
-    pub handover: bool,
-    pub ping_pong: bool,
-}
-
-impl StepRecord {
-    /// The record of an environment step, with the SINR computed by the caller.
-    pub fn from_info(info: &StepInfo, sinr_db: f64) -> StepRecord {
-        let p = info.position_m;
-        StepRecord {
-            position_m: [p[0] as f32, p[1] as f32, p[2] as f32],
-            serving: info.serving.0,
-            serving_rsrp_dbm: info.serving_rsrp_dbm as f32,
-            best_site: info.best_site.0,
-            best_rsrp_dbm: info.best_rsrp_dbm as f32,
-            sinr_db: sinr_db as f32,
-            class: info.class,
-            best_class: info.best_class,
-            los: info.los,
-            handover: info.handover,
-            ping_pong: info.ping_pong,
-        }
-    }
-}
-
-/// One flight of one method (and training seed) over one pair.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FlightRecord {
-    /// Method label (`dupac`, `base`, `shortest_a3`, `coverage_l1`, …).
-    pub method: String,
-    /// Training seed index of the method's policy (0 for planners).
-    pub seed: u32,
-    pub pair_id: u64,
-    /// Evaluation bin of the pair (m of shortest flyable distance).
-    pub bin_m: f64,
-    /// Shortest flyable path D and straight line of the pair (m).
-    pub shortest_m: f64,
-    pub straight_m: f64,
-    pub outcome: Outcome,
-    /// Source of the flight (m): the first step's distance is measured from it.
-    #[serde(with = "dupac_common::geometry::serde_point")]
-    pub source_m: Point,
-    /// Destination of the flight (m).
-    #[serde(with = "dupac_common::geometry::serde_point")]
-    pub destination_m: Point,
-    /// Distance left to the destination at the end (m; ≤ the goal radius on success).
-    pub remaining_m: f64,
-    pub steps: Vec<StepRecord>,
-}
-
 /// The hindsight association of a recorded route: the serving site of every step that minimises
 /// Σ_t (best RSRP_t − RSRP_t(site_t)) + `handover_cost_db` × handovers (dB·steps per handover,
-/// the site-regret and handover terms of the reward with κ_s = 1, `env.reward` / issue 15),
-/// subject to a minimum time of stay: a handover at least `min_stay_steps` steps after the
-/// previous one (0: none; the ping-pong window + 1 forbids every ping-pong of
-/// [`count_handovers`]). Exact dynamic programme over (site, steps since the last handover ≤
-/// `min_stay_steps`), O(T · M · (min_stay_steps + 1)); ties keep the lower site index.
+/// the site-regret and handover terms of the reward with κ_s = 1, `env.reward`), subject to a
+/// minimum time of stay: a handover at least `min_stay_steps` steps after the previous one (0:
+/// none; the ping-pong window + 1 forbids every ping-pong of
+/// [`crate::metrics::count_handovers`]). Exact dynamic programme over (site, steps since the
+/// last handover ≤ `min_stay_steps`), O(T · M · (min_stay_steps + 1)); ties keep the lower site
+/// index.
 /// `rsrp_dbm` is row-major, one row of the `m` sites' RSRP (dBm) per step; `start` is the site
 /// serving before the first step (it has just been selected, so the stay counts as complete).
 /// An evaluation reference that knows the whole route in advance, not a realisable rule: it
@@ -301,6 +233,10 @@ pub fn wilson95(k: usize, n: usize) -> Rate {
 mod tests {
     use super::*;
     use crate::metrics::{count_handovers, flight_metrics};
+    use crate::record::{FlightRecord, StepRecord};
+    use dupac_common::geometry::Point;
+    use dupac_common::msg::Outcome;
+    use dupac_radio::class::RsrpClass;
 
     /// Cost of `sites` under `hindsight_association`'s objective, or None when a handover comes
     /// sooner than `min_stay` steps after the previous one.

@@ -7,4 +7,5 @@ pub mod metrics;
 pub mod pairs;
 pub mod pilot;
 pub mod planner;
+pub mod record;
 pub mod rollout;

@@ -7,8 +7,7 @@
 //! steps); [`put_domain`] writes them as metrics under one set of keys (`domain/…` for training
 //! episodes, `eval/…` for the held-out evaluation: [`dupac_common::metric`]).
 
-use crate::env::StepInfo;
-use crate::eval::FlightRecord;
+use crate::record::{FlightRecord, StepInfo};
 use dupac_common::geometry::Point;
 use dupac_common::metric::DomainKeys;
 use dupac_common::msg::{EpisodeSummary, Outcome};
@@ -170,7 +169,7 @@ pub struct FlightMetrics {
     pub mean_sinr_db: f64,
     /// Fraction of flight time with SINR < −6 dB (below which an LTE link is hardly usable).
     pub frac_sinr_below_m6db: f64,
-    /// Mean site regret: best RSRP − serving RSRP over the steps (dB, issue 15).
+    /// Mean site regret: best RSRP − serving RSRP over the steps (dB).
     pub mean_site_regret_db: f64,
     /// Fraction of flight time with site regret over the threshold (`env.site_regret_threshold_db`).
     pub frac_site_regret_high: f64,
@@ -259,7 +258,7 @@ pub struct DomainStats {
     pub handovers_per_km: f64,
     /// Mean distance overhead over the shortest path of the successful episodes (fraction).
     pub distance_overhead: f64,
-    /// Mean site regret over all steps: best − serving RSRP (dB, issue 15).
+    /// Mean site regret over all steps: best − serving RSRP (dB).
     pub site_regret_db: f64,
     /// Percent of steps with site regret over `env.site_regret_threshold_db`.
     pub pct_site_regret_high: f64,

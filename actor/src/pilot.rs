@@ -2,7 +2,8 @@
 //! planners and the environment (a planned path flown with the same collisions, radio and
 //! association rule as a learned policy), and the check that they agree.
 
-use crate::env::{Action, Env, EnvError, Episode, StepInfo};
+use crate::env::{Action, Env, EnvError, Episode};
+use crate::record::StepInfo;
 use dupac_common::geometry::{Point, Vector, distance_m as dist};
 use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;

@@ -4,9 +4,10 @@
 //! seeded RNG, so a rollout is reproducible whatever the thread count (EnvPool's rule).
 //! Episode summaries come from [`crate::metrics::EpisodeAccumulator`].
 
-use crate::env::{Action, Env, EnvError, Episode, Step, StepInfo};
+use crate::env::{Action, Env, EnvError, Episode, Step};
 use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
+use crate::record::StepInfo;
 use dupac_common::geometry::Vector;
 use dupac_common::ids::SiteId;
 use dupac_common::msg::{EnvTrajectory, EpisodeSummary, Outcome};

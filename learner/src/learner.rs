@@ -1,30 +1,29 @@
-//! The learner (issue 4): PPO with its normalisers and counters, fed with trajectories from
-//! anywhere. [`Learner`] does reward scaling, GAE, the decoupled-PPO correction for older data,
-//! the update, the normalisers, counters, the update's metrics and checkpoints; it never sees an
-//! environment. [`Learner::iterate`] takes one batch from a
-//! [`TrajectorySource`](crate::source::TrajectorySource) (local rollout workers, or chunks over
-//! Zenoh) and updates on it; the run layer (`dupac-run`) owns the loop that decides when to
-//! evaluate, log and checkpoint.
+//! The learner: PPO with its normalisers and counters, fed with trajectories from anywhere.
+//! [`Learner`] assembles each batch ([`crate::batch`]: reward scaling, GAE, the decoupled-PPO
+//! correction for older data), runs the update, keeps the normalisers and counters, writes the
+//! update's metrics and checkpoints; it never sees an environment. [`Learner::iterate`] takes
+//! one batch from a [`TrajectorySource`](crate::source::TrajectorySource) (local rollout
+//! workers, or chunks over Zenoh) and updates on it; the run layer (`dupac-run`) owns the loop
+//! that decides when to evaluate, log and checkpoint.
 //!
 //! Determinism: the network init and the minibatch shuffles derive from `train.seed` and the
 //! update index ([`stream_seed`]), so with a deterministic source one seed reproduces a run bit
 //! for bit whatever the thread count.
 
+use crate::batch::{Assembler, Segment};
 use crate::checkpoint::{CheckpointError, CheckpointMeta, LoadedCheckpoint, save_checkpoint};
-use crate::gae::{Trajectory, gae};
 use crate::model::{ActorCritic, init_plain};
 use crate::ppo::{Batch, Ppo, UpdateStats};
 use crate::source::{Progress, SourceError, TrajectorySource};
-use dupac_common::config::{Config, SiteGradient, SiteHead};
+use dupac_common::config::{Config, SiteHead};
 use dupac_common::ids::ActorId;
 use dupac_common::metric;
-use dupac_common::msg::{EnvTrajectory, EpisodeSummary};
+use dupac_common::msg::EpisodeSummary;
 use dupac_common::normalize::{ObsNormalizer, RewardScaler};
-use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch, SiteHead as PlainSiteHead};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights, SiteHead as PlainSiteHead};
 use dupac_common::seed::stream_seed;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
@@ -62,16 +61,6 @@ pub struct IterationReport {
     pub row: MetricsRow,
     /// Episodes that ended in the batch (none when the update was skipped for non-finite input).
     pub episodes: Vec<EpisodeSummary>,
-}
-
-/// One environment's trajectory handed to [`Learner::learn`], with where it came from.
-#[derive(Debug, Clone, Copy)]
-pub struct Segment<'a> {
-    /// The actor process (the synchronous trainer is actor 0).
-    pub actor: ActorId,
-    /// Version of the policy that acted.
-    pub behaviour_version: u64,
-    pub traj: &'a EnvTrajectory,
 }
 
 /// Extra timings of one iteration, reported as `time/*` metrics (s).
@@ -497,186 +486,21 @@ impl Learner {
         )
     }
 
-    /// Reward scaling per stream, GAE per stream, observations normalised with the statistics
-    /// of `policy`, the decoupled correction for segments acted with an older version,
-    /// flattened.
+    /// The batch of `segments` ([`crate::batch`]): reward scaling per stream, GAE per stream,
+    /// observations normalised with the statistics of `policy`, the decoupled correction for
+    /// segments acted with an older version, flattened.
     fn assemble(&mut self, policy: &PolicyWeights, segments: &[Segment<'_>]) -> Batch {
-        let (gamma, lambda) = (self.cfg.ppo.gamma, self.cfg.ppo.gae_lambda);
-        let dist = &self.cfg.distributed;
-        // Discounted returns per stream update the reward scaler first (CleanRL's wrapper does
-        // this step by step; here per batch, in the same order).
-        let mut returns_seen = Vec::new();
-        for seg in segments {
-            let tr = seg.traj;
-            let acc = self.return_acc.entry((seg.actor, tr.env)).or_insert(0.0);
-            for t in 0..tr.len() {
-                *acc = *acc * gamma + f64::from(tr.rewards[t]);
-                returns_seen.push(*acc);
-                if tr.terminated[t] || tr.truncated[t] {
-                    *acc = 0.0;
-                }
-            }
-        }
-        if self.reward_scaler.enabled {
-            self.reward_scaler.stats.update(&returns_seen);
-        }
-        // The all-sites gradient: the move's log-probs alone, every site's reward.
-        // With `env.site_every_step` every step's site rewards instead (one row per step).
-        let per_step = self.cfg.ppo.site_gradient == SiteGradient::AllSites
-            && self.n_sites > 0
-            && !segments.is_empty()
-            && segments
-                .iter()
-                .all(|s| s.traj.decision_steps.len() == s.traj.len());
-        let all_sites = per_step
-            || (self.cfg.ppo.site_gradient == SiteGradient::AllSites
-                && self.n_sites > 0
-                && segments
-                    .iter()
-                    .all(|s| s.traj.site_rewards.len() == s.traj.len() * self.n_sites));
-        if self.cfg.env.site_every_step
-            && self.cfg.env.association == dupac_common::config::Association::Learned
-            && !segments.is_empty()
-            && !per_step
-        {
-            tracing::error!(
-                "env.site_every_step is on but the trajectories carry no per-step site rows: the site head learns from decision rows or not at all"
-            );
-        }
-        let mut batch = Batch {
+        let assembled = Assembler {
+            cfg: &self.cfg,
             obs_dim: self.obs_dim,
-            n_sites: if all_sites { self.n_sites } else { 0 },
-            step_offsets: if per_step { vec![0] } else { Vec::new() },
-            ..Batch::default()
-        };
-        let mut norm = vec![0.0f32; self.obs_dim];
-        let mut any_off_policy = false;
-        // The network evaluations (proximal log-probs of older data, last bootstraps) are
-        // independent per segment: in parallel.
-        let obs_dim = self.obs_dim;
-        let evals: Vec<(Option<Vec<f32>>, Option<f32>)> = segments
-            .par_iter()
-            .map(|seg| {
-                let tr = seg.traj;
-                let n = tr.len();
-                let mut scratch = Scratch::default();
-                let off_policy =
-                    seg.behaviour_version != policy.version && dist.decoupled_correction;
-                let prox = off_policy.then(|| {
-                    tr.obs
-                        .chunks_exact(obs_dim)
-                        .enumerate()
-                        .map(|(t, row)| {
-                            let mut m = [0.0f32; MOVE_DIM];
-                            m.copy_from_slice(&tr.moves[t * MOVE_DIM..(t + 1) * MOVE_DIM]);
-                            let (lp_move, lp_site) =
-                                policy.logprob_parts(row, &m, tr.sites[t], &mut scratch);
-                            if all_sites {
-                                lp_move
-                            } else {
-                                lp_move + lp_site
-                            }
-                        })
-                        .collect()
-                });
-                let boot = (n > 0
-                    && !tr.terminated[n - 1]
-                    && !tr.truncated[n - 1]
-                    && tr.bootstrap_obs.len() == obs_dim)
-                    .then(|| policy.value(&tr.bootstrap_obs, &mut scratch));
-                (prox, boot)
-            })
-            .collect();
-        for (seg, (prox, boot)) in segments.iter().zip(evals) {
-            let tr = seg.traj;
-            let n = tr.len();
-            let rewards: Vec<f32> = tr
-                .rewards
-                .iter()
-                .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32)
-                .collect();
-            // The last step's bootstrap, re-evaluated with the current critic (identical for
-            // data of the current version; better for older data).
-            let mut next_values = tr.next_values.clone();
-            if let Some(v) = boot {
-                next_values[n - 1] = v;
-            }
-            let (adv, ret) = gae(
-                Trajectory {
-                    rewards: &rewards,
-                    values: &tr.values,
-                    next_values: &next_values,
-                    terminated: &tr.terminated,
-                    truncated: &tr.truncated,
-                },
-                gamma,
-                lambda,
-            );
-            let trunk = self.trunk_dim;
-            for row in tr.obs.chunks_exact(self.obs_dim) {
-                policy.obs_norm.apply(row, &mut norm);
-                // The site features are read raw (fixed scales), as the actors read them.
-                norm[trunk..].copy_from_slice(&row[trunk..]);
-                batch.obs.extend_from_slice(&norm);
-            }
-            // Behaviour log-probs of what the ratio covers (the move alone under all-sites).
-            let behaviour: Vec<f32> = if all_sites {
-                tr.logprobs
-                    .iter()
-                    .zip(&tr.site_logprobs)
-                    .map(|(&j, &k)| j - k)
-                    .collect()
-            } else {
-                tr.logprobs.clone()
-            };
-            if per_step {
-                let mut end = batch.step_offsets.last().copied().unwrap_or(0);
-                for &k in &tr.decision_steps {
-                    end += usize::from(k);
-                    batch.step_offsets.push(end);
-                }
-                batch
-                    .step_site_features
-                    .extend_from_slice(&tr.step_site_features);
-                batch.step_site_rewards.extend(
-                    tr.step_site_rewards
-                        .iter()
-                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
-                );
-            } else if all_sites {
-                batch.site_rewards.extend(
-                    tr.site_rewards
-                        .iter()
-                        .map(|&r| self.reward_scaler.scale(f64::from(r)) as f32),
-                );
-            }
-            match &prox {
-                Some(prox) => {
-                    any_off_policy = true;
-                    self.off_policy_samples += n as u64;
-                    for (&p, &b) in prox.iter().zip(&behaviour) {
-                        let w = (f64::from(p) - f64::from(b))
-                            .exp()
-                            .min(dist.max_importance_weight);
-                        batch.logprobs.push(p);
-                        batch.is_weights.push(w as f32);
-                    }
-                }
-                None => {
-                    batch.logprobs.extend_from_slice(&behaviour);
-                    batch.is_weights.extend(std::iter::repeat_n(1.0, n));
-                }
-            }
-            batch.moves.extend_from_slice(&tr.moves);
-            batch.sites.extend(tr.sites.iter().map(|&s| i64::from(s)));
-            batch.values.extend_from_slice(&tr.values);
-            batch.advantages.extend(adv);
-            batch.returns.extend(ret);
+            trunk_dim: self.trunk_dim,
+            n_sites: self.n_sites,
+            reward_scaler: &mut self.reward_scaler,
+            return_acc: &mut self.return_acc,
         }
-        if !any_off_policy {
-            batch.is_weights.clear();
-        }
-        batch
+        .assemble(policy, segments);
+        self.off_policy_samples += assembled.off_policy_samples;
+        assembled.batch
     }
 
     /// Writes a checkpoint atomically.
@@ -711,6 +535,8 @@ impl Learner {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dupac_common::msg::EnvTrajectory;
+    use dupac_common::policy::Scratch;
 
     const OBS: usize = 5;
     const SITES: usize = 4;

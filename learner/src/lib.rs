@@ -2,6 +2,7 @@
 //! files, and [`learner::Learner`], the update fed by a [`source::TrajectorySource`]. It depends on the contract
 //! (`dupac-common`) and burn only: no environment, no radio, no network.
 
+pub mod batch;
 pub mod checkpoint;
 pub mod gae;
 pub mod learner;

@@ -3,8 +3,9 @@
 //! received, so a user watches a policy improve during training.
 
 use crate::actor::{ActorError, Follower};
-use dupac_actor::env::{Env, Episode, StepInfo};
+use dupac_actor::env::{Env, Episode};
 use dupac_actor::metrics::EpisodeAccumulator;
+use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::{SitePick, decide};
 use dupac_common::msg::{EpisodeSummary, Outcome};
 use dupac_common::policy::{PolicyWeights, Scratch};

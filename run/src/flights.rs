@@ -5,11 +5,12 @@
 
 use crate::error::RunError;
 use crate::scenario::SharedRsrp;
-use dupac_actor::env::{Env, StepInfo};
+use dupac_actor::env::Env;
 use dupac_actor::metrics::EpisodeAccumulator;
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{Flight, fly_waypoints};
 use dupac_actor::planner::Planner;
+use dupac_actor::record::StepInfo;
 use dupac_common::config::{Association, Config};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;

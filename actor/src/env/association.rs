@@ -1,8 +1,13 @@
-//! How the serving GBS is chosen each step (spec/env.md "Association").
+//! How the serving GBS is chosen each step (spec/env.md "Association"): the rule
+//! ([`Associator`]) and the step's associate stage ([`Env::associate`]).
 
+use super::Env;
+use crate::metrics::HandoverCounter;
 use dupac_common::config::Association;
+use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_radio::a3::{A3Params, A3State};
+use dupac_radio::class::RsrpClass;
 
 /// Association state of one episode.
 #[derive(Debug, Clone)]
@@ -47,6 +52,52 @@ impl Associator {
                 state.serving()
             }
             Associator::BestRsrp => argmax(rsrp_dbm),
+        }
+    }
+}
+
+/// What the associate stage produced: the serving site's link and the strongest site's after
+/// the step, whether the step was a handover (and a ping-pong), and what a counterfactual
+/// site's handover is measured from.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Link {
+    /// The site serving before the step.
+    pub before: SiteId,
+    /// The handover counter before the step (whether serving site k now would be a ping-pong).
+    pub counter: HandoverCounter,
+    pub handover: bool,
+    pub ping_pong: bool,
+    /// RSRP (dBm) and class of the site serving after the step.
+    pub serving_rsrp_dbm: f64,
+    pub class: RsrpClass,
+    /// The strongest site at the new position and its RSRP (dBm).
+    pub best_site: SiteId,
+    pub best_rsrp_dbm: f64,
+}
+
+impl Env {
+    /// Associate: every site's RSRP at `to` (dBm, from the RSRP source), then the serving site by
+    /// the association rule (`site`, the policy's choice, under the learned association: a
+    /// decision's choice takes effect at its first step, so a handover only there; A3 or the
+    /// strongest site otherwise), the handover and ping-pong counted.
+    pub(super) fn associate(&mut self, to: Point, site: SiteId) -> Link {
+        self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);
+        let before = self.serving;
+        self.serving = self.associator.next(site, &self.rsrp_dbm);
+        let counter = self.handovers;
+        let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
+        let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
+        let class = self.thresholds.classify(serving_rsrp_dbm);
+        let best_site = argmax(&self.rsrp_dbm);
+        Link {
+            before,
+            counter,
+            handover,
+            ping_pong,
+            serving_rsrp_dbm,
+            class,
+            best_site,
+            best_rsrp_dbm: self.rsrp_dbm[best_site.index()],
         }
     }
 }

@@ -6,7 +6,48 @@ use super::{Env, RSRP_FLOOR_DBM, argmax};
 use dupac_common::config::{NearestObstacle, SiteLos};
 use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::ids::SiteId;
-use dupac_common::obs::{site_feature, site_features_per_site};
+use dupac_common::obs::{ObsLayout, field, site_feature, site_features_per_site};
+use std::ops::Range;
+
+/// Observation slices resolved once from the layout.
+#[derive(Debug, Clone)]
+pub(super) struct Slots {
+    position: Range<usize>,
+    velocity: Range<usize>,
+    goal_vector: Option<Range<usize>>,
+    goal_distance: Option<Range<usize>>,
+    goal_direction: Option<Range<usize>>,
+    path_guide: Option<Range<usize>>,
+    obstacle_distance: Range<usize>,
+    obstacle_direction: Range<usize>,
+    sensor_fan: Option<Range<usize>>,
+    serving_one_hot: Range<usize>,
+    rsrp_all: Option<Range<usize>>,
+    rsrp_serving: Option<Range<usize>>,
+    pub(super) site_features: Option<Range<usize>>,
+}
+
+impl Slots {
+    /// The slices of `layout` (an absent required field: an empty range).
+    pub(super) fn new(layout: &ObsLayout) -> Slots {
+        let req = |name: &str| layout.range(name).unwrap_or(0..0);
+        Slots {
+            position: req(field::POSITION),
+            velocity: req(field::VELOCITY),
+            goal_vector: layout.range(field::GOAL_VECTOR),
+            goal_distance: layout.range(field::GOAL_DISTANCE),
+            goal_direction: layout.range(field::GOAL_DIRECTION),
+            path_guide: layout.range(field::PATH_GUIDE),
+            obstacle_distance: req(field::OBSTACLE_DISTANCE),
+            obstacle_direction: req(field::OBSTACLE_DIRECTION),
+            sensor_fan: layout.range(field::SENSOR_FAN),
+            serving_one_hot: req(field::SERVING_ONE_HOT),
+            rsrp_all: layout.range(field::RSRP_ALL),
+            rsrp_serving: layout.range(field::RSRP_SERVING),
+            site_features: layout.range(field::SITE_FEATURES),
+        }
+    }
+}
 
 impl Env {
     /// Nearest obstacle along the sensor fan: writes normalised distances into `fan` and returns

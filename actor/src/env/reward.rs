@@ -1,6 +1,12 @@
-//! The paper's reward, Eq. (8), with the RSRP classes of spec/radio.md §3.
+//! Every reward term of a step (spec/env.md "Reward", docs/env.md): the paper's Eq. (8) with the
+//! RSRP classes of spec/radio.md §3, the terminal rewards, the route's connectivity term, the
+//! handover and ping-pong costs and the site regret; [`StepTerms`] sums them for the site that
+//! serves and for every site's counterfactual.
 
+use crate::metrics::HandoverCounter;
 use dupac_common::config::RewardConfig;
+use dupac_common::ids::SiteId;
+use dupac_common::msg::Outcome;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
 
 /// Per-step reward of paper Eq. (8): excellent `μ1·Δd`; mediocre `μ1·Δd + μ2·w`; poor `μ3·w`,
@@ -26,7 +32,7 @@ pub const RSRP_FLOOR_DBM: f64 = -200.0;
 /// Site regret (dB) above this adds no more to the regret term.
 pub const MAX_REGRET_DB: f64 = 60.0;
 
-/// The part of a step's reward that depends on the serving site (issue 15): Eq. (8) with that
+/// The part of a step's reward that depends on the serving site: Eq. (8) with that
 /// site's RSRP and class (nothing after a collision or leaving the area, whose reward replaces
 /// Eq. (8)), the handover cost `handover_reward` if serving it is a handover (and
 /// `ping_pong_reward` too if that handover is a ping-pong), and
@@ -59,6 +65,106 @@ pub fn site_term(
         r -= cfg.site_regret_weight * regret;
     }
     r
+}
+
+/// One step's reward terms, from what the step's stages produced: the site-independent part
+/// (terminal rewards, the route's connectivity term, the goal) and what the per-site part
+/// ([`site_term`]) reads.
+pub(super) struct StepTerms<'a> {
+    cfg: &'a RewardConfig,
+    thresholds: &'a RsrpThresholds,
+    /// The site-independent reward: `collision_reward` or `out_of_bounds_reward`, minus the
+    /// route term, plus `goal_reward`.
+    common: f64,
+    /// A collision or leaving the area: its reward replaces Eq. (8).
+    crashed: bool,
+    /// The step's progress towards the destination (m).
+    progress_m: f64,
+    /// The strongest site's RSRP at the new position (dBm).
+    best_rsrp_dbm: f64,
+}
+
+/// Where a counterfactual site's handover is measured from: a decision's choice takes effect at
+/// its `first` step (a handover only there) from the site serving `before` it, a ping-pong per
+/// the handover `counter` before it, at episode step `step`.
+pub(super) struct Switch {
+    pub first: bool,
+    pub before: SiteId,
+    pub counter: HandoverCounter,
+    pub step: u32,
+}
+
+impl<'a> StepTerms<'a> {
+    /// The terms of a step with `outcome` (collision, out of bounds or goal; none yet for the
+    /// time limit) that flew `step_length_m` (m) with `progress_m` (m) of progress, the
+    /// strongest site at `best_rsrp_dbm` (dBm); `route_penalty` is the coverage-aware planner's
+    /// per-metre penalty of a mediocre and a poor best site, for `route_connectivity_weight`.
+    pub fn new(
+        cfg: &'a RewardConfig,
+        thresholds: &'a RsrpThresholds,
+        route_penalty: [f64; 2],
+        outcome: Option<Outcome>,
+        step_length_m: f64,
+        progress_m: f64,
+        best_rsrp_dbm: f64,
+    ) -> StepTerms<'a> {
+        let crashed = matches!(outcome, Some(Outcome::Collision | Outcome::OutOfBounds));
+        let mut common = match outcome {
+            Some(Outcome::Collision) => cfg.collision_reward,
+            Some(Outcome::OutOfBounds) => cfg.out_of_bounds_reward,
+            _ => 0.0,
+        };
+        if cfg.route_connectivity_weight > 0.0 {
+            let penalty = match thresholds.classify(best_rsrp_dbm) {
+                RsrpClass::Excellent => 0.0,
+                RsrpClass::Mediocre => route_penalty[0],
+                RsrpClass::Poor => route_penalty[1],
+            };
+            common -= cfg.mu1 * cfg.route_connectivity_weight * penalty * step_length_m;
+        }
+        if outcome == Some(Outcome::Goal) {
+            common += cfg.goal_reward;
+        }
+        StepTerms {
+            cfg,
+            thresholds,
+            common,
+            crashed,
+            progress_m,
+            best_rsrp_dbm,
+        }
+    }
+
+    /// The step's reward with a site of `rsrp_dbm` (dBm) serving, `handover` and `ping_pong`
+    /// saying whether serving it was one.
+    pub fn reward(&self, rsrp_dbm: f64, handover: bool, ping_pong: bool) -> f64 {
+        self.common
+            + site_term(
+                self.cfg,
+                self.thresholds,
+                self.crashed,
+                self.progress_m,
+                rsrp_dbm,
+                self.best_rsrp_dbm,
+                handover,
+                ping_pong,
+            )
+    }
+
+    /// Adds to `acc[k]` the step's reward had site k served from the decision's first step on
+    /// (`rsrp_dbm[k]` its RSRP, dBm): the flight is the same (the site does not move the UAV);
+    /// a handover if `switch` is the decision's first step and k is not the site serving before
+    /// it, a ping-pong if the counter says so.
+    pub fn add_site_rewards(&self, acc: &mut [f64], rsrp_dbm: &[f64], switch: &Switch) {
+        for (k, acc) in acc.iter_mut().enumerate() {
+            let handover = switch.first && k != switch.before.index();
+            let pp = handover
+                && switch
+                    .counter
+                    .would_ping_pong(switch.before.0, k as u16, switch.step);
+            *acc += self.reward(rsrp_dbm[k], handover, pp);
+        }
+    }
 }
 
 #[cfg(test)]

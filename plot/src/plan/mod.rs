@@ -481,7 +481,7 @@ pub fn trace_of(
     source_m: Point,
     source_rsrp_dbm: f64,
     thresholds: RsrpThresholds,
-    steps: &[dupac_actor::env::StepInfo],
+    steps: &[dupac_actor::record::StepInfo],
 ) -> FlightTrace {
     let mut t = FlightTrace {
         label,

@@ -7,11 +7,10 @@ use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
 use dupac_actor::env::Env;
-use dupac_actor::eval::{
-    FlightRecord, NOISE_PER_RE_DBM, StepRecord, hindsight_association, sinr_db,
-};
+use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
+use dupac_actor::record::{FlightRecord, StepRecord};
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;

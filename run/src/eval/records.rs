@@ -4,7 +4,7 @@
 
 use super::refused;
 use crate::error::{Context, RunError};
-use dupac_actor::eval::FlightRecord;
+use dupac_actor::record::FlightRecord;
 use dupac_common::codec;
 use std::path::{Path, PathBuf};
 
