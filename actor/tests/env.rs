@@ -84,7 +84,7 @@ fn world() -> Arc<RadioWorld> {
 }
 
 /// The paper's reward, Eq. (8) alone: no handover or ping-pong cost, site-regret or route term (the
-/// departures of issue 15, tested on their own below).
+/// departures from the paper, tested on their own below).
 fn paper_reward(cfg: &mut Config) {
     cfg.env.reward.handover_reward = 0.0;
     cfg.env.reward.ping_pong_reward = 0.0;
@@ -970,7 +970,7 @@ fn a_site_chosen_every_step_gets_every_steps_counterfactual_rewards() {
     step_site_rewards_match_their_counterfactuals(&cfg, 10);
 }
 
-/// `env.reward.ping_pong_reward` (issue 15): a handover back to the site the last handover left,
+/// `env.reward.ping_pong_reward`: a handover back to the site the last handover left,
 /// within `env.ping_pong_window_s` (21 steps), costs that reward on top of the handover cost,
 /// and `env.observation.site_ping_pong` marks that site in the features beforehand, until the
 /// window has passed.
@@ -1051,7 +1051,7 @@ fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
     }
 }
 
-/// The path guide (issue 15, docs/env.md "Path guide"): the observation points along the
+/// The path guide (docs/env.md "Path guide"): the observation points along the
 /// episode's planned path, `env.reward.progress = "path"` pays the distance made good along it
 /// (not the straight-line gain), and an episode without a path, or with another pair's, is
 /// refused.

@@ -1,4 +1,4 @@
-//! Property tests of the pairs-file reader (issue 7, "bad input, fuzzed"): arbitrary bytes, a
+//! Property tests of the pairs-file reader: arbitrary bytes, a
 //! valid file with bytes flipped, cut or extended, and valid lines with one value replaced by a
 //! hostile one (NaN, huge, negative, a string where a number belongs, missing fields). The reader
 //! must never panic; every error names the file and, for a bad line, its line number; valid

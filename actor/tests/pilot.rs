@@ -64,7 +64,7 @@ fn scripted_pilot_reaches_the_goal_on_every_evaluation_pair() {
                         return Some(format!("pair {}: flew {gap:.1} m off the plan", p.id));
                     }
                     // Replaying the flight's positions as `dupac eval` records them (f32)
-                    // reproduces it: the same steps, end and positions (issue 15's replays).
+                    // reproduces it: the same steps, end and positions.
                     let pos: Vec<Point> = f
                         .steps
                         .iter()

@@ -325,7 +325,7 @@ impl Learner {
     ) -> Result<IterationReport, TrainError> {
         let t0 = Instant::now();
         let n_samples: usize = segments.iter().map(|s| s.traj.len()).sum();
-        // Numerical faults (issue 7): a non-finite number in the batch skips the whole update
+        // Numerical faults: a non-finite number in the batch skips the whole update
         // before anything (normalisers, return accumulators, weights) has seen it.
         let bad_input = segments.iter().find_map(|s| {
             s.traj.first_non_finite().map(|w| {

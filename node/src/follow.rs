@@ -1,4 +1,4 @@
-//! Flying one episode with live weights (`dupac fly --follow`, issue 5): a deterministic
+//! Flying one episode with live weights (`dupac fly --follow`): a deterministic
 //! flight whose policy is swapped, between steps, for the newest version a [`Follower`]
 //! received, so a user watches a policy improve during training.
 

@@ -1,4 +1,4 @@
-//! The evaluation's figures (`dupac eval`, issue 6): the paper's Fig. 3 (distance and overhead
+//! The evaluation's figures (`dupac eval`): the paper's Fig. 3 (distance and overhead
 //! per bin) and Fig. 4 (RSRP and class fractions per bin), the Pareto plot of distance
 //! overhead against time in excellent RSRP, and example flights over the city. Drawn from the
 //! statistics of `dupac_run::eval::report`, thresholds from the configuration.

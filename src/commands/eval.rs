@@ -59,7 +59,8 @@ pub struct EvalArgs {
     /// (`LABEL+hindsight_C`): the sites that minimise the site regret plus C dB·steps per
     /// handover over the whole recorded route; `C:mts` also forbids a handover sooner than
     /// `env.ping_pong_window_s` after the previous one (no ping-pongs). An evaluation reference
-    /// that knows the route in advance (repeatable; docs/results.md "What any association can do").
+    /// that knows the route in advance (repeatable; docs/archive.md "What any association can do
+    /// on DUPAC's moves").
     #[arg(long = "hindsight", value_name = "C[:mts]")]
     pub hindsight: Vec<String>,
 }

@@ -1,4 +1,4 @@
-//! The episode's planned path as a guide (issue 15, docs/env.md "Path guide"): how far along
+//! The episode's planned path as a guide (docs/env.md "Path guide"): how far along
 //! it the UAV is, the distance still to fly, and a look-ahead point on it, for the `path_guide`
 //! observation and the `path` progress of Eq. (8).
 //!

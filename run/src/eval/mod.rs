@@ -1,4 +1,4 @@
-//! Evaluation (issue 6): every evaluation pair flown with trained policies (several training
+//! Evaluation: every evaluation pair flown with trained policies (several training
 //! seeds per method) and with the planners (shortest path with A3 and with the best-RSRP
 //! oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a learned
 //! site choice's moves re-flown with A3, the oracle and the hindsight association ([`fly`]);
