@@ -7,7 +7,8 @@ use dupac_common::ids::ActorId;
 use dupac_common::msg::{Header, MsgLimits, WeightsMsg, decode_msg, encode_msg};
 use dupac_common::normalize::{ObsNormalizer, RewardScaler};
 use dupac_common::obs::OBS_VERSION;
-use dupac_common::policy::{Dense, MOVE_DIM, Mlp, PolicyWeights, Scratch};
+use dupac_common::policy::mlp::{Dense, Mlp};
+use dupac_common::policy::{MOVE_DIM, PolicyWeights, Scratch};
 use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps, validate_weights};
 use proptest::prelude::*;
 

@@ -12,10 +12,8 @@
 use burn::module::{Module, Param};
 use burn::tensor::activation::log_softmax;
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use dupac_common::policy::{
-    Dense as PlainDense, HALF_LN_2PI, MOVE_DIM, Mlp as PlainMlp, SiteHead as PlainSiteHead,
-    tanh_f32,
-};
+use dupac_common::policy::mlp::{Dense as PlainDense, Mlp as PlainMlp, tanh_f32};
+use dupac_common::policy::{HALF_LN_2PI, MOVE_DIM, SiteHead as PlainSiteHead};
 use rand::RngExt;
 
 /// A dense layer `y = x·W + b`, `W: [n_in, n_out]`.

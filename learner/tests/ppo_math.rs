@@ -759,7 +759,7 @@ fn the_per_step_site_loss_reads_each_step_with_its_own_decision() {
 /// own `tanh`, values and gradients agree to 1e-6.
 #[test]
 fn the_cpu_tanh_has_the_actors_values_and_the_gradient_of_its_output() {
-    use dupac_common::policy::tanh_f32;
+    use dupac_common::policy::mlp::tanh_f32;
     use dupac_learner::model::fast_tanh;
     let device = Device::flex().autodiff();
     let xs: Vec<f32> = (-1200..=1200).map(|i| i as f32 * 0.01).collect();
