@@ -10,7 +10,6 @@
 //! or ids do not match, or that cannot be read, is a miss: the paths are planned and the file
 //! written anew (atomically; a failed write is logged, never fatal).
 
-use crate::scenario::guide_clearance_m;
 use dupac_actor::env::PathGuide;
 use dupac_actor::pairs::Pair;
 use dupac_common::codec;
@@ -22,6 +21,19 @@ use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"DUPACGDE";
 const VERSION: u32 = 1;
+
+/// The clearance (m) of the path `cfg`'s episodes are guided along:
+/// `env.observation.path_guide_clearance_m`, or `planner.clearance_m` where that is 0.
+/// Never below `env.uav_radius_m`, as the planner itself
+/// ([`dupac_actor::planner::Planner::new`]) would raise it.
+pub fn guide_clearance_m(cfg: &Config) -> f64 {
+    let c = match cfg.env.observation.path_guide_clearance_m {
+        c if c > 0.0 => c,
+        _ => cfg.planner.clearance_m,
+    };
+    c.max(cfg.env.uav_radius_m)
+}
+
 /// Most bytes a guide file may have, and may allocate when decoded.
 const MAX_BYTES: usize = 256 << 20;
 

@@ -2,7 +2,7 @@
 //! evaluation pairs and the training pool (spec/env.md "World", "Pairs").
 
 use crate::error::{Context, RunError};
-use crate::guide_cache::GuideCache;
+use crate::guide_cache::{GuideCache, guide_clearance_m};
 use crate::progress::progress_bar;
 use dupac_actor::env::Episode;
 use dupac_actor::pairs::{
@@ -35,17 +35,6 @@ pub fn world_and_cache(
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     Ok((world, Arc::new(cache)))
-}
-
-/// The clearance (m) of the path `cfg`'s episodes are guided along:
-/// `env.observation.path_guide_clearance_m`, or `planner.clearance_m` where that is 0.
-/// Never below `env.uav_radius_m`, as the planner itself ([`Planner::new`]) would raise it.
-pub fn guide_clearance_m(cfg: &Config) -> f64 {
-    let c = match cfg.env.observation.path_guide_clearance_m {
-        c if c > 0.0 => c,
-        _ => cfg.planner.clearance_m,
-    };
-    c.max(cfg.env.uav_radius_m)
 }
 
 /// `cfg` without the path guide (`env.observation.path_guide` off, the straight-line
