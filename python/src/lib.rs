@@ -1,0 +1,36 @@
+//! `dupac._dupac`: the Rust core of the `dupac` Python package (python/dupac/): a scenario (the
+//! configuration, the radio world and its RSRP source, the pairs), the UAV environment one at a
+//! time and N at a time, and trained policies. The Python modules add Gymnasium's spaces and
+//! conventions on top (python/dupac/gym.py).
+//!
+//! Every Rust error reaches Python as an exception whose message is the error's own text
+//! (`ValueError` for bad input, `RuntimeError` otherwise); nothing here panics on user input.
+
+mod env;
+mod policy;
+mod scenario;
+
+use pyo3::prelude::*;
+
+/// The Python module `dupac._dupac`.
+#[pymodule]
+fn _dupac(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<scenario::Scenario>()?;
+    m.add_class::<env::Env>()?;
+    m.add_class::<env::VecEnv>()?;
+    m.add_class::<policy::Policy>()?;
+    m.add_function(wrap_pyfunction!(policy::fly, m)?)?;
+    m.add_function(wrap_pyfunction!(scenario::default_config_toml, m)?)?;
+    Ok(())
+}
+
+/// A `ValueError` carrying `e`'s message and the chain of its causes (bad input).
+pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
+    pyo3::exceptions::PyValueError::new_err(e.to_string())
+}
+
+/// A `RuntimeError` carrying `e`'s message (a failure that is not the caller's input).
+pub(crate) fn runtime_error(e: impl std::fmt::Display) -> PyErr {
+    pyo3::exceptions::PyRuntimeError::new_err(e.to_string())
+}
