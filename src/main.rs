@@ -117,6 +117,9 @@ enum Command {
     /// Evaluate policies and planners on the held-out pairs: step records, the paper's figures,
     /// rates, SINR, a Pareto plot, report.md.
     Eval(commands::eval::EvalArgs),
+    /// Write a trained policy as safetensors plus a JSON of its observation layout and
+    /// normalisers (`policy.safetensors`, `policy.json`), for NumPy, PyTorch and other readers.
+    Export(commands::export::ExportArgs),
     /// Print the resolved configuration as TOML (defaults + file + --set).
     Config,
 }
@@ -143,6 +146,7 @@ fn main() -> ExitCode {
         Command::Router(a) => commands::net::run_router(&cli.global, a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Eval(a) => commands::eval::run(&cli.global, a),
+        Command::Export(a) => commands::export::run(a),
         Command::Config => cli.global.config().map(|c| {
             print!("{}", c.to_toml_string());
             ExitCode::SUCCESS

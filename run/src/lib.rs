@@ -7,6 +7,7 @@
 pub mod error;
 pub mod eval;
 pub mod evaluate;
+pub mod export;
 pub mod flights;
 pub mod guide_cache;
 pub mod local;
@@ -15,4 +16,5 @@ pub mod monitor;
 pub mod progress;
 pub mod run_dir;
 pub mod scenario;
+pub mod tensorboard;
 pub mod train_loop;

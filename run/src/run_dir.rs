@@ -47,6 +47,8 @@ pub struct RunOutput {
     metrics_path: PathBuf,
     rows: MetricsTable,
     metrics: std::fs::File,
+    /// The same rows as TensorBoard events (`events.out.tfevents.dupac`).
+    events: crate::tensorboard::EventFile,
     curves: CurveRenderer,
     /// `<out>/.lock`, held exclusively while the run directory is in use (one
     /// learner per run directory); released when the process ends, however it ends.
@@ -128,6 +130,7 @@ impl RunOutput {
         let mut rows = read_rows(&metrics_path)?;
         rows.retain(|r| r.get(metric::UPDATE).copied().unwrap_or(0.0) <= start_update as f64);
         write_rows(&metrics_path, &rows)?;
+        let events = crate::tensorboard::EventFile::create(&out, &rows)?;
         let rows = MetricsTable::from_rows(&rows);
         let metrics = std::fs::OpenOptions::new()
             .append(true)
@@ -140,6 +143,7 @@ impl RunOutput {
             metrics_path,
             rows,
             metrics,
+            events,
             curves,
             _lock: lock,
         })
@@ -150,6 +154,7 @@ impl RunOutput {
         let line = serde_json::to_string(&row).context("encoding a metrics row")?;
         writeln!(self.metrics, "{line}")
             .context_with(|| format!("writing {}", self.metrics_path.display()))?;
+        self.events.push(&row)?;
         self.rows.push(&row);
         Ok(())
     }
@@ -157,6 +162,7 @@ impl RunOutput {
     /// Checkpoint, exported policy, CSV and curves, each written atomically.
     pub fn checkpoint(&mut self, learner: &Learner) -> Result<(), RunError> {
         self.metrics.flush().ok();
+        self.events.flush();
         learner.save(&self.ck_path)?;
         save_policy(&self.out.join("policy.bin"), &learner.policy())?;
         write_csv(&self.out.join("metrics.csv"), &self.rows)?;

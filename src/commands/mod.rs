@@ -4,6 +4,7 @@ pub mod actor;
 pub mod cache;
 pub mod children;
 pub mod eval;
+pub mod export;
 pub mod fly;
 pub mod learner;
 pub mod map;
