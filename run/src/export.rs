@@ -42,12 +42,11 @@ fn layout_of(p: &PolicyWeights) -> Result<ObsLayout, RunError> {
         RunError::Refused("the policy records no observation configuration".into())
     })?;
     let (l0, l1) = (ObsLayout::new(obs, 0).len(), ObsLayout::new(obs, 1).len());
-    let per_site = l1 - l0;
-    let m = if per_site == 0 {
-        0
-    } else {
-        p.obs_dim.saturating_sub(l0) / per_site
-    };
+    let m = p
+        .obs_dim
+        .saturating_sub(l0)
+        .checked_div(l1 - l0)
+        .unwrap_or(0);
     let layout = ObsLayout::new(obs, m);
     if layout.len() != p.obs_dim {
         return Err(RunError::Refused(format!(
