@@ -30,7 +30,9 @@ def fly(env: DupacEnv, act, pair: int) -> dict:
         obs, _, te, tr, info = env.step(act(obs))
         steps = env.last_steps()
         classes.extend(steps["rsrp_class"].tolist())
-        flown = float(steps["distance_flown_m"][-1])
+        # The distance flown plus what is left to the destination (the goal radius on arrival),
+        # as dupac eval measures the overhead.
+        flown = float(steps["distance_flown_m"][-1] + steps["distance_to_goal_m"][-1])
         if te or tr:
             return {
                 "goal": info["outcome"] == "goal",

@@ -25,13 +25,133 @@ pub struct RecordsFile {
     pub flights: Vec<FlightRecord>,
 }
 
-/// Writes one records file into `dir` (atomically).
+/// Writes one records file into `dir` (atomically), and the same records as gzip-compressed CSV
+/// for readers without this binary (pandas: `pd.read_csv(path)`): `<stem>.flights.csv.gz`, a
+/// row per flight, and `<stem>.steps.csv.gz`, a row per step with its flight's index
+/// (`flight`, 0-based in the flights file). The `.bin` is what `--report-only` reads.
 pub fn write_records(dir: &Path, rec: &RecordsFile) -> Result<(), RunError> {
+    let stem = format!("{}__seed{}", rec.method, rec.seed);
     let bytes = codec::encode(RECORDS_MAGIC, RECORDS_VERSION, rec, "eval records")?;
+    crate::run_dir::write_plain(&dir.join(format!("{stem}.bin")), &bytes)?;
+    let (flights, steps) = records_csv(rec).context("encoding the records as CSV")?;
     crate::run_dir::write_plain(
-        &dir.join(format!("{}__seed{}.bin", rec.method, rec.seed)),
-        &bytes,
-    )
+        &dir.join(format!("{stem}.flights.csv.gz")),
+        &gzip(&flights)?,
+    )?;
+    crate::run_dir::write_plain(&dir.join(format!("{stem}.steps.csv.gz")), &gzip(&steps)?)
+}
+
+fn gzip(bytes: &[u8]) -> Result<Vec<u8>, RunError> {
+    use std::io::Write;
+    let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(bytes).context("compressing the records")?;
+    z.finish().context("compressing the records")
+}
+
+/// The flights and steps CSVs of `rec` (numbers as Rust prints them: each f32 reads back to the
+/// same value).
+fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
+    let mut f = csv::Writer::from_writer(Vec::new());
+    f.write_record([
+        "method",
+        "seed",
+        "flight",
+        "pair_id",
+        "bin_m",
+        "shortest_m",
+        "straight_m",
+        "outcome",
+        "source_x_m",
+        "source_y_m",
+        "source_z_m",
+        "destination_x_m",
+        "destination_y_m",
+        "destination_z_m",
+        "remaining_m",
+        "start_serving",
+        "steps",
+    ])?;
+    let mut s = csv::Writer::from_writer(Vec::new());
+    s.write_record([
+        "method",
+        "seed",
+        "flight",
+        "pair_id",
+        "step",
+        "x_m",
+        "y_m",
+        "z_m",
+        "serving",
+        "serving_rsrp_dbm",
+        "best_site",
+        "best_rsrp_dbm",
+        "sinr_db",
+        "class",
+        "best_class",
+        "los",
+        "handover",
+        "ping_pong",
+    ])?;
+    let seed = rec.seed.to_string();
+    for (i, fl) in rec.flights.iter().enumerate() {
+        let (idx, pair) = (i.to_string(), fl.pair_id.to_string());
+        let outcome = match fl.outcome {
+            dupac_common::msg::Outcome::Goal => "goal",
+            dupac_common::msg::Outcome::Collision => "collision",
+            dupac_common::msg::Outcome::OutOfBounds => "out_of_bounds",
+            dupac_common::msg::Outcome::TimeLimit => "time_limit",
+        };
+        let start = rec
+            .start_serving
+            .get(i)
+            .map_or(String::new(), |x| x.to_string());
+        f.write_record([
+            rec.method.as_str(),
+            &seed,
+            &idx,
+            &pair,
+            &fl.bin_m.to_string(),
+            &fl.shortest_m.to_string(),
+            &fl.straight_m.to_string(),
+            outcome,
+            &fl.source_m[0].to_string(),
+            &fl.source_m[1].to_string(),
+            &fl.source_m[2].to_string(),
+            &fl.destination_m[0].to_string(),
+            &fl.destination_m[1].to_string(),
+            &fl.destination_m[2].to_string(),
+            &fl.remaining_m.to_string(),
+            &start,
+            &fl.steps.len().to_string(),
+        ])?;
+        for (k, st) in fl.steps.iter().enumerate() {
+            let b = |x: bool| if x { "1" } else { "0" };
+            s.write_record([
+                rec.method.as_str(),
+                &seed,
+                &idx,
+                &pair,
+                &(k + 1).to_string(),
+                &st.position_m[0].to_string(),
+                &st.position_m[1].to_string(),
+                &st.position_m[2].to_string(),
+                &st.serving.to_string(),
+                &st.serving_rsrp_dbm.to_string(),
+                &st.best_site.to_string(),
+                &st.best_rsrp_dbm.to_string(),
+                &st.sinr_db.to_string(),
+                st.class.name(),
+                st.best_class.name(),
+                b(st.los),
+                b(st.handover),
+                b(st.ping_pong),
+            ])?;
+        }
+    }
+    let done = |w: csv::Writer<Vec<u8>>| -> Result<Vec<u8>, csv::Error> {
+        w.into_inner().map_err(|e| csv::Error::from(e.into_error()))
+    };
+    Ok((done(f)?, done(s)?))
 }
 
 /// Every records file of `dir`, in name order.
