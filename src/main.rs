@@ -33,14 +33,22 @@ pub struct GlobalArgs {
     #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
     pub verbose: u8,
-    /// No progress bars.
+    /// No progress bars, and only errors in the log (no warnings); RUST_LOG overrides.
     #[arg(short, long, global = true)]
     pub quiet: bool,
+    /// No progress bars, the log as usual (the children of `dupac train` share its terminal).
+    #[arg(long, global = true, hide = true)]
+    pub no_progress: bool,
 }
 
 impl GlobalArgs {
+    /// Whether progress bars are hidden (`--quiet`, or a child process of `dupac train`).
+    pub fn no_progress(&self) -> bool {
+        self.quiet || self.no_progress
+    }
+
     /// Refuses what clap would drop silently: a global option given on both sides of the
     /// subcommand keeps only the occurrences after it (`dupac --set a=1 train --set b=2` loses
     /// `a=1`), so the occurrences on the command line (`argv`, program name first; nothing after
@@ -129,7 +137,7 @@ fn main() -> ExitCode {
             .error(clap::error::ErrorKind::ArgumentConflict, e)
             .exit();
     }
-    init_tracing(cli.global.verbose);
+    init_tracing(cli.global.verbose, cli.global.quiet);
     let result = match &cli.command {
         Command::Map(a) => commands::map::run(&cli.global, a),
         Command::Radio(c) => commands::radio::run(&cli.global, c),
@@ -157,11 +165,14 @@ fn main() -> ExitCode {
     }
 }
 
-fn init_tracing(verbose: u8) {
+/// The log on stderr: errors only with `--quiet`, warnings by default, more with `-v`/`-vv`
+/// (`RUST_LOG` overrides all three); coloured only on a terminal and without `NO_COLOR`.
+fn init_tracing(verbose: u8, quiet: bool) {
     // Zenoh's own retry warnings repeat every second while a peer is down; DUPAC says it once.
-    let default = match verbose {
-        0 => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
-        1 => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
+        (false, 1) => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
         _ => "debug",
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
@@ -169,5 +180,13 @@ fn init_tracing(verbose: u8) {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(colour_on_stderr())
         .try_init();
+}
+
+/// Whether stderr gets ANSI colours: only when it is a terminal and `NO_COLOR` is unset or
+/// empty (no-color.org), so files, pipes and the journal get plain text.
+fn colour_on_stderr() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }

@@ -84,7 +84,7 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     let cfg = global.config()?;
     let records_dir = args.out.join("records");
     if !args.report_only {
-        fly_all(&cfg, &args.plan(), &records_dir, global.quiet)?;
+        fly_all(&cfg, &args.plan(), &records_dir, global.no_progress())?;
     }
     let files = read_records(&records_dir)?;
     if files.is_empty() {

@@ -59,7 +59,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let policy = match &args.policy {
         Some(path) if !args.follow => load_policy(path)?,
         _ => {
-            let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+            let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
             built = Some((world.clone(), rsrp.clone()));
             let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
             let (obs_dim, n_sites) = probe.policy_shape();
@@ -106,7 +106,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     // The radio world does not depend on the association: one build serves both paths.
     let (world, rsrp) = match built {
         Some(wr) => wr,
-        None => world_and_cache(&cfg, global.quiet)?,
+        None => world_and_cache(&cfg, global.no_progress())?,
     };
     let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
     let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planners)?;

@@ -86,7 +86,8 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         .context("planning the shortest flyable path")?;
     // The radio map only after the endpoints are known to be good (it may take a while).
     let grid_rows = dupac_radio::cache::GridSpec::covering(world.city.area_m, &cfg.cache).ny;
-    let pb = dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.quiet);
+    let pb =
+        dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.no_progress());
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     let cache: Arc<dyn RsrpSource + Send + Sync> = Arc::new(cache);
