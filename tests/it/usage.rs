@@ -74,3 +74,65 @@ fn quiet_leaves_only_errors_in_the_log() {
         }
     }
 }
+
+#[test]
+fn a_missing_file_names_its_cause_once() {
+    for args in [
+        &["config", "--config", "/nonexistent/dupac.toml"][..],
+        &[
+            "radio",
+            "sites",
+            "--set",
+            "scenario.buildings_file=\"/nonexistent/city.geojson\"",
+        ],
+        &["fly", "--policy", "/nonexistent/policy.bin"],
+        &["plan", "--pairs", "/nonexistent/pairs.jsonl"],
+    ] {
+        let out = run(args);
+        let err = text(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(err.contains("/nonexistent/"), "{args:?}: {err}");
+        assert_eq!(
+            err.matches("No such file or directory").count(),
+            1,
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn endpoints_and_zenoh_errors_are_in_words() {
+    for (args, why) in [
+        (
+            &["monitor", "--connect", "tcp/300.1.1.1:7447"][..],
+            "300.1.1.1 is not an IPv4 address",
+        ),
+        (
+            &["router", "--listen", "tcp/127.0.0.1:99999"],
+            "port \"99999\" is not a number",
+        ),
+        (
+            &["actor", "--connect", "7447"],
+            "expected PROTOCOL/HOST:PORT",
+        ),
+        (
+            &["router", "--listen", "udp/0.0.0.0:7447"],
+            "unknown protocol",
+        ),
+    ] {
+        let out = run(args);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let line = err.lines().next().unwrap_or_default();
+        assert!(
+            line.contains(args[2]) && line.contains(why),
+            "{args:?}: {err}"
+        );
+    }
+    // 192.0.2.1 (TEST-NET-1) is no address of this machine: zenoh cannot listen on it.
+    let out = run(&["router", "--listen", "tcp/192.0.2.1:7447"]);
+    let err = text(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("192.0.2.1"), "{err}");
+    assert!(!err.contains(".rs:"), "zenoh's source locations: {err}");
+}

@@ -26,10 +26,12 @@ use std::path::{Path, PathBuf};
 /// override or the key at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("cannot read config file {path}: {source}")]
+    #[error("cannot read config file {path}: {cause}")]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
     #[error("config file {path}: {message}")]
     Parse { path: String, message: String },
@@ -170,9 +172,9 @@ impl Config {
     pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config, ConfigError> {
         match path {
             Some(p) => {
-                let read = |source| ConfigError::Read {
+                let read = |cause| ConfigError::Read {
                     path: p.to_path_buf(),
-                    source,
+                    cause,
                 };
                 let len = std::fs::metadata(p).map_err(read)?.len();
                 if len > MAX_CONFIG_BYTES {
