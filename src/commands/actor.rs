@@ -47,6 +47,12 @@ pub struct ActorArgs {
 pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
     let cfg = super::run_args::resolve_config(global, args.association, None)?;
+    // The files named by arguments before the world is built.
+    for (flag, file) in [("--pool", &args.pool), ("--replay", &args.replay)] {
+        if let Some(f) = file {
+            crate::io::check_readable(flag, f)?;
+        }
+    }
     let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
     // The pairs with a planner of their own clearance (no coverage classes); their guide paths

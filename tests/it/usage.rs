@@ -136,3 +136,36 @@ fn endpoints_and_zenoh_errors_are_in_words() {
     assert!(err.contains("192.0.2.1"), "{err}");
     assert!(!err.contains(".rs:"), "zenoh's source locations: {err}");
 }
+
+#[test]
+fn a_pair_past_the_end_fails_before_any_work() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let pairs = dir.path().join("pairs.jsonl");
+    std::fs::write(&pairs, "{}\n\n{}\n").expect("pairs");
+    let pairs = pairs.display().to_string();
+    for args in [
+        // The policy is only checked to be readable before the pair (any file will do).
+        &[
+            "fly", "-q", "--policy", &pairs, "--pairs", &pairs, "--pair", "999",
+        ][..],
+        &["plan", "-q", "--pairs", &pairs, "--pair", "2"],
+    ] {
+        let a = with_small_world(args, dir.path());
+        let out = dupac_cmd()
+            .args(&a)
+            .stdin(Stdio::null())
+            .output()
+            .expect("run");
+        let err = text(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        let pair = args[args.len() - 1];
+        assert!(
+            err.contains(&format!("--pair {pair} but the file has 2 pairs")),
+            "{args:?}: {err}"
+        );
+        assert!(
+            !dir.path().join("rsrp.bin").exists(),
+            "{args:?}: cache built"
+        );
+    }
+}
