@@ -25,6 +25,7 @@ struct Cli {
 
 /// Options every subcommand takes.
 #[derive(Args, Debug, Clone)]
+#[command(next_help_heading = "Global options")]
 pub struct GlobalArgs {
     /// TOML configuration file (every key has a default; unknown keys are rejected).
     #[arg(long, global = true, value_name = "FILE")]

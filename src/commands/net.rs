@@ -21,6 +21,7 @@ pub enum ModeArg {
 /// Where and how to join the Zenoh network (zenoh's defaults without any: peer mode with
 /// multicast scouting).
 #[derive(Args, Debug, Clone, Default)]
+#[command(next_help_heading = "Zenoh connection")]
 pub struct ConnectArgs {
     /// Zenoh JSON5 configuration file (TLS, access control, …); the flags below override it.
     #[arg(long, value_name = "FILE")]

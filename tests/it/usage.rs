@@ -169,3 +169,38 @@ fn a_pair_past_the_end_fails_before_any_work() {
         );
     }
 }
+
+#[test]
+fn help_groups_options_under_headings() {
+    let out = run(&["actor", "--help"]);
+    let help = text(&out.stdout);
+    let at = |s: &str| {
+        help.find(s)
+            .unwrap_or_else(|| panic!("{s} missing: {help}"))
+    };
+    let (zenoh, global) = (at("Zenoh connection:"), at("Global options:"));
+    for (option, heading) in [
+        ("--connect", zenoh),
+        ("--config <FILE>", global),
+        ("--quiet", global),
+    ] {
+        let pos = at(option);
+        let next = [zenoh, global]
+            .into_iter()
+            .filter(|&h| h > heading)
+            .min()
+            .unwrap_or(help.len());
+        assert!(
+            pos > heading && pos < next,
+            "{option} not under its heading: {help}"
+        );
+    }
+    assert!(help.contains("only errors in the log"), "{help}");
+    for command in ["fly", "plan"] {
+        let help = text(&run(&[command, "--help"]).stdout);
+        assert!(
+            help.contains("--pair <N>") && !help.contains("--index"),
+            "{help}"
+        );
+    }
+}
