@@ -126,8 +126,13 @@ enum Command {
     /// Evaluate policies and planners on the held-out pairs: step records, the paper's figures,
     /// rates, SINR, a Pareto plot, report.md.
     Eval(commands::eval::EvalArgs),
-    /// Print the resolved configuration as TOML (defaults + file + --set).
-    Config,
+    /// Print the resolved configuration as TOML (defaults + file + --set), or with `--describe`
+    /// every key with its default and meaning.
+    Config(commands::config::ConfigArgs),
+    /// Print the completion script of a shell (bash, zsh, fish, elvish, powershell).
+    Completions(commands::shell::CompletionsArgs),
+    /// Print the manual page (roff), or write one per command into `--dir`.
+    Man(commands::shell::ManArgs),
 }
 
 fn main() -> ExitCode {
@@ -152,10 +157,9 @@ fn main() -> ExitCode {
         Command::Router(a) => commands::net::run_router(&cli.global, a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Eval(a) => commands::eval::run(&cli.global, a),
-        Command::Config => cli.global.config().map(|c| {
-            print!("{}", c.to_toml_string());
-            ExitCode::SUCCESS
-        }),
+        Command::Config(a) => commands::config::run(&cli.global, a),
+        Command::Completions(a) => commands::shell::completions(a),
+        Command::Man(a) => commands::shell::man(a),
     };
     match result {
         Ok(code) => code,

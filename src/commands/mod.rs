@@ -3,6 +3,7 @@
 pub mod actor;
 pub mod cache;
 pub mod children;
+pub mod config;
 pub mod eval;
 pub mod fly;
 pub mod learner;
@@ -14,5 +15,6 @@ pub mod pairs;
 pub mod plan;
 pub mod radio;
 pub mod run_args;
+pub mod shell;
 pub mod train;
 pub mod training;

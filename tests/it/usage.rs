@@ -25,6 +25,7 @@ fn with_small_world(args: &[&str], dir: &Path) -> Vec<String> {
     v
 }
 
+/// A log written to a file (as `dupac … 2>log`) or a pipe carries no ANSI escape codes.
 #[test]
 fn logs_off_a_terminal_are_plain_text() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -49,6 +50,7 @@ fn logs_off_a_terminal_are_plain_text() {
     assert!(err.contains("INFO") && !err.contains("\x1b["), "{err:?}");
 }
 
+/// `-q`: no warnings in the log (only errors); without it the same run warns.
 #[test]
 fn quiet_leaves_only_errors_in_the_log() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -75,6 +77,7 @@ fn quiet_leaves_only_errors_in_the_log() {
     }
 }
 
+/// A missing file's OS error is printed once, not once per level of the error chain.
 #[test]
 fn a_missing_file_names_its_cause_once() {
     for args in [
@@ -100,6 +103,8 @@ fn a_missing_file_names_its_cause_once() {
     }
 }
 
+/// A malformed endpoint is refused when the arguments are read, in one line that names it and
+/// what is wrong; zenoh's own errors come without the source paths of zenoh's build.
 #[test]
 fn endpoints_and_zenoh_errors_are_in_words() {
     for (args, why) in [
@@ -137,6 +142,8 @@ fn endpoints_and_zenoh_errors_are_in_words() {
     assert!(!err.contains(".rs:"), "zenoh's source locations: {err}");
 }
 
+/// `fly --pair` past the end of the pairs file fails before the world, its RSRP cache or any
+/// guide path is built (no cache file appears), with the file and its size named.
 #[test]
 fn a_pair_past_the_end_fails_before_any_work() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -170,6 +177,8 @@ fn a_pair_past_the_end_fails_before_any_work() {
     }
 }
 
+/// Help groups the options: the shared ones under one heading, the Zenoh connection under its
+/// own; one name (`--pair`) for a pair's line in every command.
 #[test]
 fn help_groups_options_under_headings() {
     let out = run(&["actor", "--help"]);
@@ -202,5 +211,63 @@ fn help_groups_options_under_headings() {
             help.contains("--pair <N>") && !help.contains("--index"),
             "{help}"
         );
+    }
+}
+
+#[test]
+fn completions_and_the_manual_page_are_generated() {
+    let out = run(&["completions", "bash"]);
+    assert!(out.status.success());
+    let bash = text(&out.stdout);
+    assert!(
+        bash.contains("_dupac") && bash.contains("complete"),
+        "{bash}"
+    );
+    assert!(
+        bash.contains("--connect"),
+        "subcommands' options are completed"
+    );
+    let out = run(&["completions", "zsh"]);
+    assert!(out.status.success() && text(&out.stdout).contains("#compdef dupac"));
+    let out = run(&["man"]);
+    assert!(out.status.success());
+    let page = text(&out.stdout);
+    assert!(
+        page.contains(".TH dupac") && page.contains("completions"),
+        "{page}"
+    );
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = run(&["man", "--dir", dir.path().to_str().expect("utf-8")]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    for page in ["dupac.1", "dupac-train.1", "dupac-fly.1"] {
+        let t = std::fs::read_to_string(dir.path().join(page)).expect(page);
+        assert!(t.contains(".TH"), "{page}");
+    }
+}
+
+/// `dupac config --describe`: every key with its default and a description.
+#[test]
+fn config_describe_explains_every_key() {
+    let out = run(&["config", "--describe"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let t = text(&out.stdout);
+    assert!(
+        t.contains("\n[radio]\n") && t.contains("radio.fc_ghz = 2.0\n"),
+        "{t}"
+    );
+    let lines: Vec<&str> = t.lines().collect();
+    let fc = lines
+        .iter()
+        .position(|l| *l == "radio.fc_ghz = 2.0")
+        .expect("key");
+    assert!(lines[fc + 1].contains("GHz"), "{}", lines[fc + 1]);
+    // Every key line is followed by its description, indented.
+    for (k, l) in lines.iter().enumerate() {
+        if !l.is_empty() && !l.starts_with(' ') {
+            assert!(
+                lines.get(k + 1).is_some_and(|d| d.starts_with("    ")),
+                "{l} has no description"
+            );
+        }
     }
 }

@@ -6,6 +6,7 @@
 //! resolved, valid [`Config`].
 
 mod check;
+pub mod describe;
 mod distributed;
 mod env;
 mod learn;
@@ -49,18 +50,28 @@ pub enum ConfigError {
 }
 
 /// The whole configuration of a DUPAC run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema, Default)]
 #[serde(default, deny_unknown_fields)]
 pub struct Config {
+    /// The city, the flight area and the base stations.
     pub scenario: ScenarioConfig,
+    /// The radio model: carrier, powers, path loss, antennas, A3.
     pub radio: RadioConfig,
+    /// Coverage maps (`dupac map`).
     pub map: MapConfig,
+    /// The per-site 3D RSRP cache.
     pub cache: CacheConfig,
+    /// The flight environment: the MDP, its reward and observation.
     pub env: EnvConfig,
+    /// Training and held-out evaluation pairs.
     pub pairs: PairsConfig,
+    /// The shortest-path and coverage-aware planners.
     pub planner: PlannerConfig,
+    /// PPO's hyperparameters and network.
     pub ppo: PpoConfig,
+    /// A training run: length, seeds, evaluation, checkpoints, outputs.
     pub train: TrainConfig,
+    /// The Zenoh actor/learner run.
     pub distributed: DistributedConfig,
 }
 /// Largest configuration file read (bytes): a real one is a few KiB.
