@@ -19,3 +19,40 @@ pub fn write_atomic_with(
 ) -> Result<()> {
     Ok(dupac_common::fsio::write_atomic_with(path, fill)?)
 }
+
+/// Refuses, before any work, a file named by the option `flag` that cannot be opened for
+/// reading (missing, a directory, no permission).
+pub fn check_readable(flag: &str, path: &Path) -> Result<()> {
+    let refuse = |why: String| anyhow::anyhow!("{flag} {}: {why}", path.display());
+    if path.is_dir() {
+        return Err(refuse("is a directory, not a file".into()));
+    }
+    std::fs::File::open(path).map_err(|e| refuse(format!("cannot read: {e}")))?;
+    Ok(())
+}
+
+/// Refuses, before any work, `--pair INDEX` past the end of the pairs file `path` (one pair a
+/// non-blank line, counted from 0); the file's contents are judged when it is read.
+pub fn check_pair_index(path: &Path, index: usize) -> Result<()> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).map_err(|e| {
+        anyhow::anyhow!(
+            "cannot read pairs file {}: {e} (make one with `dupac pairs`)",
+            path.display()
+        )
+    })?;
+    let mut pairs = 0usize;
+    for line in std::io::BufReader::new(file).split(b'\n') {
+        let line = line.map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+        if !line.trim_ascii().is_empty() {
+            pairs += 1;
+            if pairs > index {
+                return Ok(());
+            }
+        }
+    }
+    anyhow::bail!(
+        "{}: --pair {index} but the file has {pairs} pairs (--pair counts from 0)",
+        path.display()
+    )
+}

@@ -25,6 +25,7 @@ struct Cli {
 
 /// Options every subcommand takes.
 #[derive(Args, Debug, Clone)]
+#[command(next_help_heading = "Global options")]
 pub struct GlobalArgs {
     /// TOML configuration file (every key has a default; unknown keys are rejected).
     #[arg(long, global = true, value_name = "FILE")]
@@ -33,14 +34,22 @@ pub struct GlobalArgs {
     #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
     pub verbose: u8,
-    /// No progress bars.
+    /// No progress bars, and only errors in the log (no warnings); RUST_LOG overrides.
     #[arg(short, long, global = true)]
     pub quiet: bool,
+    /// No progress bars, the log as usual (the children of `dupac train` share its terminal).
+    #[arg(long, global = true, hide = true)]
+    pub no_progress: bool,
 }
 
 impl GlobalArgs {
+    /// Whether progress bars are hidden (`--quiet`, or a child process of `dupac train`).
+    pub fn no_progress(&self) -> bool {
+        self.quiet || self.no_progress
+    }
+
     /// Refuses what clap would drop silently: a global option given on both sides of the
     /// subcommand keeps only the occurrences after it (`dupac --set a=1 train --set b=2` loses
     /// `a=1`), so the occurrences on the command line (`argv`, program name first; nothing after
@@ -120,8 +129,13 @@ enum Command {
     /// Write a trained policy as safetensors plus a JSON of its observation layout and
     /// normalisers (`policy.safetensors`, `policy.json`), for NumPy, PyTorch and other readers.
     Export(commands::export::ExportArgs),
-    /// Print the resolved configuration as TOML (defaults + file + --set).
-    Config,
+    /// Print the resolved configuration as TOML (defaults + file + --set), or with `--describe`
+    /// every key with its default and meaning.
+    Config(commands::config::ConfigArgs),
+    /// Print the completion script of a shell (bash, zsh, fish, elvish, powershell).
+    Completions(commands::shell::CompletionsArgs),
+    /// Print the manual page (roff), or write one per command into `--dir`.
+    Man(commands::shell::ManArgs),
 }
 
 fn main() -> ExitCode {
@@ -132,7 +146,7 @@ fn main() -> ExitCode {
             .error(clap::error::ErrorKind::ArgumentConflict, e)
             .exit();
     }
-    init_tracing(cli.global.verbose);
+    init_tracing(cli.global.verbose, cli.global.quiet);
     let result = match &cli.command {
         Command::Map(a) => commands::map::run(&cli.global, a),
         Command::Radio(c) => commands::radio::run(&cli.global, c),
@@ -147,10 +161,9 @@ fn main() -> ExitCode {
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Eval(a) => commands::eval::run(&cli.global, a),
         Command::Export(a) => commands::export::run(a),
-        Command::Config => cli.global.config().map(|c| {
-            print!("{}", c.to_toml_string());
-            ExitCode::SUCCESS
-        }),
+        Command::Config(a) => commands::config::run(&cli.global, a),
+        Command::Completions(a) => commands::shell::completions(a),
+        Command::Man(a) => commands::shell::man(a),
     };
     match result {
         Ok(code) => code,
@@ -161,11 +174,14 @@ fn main() -> ExitCode {
     }
 }
 
-fn init_tracing(verbose: u8) {
+/// The log on stderr: errors only with `--quiet`, warnings by default, more with `-v`/`-vv`
+/// (`RUST_LOG` overrides all three); coloured only on a terminal and without `NO_COLOR`.
+fn init_tracing(verbose: u8, quiet: bool) {
     // Zenoh's own retry warnings repeat every second while a peer is down; DUPAC says it once.
-    let default = match verbose {
-        0 => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
-        1 => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
+        (false, 1) => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
         _ => "debug",
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
@@ -173,5 +189,13 @@ fn init_tracing(verbose: u8) {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(colour_on_stderr())
         .try_init();
+}
+
+/// Whether stderr gets ANSI colours: only when it is a terminal and `NO_COLOR` is unset or
+/// empty (no-color.org), so files, pipes and the journal get plain text.
+fn colour_on_stderr() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }

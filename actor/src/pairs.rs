@@ -180,15 +180,19 @@ struct PairInput {
 /// Errors reading or writing pairs files; each names the file (and the line).
 #[derive(Debug, thiserror::Error)]
 pub enum PairsError {
-    #[error("cannot read pairs file {path}: {source}")]
+    #[error("cannot read pairs file {path}: {cause}")]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
-    #[error("cannot write pairs file {path}: {source}")]
+    #[error("cannot write pairs file {path}: {cause}")]
     Write {
         path: PathBuf,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
     /// A bad line: `FILE:LINE: message` (lines count from 1).
     #[error("{}:{line}: {message}", path.display())]
@@ -457,9 +461,9 @@ pub fn training_pool(
 /// Writes one JSON object per line, atomically ([`dupac_common::fsio`]; parent directories are
 /// created).
 pub fn write_pairs_jsonl(path: &Path, pairs: &[Pair]) -> Result<(), PairsError> {
-    let err = |source: std::io::Error| PairsError::Write {
+    let err = |cause: std::io::Error| PairsError::Write {
         path: path.to_path_buf(),
-        source,
+        cause,
     };
     dupac_common::fsio::write_atomic_with(path, |w| {
         for p in pairs {
@@ -483,9 +487,9 @@ pub fn read_pairs_jsonl(
     planner: &Planner,
     cfg: &PairsConfig,
 ) -> Result<Vec<Pair>, PairsError> {
-    let file = std::fs::File::open(path).map_err(|source| PairsError::Read {
+    let file = std::fs::File::open(path).map_err(|cause| PairsError::Read {
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     let reader = std::io::BufReader::new(file);
     let mut out: Vec<Pair> = Vec::new();

@@ -35,10 +35,12 @@ pub enum CodecError {
     Encode { what: String, message: String },
     #[error(transparent)]
     Fs(#[from] crate::fsio::FsError),
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Io {
         path: String,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
 }
 
@@ -152,9 +154,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CodecError> {
 
 /// Reads a whole file, refusing files over `limit` bytes before reading them.
 pub fn read_limited(path: &Path, limit: usize) -> Result<Vec<u8>, CodecError> {
-    let io = |source| CodecError::Io {
+    let io = |cause| CodecError::Io {
         path: path.display().to_string(),
-        source,
+        cause,
     };
     let len = std::fs::metadata(path).map_err(io)?.len();
     if len > limit as u64 {

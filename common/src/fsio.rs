@@ -17,19 +17,20 @@ pub const TMP_MARK: &str = ".dupac-tmp.";
 
 /// A failed file operation, naming the file and the step.
 #[derive(Debug, thiserror::Error)]
-#[error("{op} {path}: {source}")]
+#[error("{op} {path}: {cause}")]
 pub struct FsError {
     pub op: &'static str,
     pub path: PathBuf,
-    #[source]
-    pub source: std::io::Error,
+    /// The OS error, part of this error's message (not its `source()`, so that a printed
+    /// chain shows it once).
+    pub cause: std::io::Error,
 }
 
 fn at<'a>(op: &'static str, path: &'a Path) -> impl FnOnce(std::io::Error) -> FsError + 'a {
-    move |source| FsError {
+    move |cause| FsError {
         op,
         path: path.to_path_buf(),
-        source,
+        cause,
     }
 }
 

@@ -61,7 +61,7 @@ pub enum ActorError {
 const CHUNKS_IN_FLIGHT: usize = 2;
 
 fn z(e: impl std::fmt::Display) -> ActorError {
-    ActorError::Zenoh(e.to_string())
+    ActorError::Zenoh(crate::net::zenoh_message(&e))
 }
 
 /// How one actor process runs.

@@ -114,7 +114,7 @@ fn live_learner(session: &zenoh::Session, keys: &KeySpace) -> Result<Option<Stri
 }
 
 fn z(e: impl std::fmt::Display) -> NodeError {
-    NodeError::Zenoh(e.to_string())
+    NodeError::Zenoh(crate::net::zenoh_message(&e))
 }
 
 /// The learner's view of one actor.

@@ -5,10 +5,12 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum RadioError {
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {cause}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
     #[error("{path}: not valid GeoJSON: {message}")]
     GeoJson { path: PathBuf, message: String },
@@ -42,10 +44,10 @@ pub enum RadioError {
 }
 
 impl RadioError {
-    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: impl Into<PathBuf>, cause: std::io::Error) -> Self {
         RadioError::Io {
             path: path.into(),
-            source,
+            cause,
         }
     }
 }

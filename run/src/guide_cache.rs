@@ -177,9 +177,9 @@ impl GuideCache {
             if let Some(dir) = self.path.parent()
                 && !dir.as_os_str().is_empty()
             {
-                std::fs::create_dir_all(dir).map_err(|source| codec::CodecError::Io {
+                std::fs::create_dir_all(dir).map_err(|cause| codec::CodecError::Io {
                     path: dir.display().to_string(),
-                    source,
+                    cause,
                 })?;
             }
             codec::write_atomic(&self.path, &bytes)

@@ -47,7 +47,13 @@ pub struct ActorArgs {
 pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let stop = stop_flag()?;
     let cfg = super::run_args::resolve_config(global, args.association, None)?;
-    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    // The files named by arguments before the world is built.
+    for (flag, file) in [("--pool", &args.pool), ("--replay", &args.replay)] {
+        if let Some(f) = file {
+            crate::io::check_readable(flag, f)?;
+        }
+    }
+    let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
     // The pairs with a planner of their own clearance (no coverage classes); their guide paths
     // from the host's guide cache, planned only when this host has not planned them yet.
@@ -56,7 +62,7 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let mut pool = match &args.pool {
         Some(p) => read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
             .with_context(|| format!("--pool {}", p.display()))?,
-        None => make_pool(&unguided, &planners, global.quiet)?,
+        None => make_pool(&unguided, &planners, global.no_progress())?,
     };
     drop(planners);
     guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;

@@ -20,11 +20,15 @@ pub fn signal(child: &Child, sig: i32) {
     }
 }
 
-/// Common arguments of every child: the resolved configuration file, quiet, verbosity.
-pub fn child(exe: &Path, config: &Path, verbose: u8) -> Command {
+/// Common arguments of every child: the resolved configuration file, no progress bars (the
+/// parent draws the run's), and the parent's log level (`--quiet`, `-v`…).
+pub fn child(exe: &Path, config: &Path, global: &crate::GlobalArgs) -> Command {
     let mut c = Command::new(exe);
-    c.arg("--config").arg(config).arg("--quiet");
-    for _ in 0..verbose {
+    c.arg("--config").arg(config).arg("--no-progress");
+    if global.quiet {
+        c.arg("--quiet");
+    }
+    for _ in 0..global.verbose {
         c.arg("-v");
     }
     c.stdin(Stdio::null());

@@ -84,7 +84,18 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     let cfg = global.config()?;
     let records_dir = args.out.join("records");
     if !args.report_only {
-        fly_all(&cfg, &args.plan(), &records_dir, global.quiet)?;
+        // The files named by arguments before the world is built.
+        let (flag, pairs) = match &args.pairs {
+            Some(p) => ("--pairs", p),
+            None => ("pairs.eval_file", &cfg.pairs.eval_file),
+        };
+        crate::io::check_readable(flag, pairs)?;
+        for p in &args.policies {
+            if let Some((_, file)) = p.split_once('=') {
+                crate::io::check_readable("--policy", std::path::Path::new(file))?;
+            }
+        }
+        fly_all(&cfg, &args.plan(), &records_dir, global.no_progress())?;
     }
     let files = read_records(&records_dir)?;
     if files.is_empty() {

@@ -7,6 +7,7 @@ use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::Env;
+use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
@@ -44,8 +45,8 @@ pub struct FlyArgs {
     /// A pairs file (default `pairs.eval_file`).
     #[arg(long, value_name = "FILE")]
     pub pairs: Option<PathBuf>,
-    /// Line of the pair in the pairs file (0-based).
-    #[arg(long, default_value_t = 0)]
+    /// The pair to fly: its line in the pairs file, counted from 0 (blank lines skipped).
+    #[arg(long, value_name = "N", default_value_t = 0)]
     pub pair: usize,
     /// Output directory.
     #[arg(long, default_value = "out/fly")]
@@ -54,12 +55,18 @@ pub struct FlyArgs {
 
 pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let mut cfg = super::run_args::resolve_config(global, args.association, None)?;
+    // The arguments before the world, its cache and the guide path are built.
+    if let Some(p) = &args.policy {
+        crate::io::check_readable("--policy", p)?;
+    }
+    let pairs_file = args.pairs.as_ref().unwrap_or(&cfg.pairs.eval_file).clone();
+    crate::io::check_pair_index(&pairs_file, args.pair)?;
     let mut follower = None;
     let mut built = None;
     let policy = match &args.policy {
         Some(path) if !args.follow => load_policy(path)?,
         _ => {
-            let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+            let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
             built = Some((world.clone(), rsrp.clone()));
             let probe = Env::new(&cfg, world.clone(), rsrp.clone())?;
             let (obs_dim, n_sites) = probe.policy_shape();
@@ -106,18 +113,22 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     // The radio world does not depend on the association: one build serves both paths.
     let (world, rsrp) = match built {
         Some(wr) => wr,
-        None => world_and_cache(&cfg, global.quiet)?,
+        None => world_and_cache(&cfg, global.no_progress())?,
     };
     let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
-    let (file, pairs) = dupac_run::scenario::read_eval_pairs(&cfg, args.pairs.as_ref(), &planners)?;
-    let p = pairs.get(args.pair).ok_or_else(|| {
-        anyhow!(
+    let mut pairs = read_pairs_jsonl(&pairs_file, &planners.pairs, &cfg.pairs)?;
+    if args.pair >= pairs.len() {
+        bail!(
             "{}: --pair {} but the file has {} pairs",
-            file.display(),
+            pairs_file.display(),
             args.pair,
             pairs.len()
-        )
-    })?;
+        );
+    }
+    // Only the flown pair needs its guide path.
+    let mut chosen = [pairs.swap_remove(args.pair)];
+    dupac_run::scenario::guide_pairs(&cfg, &planners, &mut chosen)?;
+    let p = &chosen[0];
     let episode = p.episode(false);
     let mut env = Env::new(&cfg, world.clone(), rsrp.clone())?;
     if env.layout().len() != policy.obs_dim {

@@ -65,7 +65,8 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         let ny = ((world.city.area_m.max_m.y - world.city.area_m.min_m.y) / cfg.map.resolution_m)
             .floor()
             .max(1.0) as u64;
-        let pb = dupac_run::progress::progress_bar(ny, &format!("map at {alt} m"), global.quiet);
+        let pb =
+            dupac_run::progress::progress_bar(ny, &format!("map at {alt} m"), global.no_progress());
         let slice = compute_slice(
             &world,
             server,

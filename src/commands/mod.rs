@@ -3,6 +3,7 @@
 pub mod actor;
 pub mod cache;
 pub mod children;
+pub mod config;
 pub mod eval;
 pub mod export;
 pub mod fly;
@@ -15,5 +16,6 @@ pub mod pairs;
 pub mod plan;
 pub mod radio;
 pub mod run_args;
+pub mod shell;
 pub mod train;
 pub mod training;

@@ -21,6 +21,7 @@ pub enum ModeArg {
 /// Where and how to join the Zenoh network (zenoh's defaults without any: peer mode with
 /// multicast scouting).
 #[derive(Args, Debug, Clone, Default)]
+#[command(next_help_heading = "Zenoh connection")]
 pub struct ConnectArgs {
     /// Zenoh JSON5 configuration file (TLS, access control, …); the flags below override it.
     #[arg(long, value_name = "FILE")]
@@ -29,14 +30,24 @@ pub struct ConnectArgs {
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Endpoint to connect to, e.g. `tcp/10.0.0.1:7447` (repeatable).
-    #[arg(short = 'e', long, value_name = "ENDPOINT")]
+    #[arg(short = 'e', long, value_name = "ENDPOINT", value_parser = endpoint)]
     pub connect: Vec<String>,
     /// Endpoint to listen on, e.g. `tcp/0.0.0.0:7447` (repeatable).
-    #[arg(short = 'l', long, value_name = "ENDPOINT")]
+    #[arg(short = 'l', long, value_name = "ENDPOINT", value_parser = endpoint)]
     pub listen: Vec<String>,
     /// Turn multicast scouting off.
     #[arg(long)]
     pub no_multicast_scouting: bool,
+}
+
+/// `--connect`/`--listen`: an endpoint checked when the arguments are parsed, before any work
+/// ([`dupac_node::net::check_endpoint`]); the error says what is wrong in words.
+fn endpoint(s: &str) -> Result<String, String> {
+    match dupac_node::net::check_endpoint(s) {
+        Ok(()) => Ok(s.to_string()),
+        Err(dupac_node::net::NetError::Endpoint { message, .. }) => Err(message),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 impl ConnectArgs {

@@ -36,15 +36,15 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;
 
     // Everything the children would otherwise each compute (and race on): built once here.
-    let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+    let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
     // The pairs, drawn with a planner of their clearance (no coverage classes); then the
     // pool's guide paths, planned once here into the host's guide cache (or found there), so
     // the actors load them instead of each planning them.
     let unguided = dupac_run::scenario::unguided(&cfg);
     let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
-    held_out_pairs(&unguided, &planners, global.quiet)?;
+    held_out_pairs(&unguided, &planners, global.no_progress())?;
     let pool_path = out.join("train_pool.jsonl");
-    let mut pool = make_pool(&unguided, &planners, global.quiet)?;
+    let mut pool = make_pool(&unguided, &planners, global.no_progress())?;
     write_pairs_jsonl(&pool_path, &pool)?;
     drop(planners);
     guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
@@ -59,9 +59,8 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let exe = std::env::current_exe().context("locating the dupac binary")?;
-    let verbose = global.verbose;
 
-    let mut learner_cmd = child(&exe, &config_path, verbose);
+    let mut learner_cmd = child(&exe, &config_path, global);
     learner_cmd
         .arg("learner")
         .arg("--out")
@@ -83,7 +82,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let mut learner = learner_cmd.spawn().context("starting the learner")?;
     let mut actors: Vec<Child> = Vec::new();
     for k in 0..n_actors {
-        let mut a = child(&exe, &config_path, verbose);
+        let mut a = child(&exe, &config_path, global);
         a.arg("actor")
             .args(["--id", &k.to_string()])
             .arg("--threads")
@@ -116,7 +115,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         ..ConnectArgs::default()
     };
     let total = cfg.train.total_timesteps;
-    let pb = dupac_run::progress::progress_bar(total, "timesteps", global.quiet);
+    let pb = dupac_run::progress::progress_bar(total, "timesteps", global.no_progress());
     let keys = KeySpace::new(&cfg.distributed.run);
     // Connected lazily: the learner may still be starting, or may fail before it listens.
     let mut session: Option<zenoh::Session> = None;

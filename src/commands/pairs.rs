@@ -33,7 +33,7 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
         t.elapsed().as_secs_f64()
     );
     let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
-    let pb = dupac_run::progress::progress_bar(total, "evaluation pairs", global.quiet);
+    let pb = dupac_run::progress::progress_bar(total, "evaluation pairs", global.no_progress());
     let pairs = eval_pairs(&planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
     pb.finish_and_clear();
     write_pairs_jsonl(&out, &pairs)?;

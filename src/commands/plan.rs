@@ -33,12 +33,12 @@ pub struct PlanArgs {
     /// Destination `x,y,z` (m).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub to: Option<String>,
-    /// A pairs file (JSON Lines, e.g. from `dupac pairs`); with `--index`.
+    /// A pairs file (JSON Lines, e.g. from `dupac pairs`); with `--pair`.
     #[arg(long, value_name = "FILE", conflicts_with = "from")]
     pub pairs: Option<PathBuf>,
-    /// Line of the pair in `--pairs` (0-based).
-    #[arg(long, default_value_t = 0)]
-    pub index: usize,
+    /// The pair to plan: its line in `--pairs`, counted from 0 (blank lines skipped).
+    #[arg(long, value_name = "N", default_value_t = 0, requires = "pairs")]
+    pub pair: usize,
     /// λ values of the coverage-aware planner (repeatable; default `planner.lambda`).
     #[arg(long = "lambda")]
     pub lambdas: Vec<f64>,
@@ -62,6 +62,15 @@ fn parse_xyz(s: &str, what: &str) -> Result<Point> {
 pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     let mut cfg = global.config()?;
     cfg.env.association = Association::A3;
+    // The arguments before the world is built.
+    if let Some(file) = &args.pairs {
+        crate::io::check_pair_index(file, args.pair)?;
+    }
+    for l in &args.lambdas {
+        if !(l.is_finite() && *l >= 0.0) {
+            bail!("--lambda {l}: must be a finite number >= 0");
+        }
+    }
     let world = Arc::new(RadioWorld::build(&cfg).context("building the radio world")?);
     let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
 
@@ -69,24 +78,25 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         (Some(f), Some(t), None) => (parse_xyz(f, "from")?, parse_xyz(t, "to")?),
         (None, None, Some(file)) => {
             let pairs = read_pairs_jsonl(file, &planner, &cfg.pairs)?;
-            let p = pairs.get(args.index).ok_or_else(|| {
+            let p = pairs.get(args.pair).ok_or_else(|| {
                 anyhow!(
-                    "{}: --index {} but the file has {} pairs",
+                    "{}: --pair {} but the file has {} pairs",
                     file.display(),
-                    args.index,
+                    args.pair,
                     pairs.len()
                 )
             })?;
             (p.source_m, p.destination_m)
         }
-        _ => bail!("give --from X,Y,Z --to X,Y,Z, or --pairs FILE [--index N]"),
+        _ => bail!("give --from X,Y,Z --to X,Y,Z, or --pairs FILE [--pair N]"),
     };
     let shortest = planner
         .shortest(source, destination)
         .context("planning the shortest flyable path")?;
     // The radio map only after the endpoints are known to be good (it may take a while).
     let grid_rows = dupac_radio::cache::GridSpec::covering(world.city.area_m, &cfg.cache).ny;
-    let pb = dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.quiet);
+    let pb =
+        dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.no_progress());
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     let cache: Arc<dyn RsrpSource + Send + Sync> = Arc::new(cache);
@@ -106,9 +116,6 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     };
     let mut plans = vec![("shortest".to_string(), shortest)];
     for l in lambdas {
-        if !(l.is_finite() && l >= 0.0) {
-            bail!("--lambda {l}: must be a finite number >= 0");
-        }
         let p = planner
             .coverage_aware(source, destination, l)
             .with_context(|| format!("planning the coverage-aware path (λ = {l})"))?;

@@ -31,6 +31,7 @@ pub enum DeviceArg {
 
 /// What every training process (`dupac train`, `dupac learner`) takes.
 #[derive(Args, Debug, Clone)]
+#[command(next_help_heading = "Training run")]
 pub struct RunArgs {
     /// `learned` (DUPAC) or `a3` (base method); default `env.association`.
     #[arg(long, value_enum)]
@@ -44,6 +45,7 @@ pub struct RunArgs {
     /// The checkpoint `--resume` starts from (default `<out>/checkpoint.bin`).
     #[arg(long, value_name = "FILE", requires = "resume")]
     pub checkpoint: Option<PathBuf>,
+    /// Compute device of the learner's updates.
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: DeviceArg,
 }

@@ -46,18 +46,18 @@ impl Training {
         let cfg = resolve_config(global, run.association, run.out.as_ref())?;
         let checkpoint = checkpoint_to_resume(&cfg, run.resume, run.checkpoint.as_ref())?;
         let device = device(run.device)?;
-        let (world, rsrp) = world_and_cache(&cfg, global.quiet)?;
+        let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
         let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
         // The pairs with a planner of their clearance (no coverage classes); the guide paths of
         // the evaluated ones and of the pool through the host's guide cache.
         let unguided = dupac_run::scenario::unguided(&cfg);
         let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
         let mut eval_set = spread(
-            &held_out_pairs(&unguided, &planners, global.quiet)?,
+            &held_out_pairs(&unguided, &planners, global.no_progress())?,
             cfg.train.eval_pairs,
         );
         let pool = match local {
-            true => Some(make_pool(&unguided, &planners, global.quiet)?),
+            true => Some(make_pool(&unguided, &planners, global.no_progress())?),
             false => None,
         };
         drop(planners);
@@ -103,7 +103,7 @@ impl Training {
     ) -> Result<ExitCode> {
         let learner = &mut self.learner;
         let total = learner.num_updates() * learner.batch_size() as u64;
-        let pb = progress_bar(total, "timesteps", global.quiet);
+        let pb = progress_bar(total, "timesteps", global.no_progress());
         let mut held_out = HeldOutSeen::default();
         pb.set_position(learner.global_step);
         let (cfg, world, rsrp, eval_set) = (&self.cfg, &self.world, &self.rsrp, &self.eval_set);
@@ -118,7 +118,7 @@ impl Training {
                 pb.set_position(l.global_step);
                 held_out.see(row);
                 pb.set_message(format!("{}{}", progress_message(row), held_out.suffix()));
-                if global.quiet {
+                if global.no_progress() {
                     // Without a progress bar (the children of `dupac train`, services): one
                     // line per update.
                     tracing::info!(

@@ -401,7 +401,7 @@ fn pairs_then_plan_writes_a_flown_comparison() {
         "-q",
         "--pairs",
         &pairs.display().to_string(),
-        "--index",
+        "--pair",
         "4",
         "--lambda",
         "0",
@@ -460,7 +460,7 @@ fn pairs_then_plan_writes_a_flown_comparison() {
     let b: Vec<&str> = bad.iter().map(String::as_str).collect();
     let out = dupac(&b, None);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--index 99"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--pair 99"));
 }
 
 #[test]

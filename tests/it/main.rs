@@ -1,7 +1,7 @@
 //! The one integration-test binary of the `dupac` command (ripgrep's layout): end-to-end tests of
 //! real processes, the real Midtown data and real files, one module per area, all built on
 //! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
-//! `distributed::`, `faults::`, `netns::`, `security::`, `soak::`).
+//! `distributed::`, `faults::`, `netns::`, `security::`, `soak::`, `usage::`).
 
 mod cli;
 mod distributed;
@@ -12,3 +12,4 @@ mod security;
 mod soak;
 mod support;
 mod train;
+mod usage;

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 /// The Zenoh actor/learner system (`dupac train`, `dupac learner`, `dupac actor`).
 /// The learner's batch is still `train.num_envs × train.num_steps` samples, whatever the number
 /// of actors: it is filled with chunks of `actor_envs × chunk_steps` samples.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct DistributedConfig {
     /// Run name: every key expression is `dupac/<run>/…` (letters, digits, `-`, `_`).
@@ -35,6 +35,7 @@ pub struct DistributedConfig {
     /// taken against the current (proximal) policy, and the advantage weighted by
     /// π_prox / π_behaviour, capped at `max_importance_weight`.
     pub decoupled_correction: bool,
+    /// Cap on the importance weight π_prox / π_behaviour of `decoupled_correction`.
     pub max_importance_weight: f64,
     /// Hard cap on any received message (MiB); larger ones are dropped unread.
     pub max_message_mib: f64,

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use super::CacheConfig;
 
 /// Scaling of obstacle-sensor distances into [0, 1] (see [`ObservationConfig::sensor_scale`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SensorScale {
     /// d / range (spec/env.md "Observation").
@@ -21,7 +21,9 @@ pub enum SensorScale {
 }
 
 /// Where each site's line-of-sight feature comes from (see [`ObservationConfig::site_los`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum SiteLos {
     /// A ray from each site to the UAV at every observation (spec/radio.md D9): exact, 0 or 1.
@@ -44,7 +46,7 @@ impl SensorScale {
 }
 
 /// Source of c_t and θ_t (see [`ObservationConfig::nearest_obstacle`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum NearestObstacle {
     /// The shortest ray of the sensor fan (spec/env.md "Observation").
@@ -54,7 +56,7 @@ pub enum NearestObstacle {
 }
 
 /// How the action's move a ∈ ℝ³ becomes a displacement (see [`EnvConfig::action_clip`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ActionClip {
     /// Each axis clipped to [−1, 1] (spec/env.md "UAV and motion"): a diagonal move is up to
@@ -66,7 +68,7 @@ pub enum ActionClip {
 }
 
 /// How the serving GBS is chosen (spec/env.md "Association").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Association {
     /// DUPAC: the action's discrete part picks the serving site.
@@ -77,7 +79,7 @@ pub enum Association {
     BestRsrp,
 }
 /// Where the environment gets RSRP from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum RadioMode {
     /// The memory-mapped per-site grid (`cache.*`), trilinear interpolation.
@@ -87,7 +89,7 @@ pub enum RadioMode {
 }
 
 /// Reward of paper Eq. (8) plus the terminal terms of spec/env.md.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct RewardConfig {
     /// μ1, weight of the progress Δd (per metre).
@@ -138,7 +140,9 @@ pub struct RewardConfig {
 }
 
 /// The distance whose decrease is the progress Δd of Eq. (8) ([`RewardConfig::progress`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema, Default,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Progress {
     /// Straight-line distance to the destination (paper Eq. 8).
@@ -173,7 +177,7 @@ impl Default for RewardConfig {
 /// so this struct is part of the policy and checkpoint file formats (learner `checkpoint.rs`)
 /// and of the weights message ([`crate::msg::SCHEMA_VERSION`]): adding or removing a field
 /// means bumping those versions (a file of another format is then refused, naming it).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ObservationConfig {
     /// Goal vector and its norm.
@@ -208,6 +212,7 @@ pub struct ObservationConfig {
     pub goal_direction: bool,
     /// RSRP normalisation: (RSRP − centre) / scale.
     pub rsrp_centre_dbm: f64,
+    /// Scale of the RSRP normalisation (dB; see `rsrp_centre_dbm`).
     pub rsrp_scale_db: f64,
     /// Per-site features for the permutation-equivariant site head (`ppo.site_head =
     /// "equivariant"`), [`crate::obs::SITE_FEATURES`] values per site on a fixed physical scale,
@@ -288,11 +293,12 @@ impl Default for ObservationConfig {
 }
 
 /// The UAV flight environment (spec/env.md).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct EnvConfig {
-    /// Lowest and highest flight altitude (m); moves are clamped to the band (FAA Part 107).
+    /// Lowest flight altitude (m); moves are clamped to the band [z_min_m, z_max_m].
     pub z_min_m: f64,
+    /// Highest flight altitude (m; 120 m: FAA Part 107).
     pub z_max_m: f64,
     /// UAV radius for collisions (m).
     pub uav_radius_m: f64,
@@ -322,7 +328,9 @@ pub struct EnvConfig {
     pub goal_radius_m: f64,
     /// Time limit T = ceil(time_limit_factor × shortest path / max_step_m) steps.
     pub time_limit_factor: f64,
+    /// How the serving site is chosen.
     pub association: Association,
+    /// Where the environment gets RSRP from.
     pub radio_mode: RadioMode,
     /// A return to the previous site within this time is a ping-pong (s).
     pub ping_pong_window_s: f64,
@@ -339,7 +347,9 @@ pub struct EnvConfig {
     /// A step whose site regret (best RSRP − serving RSRP) exceeds this is counted in the
     /// metric `pct_site_regret_high` (dB; a metric threshold, not part of the reward).
     pub site_regret_threshold_db: f64,
+    /// The reward's terms and weights.
     pub reward: RewardConfig,
+    /// What the policy observes.
     pub observation: ObservationConfig,
 }
 
@@ -375,19 +385,22 @@ impl EnvConfig {
     }
 }
 /// Source/destination pairs (spec/env.md "Episodes").
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PairsConfig {
-    /// Training pairs: shortest flyable path length uniform in [min_m, max_m].
+    /// Training pairs: shortest flyable path length uniform in [min_m, max_m] (m); the shortest.
     pub min_m: f64,
+    /// The longest shortest flyable path of a training pair (m).
     pub max_m: f64,
     /// Endpoints keep at least this clearance from buildings (m).
     pub endpoint_clearance_m: f64,
     /// Held-out evaluation bins (shortest path, m), ± `bin_tolerance` (fraction).
     pub eval_bins_m: Vec<f64>,
+    /// Half-width of an evaluation bin, as a fraction of its length (0.05 = ± 5 %).
     pub bin_tolerance: f64,
     /// Pairs per evaluation bin (K).
     pub eval_per_bin: usize,
+    /// Seed of the held-out evaluation pairs.
     pub eval_seed: u64,
     /// Where `dupac pairs` writes the evaluation set.
     pub eval_file: PathBuf,
@@ -409,7 +422,7 @@ impl Default for PairsConfig {
 }
 
 /// The voxel planners (shortest flyable path, coverage-aware path).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlannerConfig {
     /// Voxel edge (m).
@@ -420,6 +433,7 @@ pub struct PlannerConfig {
     pub lambda: f64,
     /// Penalty per metre by RSRP class of the best site (excellent is 0).
     pub penalty_mediocre: f64,
+    /// Penalty per metre where the best site's RSRP is poor.
     pub penalty_poor: f64,
 }
 

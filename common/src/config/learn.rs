@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use super::{Association, EnvConfig};
 
 /// The network that scores sites (see [`PpoConfig::site_head`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SiteHead {
     /// M logits of the actor MLP, one per slot (the paper).
@@ -20,7 +20,7 @@ pub enum SiteHead {
 }
 
 /// The estimator of the site head's gradient (see [`PpoConfig::site_gradient`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SiteGradient {
     /// PPO on the sampled site, one joint ratio with the move (the paper).
@@ -31,7 +31,7 @@ pub enum SiteGradient {
 
 /// PPO hyperparameters (paper Sec. IV-A for lr, γ, ε; the rest CleanRL's
 /// `ppo_continuous_action.py` defaults unless noted).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PpoConfig {
     /// Adam learning rate (paper: 3e-4).
@@ -83,9 +83,11 @@ pub struct PpoConfig {
     pub init_log_std: f64,
     /// Normalise observations by running mean/variance, clipped to ±obs_clip.
     pub normalize_obs: bool,
+    /// Normalised observations are clipped to ±obs_clip.
     pub obs_clip: f64,
     /// Scale rewards by the running std of the discounted return, clipped to ±reward_clip.
     pub normalize_reward: bool,
+    /// Scaled rewards are clipped to ±reward_clip.
     pub reward_clip: f64,
     /// Consecutive updates skipped for numerical faults (a non-finite observation, reward or
     /// value in the batch, or non-finite weights after the update) before the run stops with an
@@ -129,7 +131,7 @@ impl Default for PpoConfig {
 }
 
 /// The training run (`dupac train`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrainConfig {
     /// Seed of the run: network init, action sampling, episode pairs and resets.
@@ -150,6 +152,7 @@ pub struct TrainConfig {
     /// Evaluate the deterministic policy on `eval_pairs` held-out pairs every this many updates
     /// (0 = only at the end).
     pub eval_every: u64,
+    /// Held-out pairs of each evaluation during training (spread over the bins).
     pub eval_pairs: usize,
 }
 

@@ -6,6 +6,7 @@
 //! resolved, valid [`Config`].
 
 mod check;
+pub mod describe;
 mod distributed;
 mod env;
 mod learn;
@@ -26,10 +27,12 @@ use std::path::{Path, PathBuf};
 /// override or the key at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("cannot read config file {path}: {source}")]
+    #[error("cannot read config file {path}: {cause}")]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        /// The OS error, part of this error's message (not its `source()`, so that a printed
+        /// chain shows it once).
+        cause: std::io::Error,
     },
     #[error("config file {path}: {message}")]
     Parse { path: String, message: String },
@@ -47,18 +50,28 @@ pub enum ConfigError {
 }
 
 /// The whole configuration of a DUPAC run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema, Default)]
 #[serde(default, deny_unknown_fields)]
 pub struct Config {
+    /// The city, the flight area and the base stations.
     pub scenario: ScenarioConfig,
+    /// The radio model: carrier, powers, path loss, antennas, A3.
     pub radio: RadioConfig,
+    /// Coverage maps (`dupac map`).
     pub map: MapConfig,
+    /// The per-site 3D RSRP cache.
     pub cache: CacheConfig,
+    /// The flight environment: the MDP, its reward and observation.
     pub env: EnvConfig,
+    /// Training and held-out evaluation pairs.
     pub pairs: PairsConfig,
+    /// The shortest-path and coverage-aware planners.
     pub planner: PlannerConfig,
+    /// PPO's hyperparameters and network.
     pub ppo: PpoConfig,
+    /// A training run: length, seeds, evaluation, checkpoints, outputs.
     pub train: TrainConfig,
+    /// The Zenoh actor/learner run.
     pub distributed: DistributedConfig,
 }
 /// Largest configuration file read (bytes): a real one is a few KiB.
@@ -170,9 +183,9 @@ impl Config {
     pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config, ConfigError> {
         match path {
             Some(p) => {
-                let read = |source| ConfigError::Read {
+                let read = |cause| ConfigError::Read {
                     path: p.to_path_buf(),
-                    source,
+                    cause,
                 };
                 let len = std::fs::metadata(p).map_err(read)?.len();
                 if len > MAX_CONFIG_BYTES {

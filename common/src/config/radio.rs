@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// Antenna model (spec/radio.md §2, TR 38.901 Table 7.3-1 + vertical ULA).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct AntennaConfig {
     /// G_E,max (dBi).
@@ -54,7 +54,7 @@ impl Default for AntennaConfig {
 }
 
 /// A3 handover (spec/radio.md §4, TS 36.331 §5.5.4.4).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct A3Config {
     /// a3-Offset (dB).
@@ -79,7 +79,7 @@ impl Default for A3Config {
 }
 
 /// The radio model (spec/radio.md), every parameter with the paper's default.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct RadioConfig {
     /// Carrier frequency f_c (GHz).
@@ -100,7 +100,9 @@ pub struct RadioConfig {
     pub rsrp_excellent_dbm: f64,
     /// RSRP class C2 lower bound: poor when RSRP < this (dBm).
     pub rsrp_poor_dbm: f64,
+    /// The sites' antenna arrays.
     pub antenna: AntennaConfig,
+    /// The A3 handover rule of the base method.
     pub a3: A3Config,
 }
 
@@ -123,7 +125,7 @@ impl Default for RadioConfig {
 }
 
 /// Coverage maps (`dupac map`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct MapConfig {
     /// Altitudes of the horizontal slices (m above ground).
@@ -145,15 +147,16 @@ impl Default for MapConfig {
 }
 
 /// The per-site 3D RSRP cache used by the environment.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct CacheConfig {
     /// Horizontal grid step (m).
     pub horizontal_m: f64,
     /// Vertical grid step (m).
     pub vertical_m: f64,
-    /// Lowest and highest altitude of the grid (m): the UAV altitude band of spec/env.md.
+    /// Lowest altitude of the grid (m): the UAV altitude band of spec/env.md.
     pub z_min_m: f64,
+    /// Highest altitude of the grid (m).
     pub z_max_m: f64,
     /// Cache file; rebuilt when its header does not match the scenario and radio config.
     pub path: PathBuf,

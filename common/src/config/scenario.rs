@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// Which kind of city a scenario is built from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum CityKind {
     /// Real OpenStreetMap footprints with heights from `scenario.buildings_file`.
@@ -18,7 +18,7 @@ pub enum CityKind {
 }
 
 /// How OSM building outlines that have 3D `building_part`s are extruded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BuildingDetail {
     /// Outlines with parts are replaced by their parts (each from `min_height_m` to `height_m`).
@@ -29,12 +29,16 @@ pub enum BuildingDetail {
 
 /// A lon/lat box (WGS84 degrees). Each bound defaults to the Midtown flight area's, so that one
 /// bound can be set alone (`--set scenario.area.lat_max_deg=40.76`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct LonLatBox {
+    /// West edge (degrees of longitude).
     pub lon_min_deg: f64,
+    /// East edge (degrees of longitude).
     pub lon_max_deg: f64,
+    /// South edge (degrees of latitude).
     pub lat_min_deg: f64,
+    /// North edge (degrees of latitude).
     pub lat_max_deg: f64,
 }
 
@@ -55,14 +59,16 @@ impl LonLatBox {
 }
 
 /// The scenario: which city, which flight area, where the base stations are.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ScenarioConfig {
     /// Name written into caches and reports.
     pub name: String,
+    /// Which kind of city the scenario is built from.
     pub city: CityKind,
     /// GeoJSON of building footprints (OSM export format of `data/README.md`).
     pub buildings_file: PathBuf,
+    /// How OSM building outlines that have 3D parts are extruded.
     pub detail: BuildingDetail,
     /// The flight area (spec/env.md "World"); its centre is the frame origin.
     pub area: LonLatBox,
@@ -80,6 +86,7 @@ pub struct ScenarioConfig {
     pub pole_height_m: f64,
     /// Radius within which the median rooftop height decides macro vs micro (m).
     pub macro_radius_m: f64,
+    /// The procedural city's generator (`city = "procedural"`).
     pub procedural: ProceduralConfig,
 }
 
@@ -109,9 +116,10 @@ impl Default for ScenarioConfig {
 }
 
 /// The seeded Manhattan-grid generator, calibrated on Midtown (`data/README.md`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ProceduralConfig {
+    /// Seed of the generator.
     pub seed: u64,
     /// Size of the square area (m); the frame origin is its centre.
     pub size_m: f64,
@@ -119,14 +127,19 @@ pub struct ProceduralConfig {
     pub rotation_deg: f64,
     /// Street pitch along the avenues, centre to centre (m).
     pub street_pitch_m: f64,
+    /// Width of a street (m).
     pub street_width_m: f64,
     /// Avenue spacing, centre to centre (m).
     pub avenue_spacing_m: f64,
+    /// Width of an avenue (m).
     pub avenue_width_m: f64,
     /// Building height distribution: log-normal with this median and 90th percentile (m).
     pub height_median_m: f64,
+    /// 90th percentile of the building heights (m).
     pub height_p90_m: f64,
+    /// Lowest building height (m): the distribution is clamped to [height_min_m, height_max_m].
     pub height_min_m: f64,
+    /// Highest building height (m).
     pub height_max_m: f64,
     /// Number of sites placed on a jittered lattice over the area.
     pub n_sites: usize,
