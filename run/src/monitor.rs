@@ -89,9 +89,9 @@ pub fn render(learner: Option<&LearnerStats>, actors: &BTreeMap<ActorId, ActorSt
                     a.env_steps,
                     a.chunks,
                     a.policy_lag,
-                    a.last_seen_s,
+                    a.last_seen_s.unwrap_or(f64::NAN),
                     own.map_or(0, |o| o.swaps),
-                    own.map_or(f64::NAN, |o| o.last_swap_latency_ms),
+                    own.and_then(|o| o.last_swap_latency_ms).unwrap_or(f64::NAN),
                 );
             }
         }

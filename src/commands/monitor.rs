@@ -1,15 +1,16 @@
 //! `dupac monitor`: a read-only view of a run from any machine: policy version,
 //! updates/s, env steps/s in total and per actor, policy lag, drops by reason, training and
 //! domain metrics; a refreshing table on the terminal and, with `--jsonl`, every stats message
-//! as a JSON line.
+//! as a JSON line (as published: [`dupac_common::jsonmsg`]).
 
 use super::net::{ConnectArgs, stop_flag};
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::{decode_json, encode_json};
 use dupac_common::keys::{KeySpace, Role};
-use dupac_common::msg::{ActorStats, LearnerStats, StatsMsg, decode_msg};
+use dupac_common::msg::{ActorStats, LearnerStats, StatsMsg};
 use dupac_run::monitor::render;
 use std::collections::BTreeMap;
 use std::io::Write as _;
@@ -92,10 +93,11 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
         }
         if let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(200)) {
             let key = sample.key_expr().as_str().to_string();
-            match decode_msg::<StatsMsg>(&sample.payload().to_bytes(), limit, &key) {
+            match decode_json::<StatsMsg>(&sample.payload().to_bytes(), limit, &key) {
                 Ok(msg) => {
                     if let Some(f) = &mut jsonl {
-                        writeln!(f, "{}", serde_json::to_string(&msg)?)
+                        f.write_all(&encode_json(&msg)?)
+                            .and_then(|()| f.write_all(b"\n"))
                             .context("writing --jsonl")?;
                     }
                     match msg {
