@@ -25,6 +25,10 @@ pub enum CodecError {
         budget: usize,
         message: String,
     },
+    #[error(
+        "{what}: a binary {magic} message, not JSON: its sender is another DUPAC build (this one sends and reads stats and control messages as JSON)"
+    )]
+    Binary { what: String, magic: String },
     #[error("{what}: format version {got}, this build reads {want}")]
     Version { what: String, got: u32, want: u32 },
     #[error("{what}: cannot decode: {message}")]

@@ -1,5 +1,6 @@
 //! The contract shared by every DUPAC process: typed ids, the one TOML configuration, key
-//! expressions, messages and their codec, the exported policy and the observation layout.
+//! expressions, messages and their codecs (binary for data, JSON for stats and control), the
+//! exported policy and the observation layout.
 //!
 //! Units are in names (`_m`, `_dbm`, `_deg`, `_ghz`) and the frame is east-north-up metres with
 //! the origin at the scenario centre (x east, y north, z up = height above flat ground).
@@ -13,6 +14,7 @@ pub mod fingerprint;
 pub mod fsio;
 pub mod geometry;
 pub mod ids;
+pub mod jsonmsg;
 pub mod keys;
 pub mod metric;
 pub mod msg;

@@ -1,8 +1,10 @@
 //! The messages DUPAC processes exchange over Zenoh (checked by the `validate` module).
 //!
-//! Every message starts with a [`Header`]; the codec frames it with an 8-byte magic per kind and
-//! [`SCHEMA_VERSION`] ([`encode_msg`], [`decode_msg`]). Decoding is bounded by [`MsgLimits`]
-//! (the size on the wire and what decoding may allocate).
+//! Every message starts with a [`Header`]. Data (trajectory chunks, weights) is binary: the
+//! codec frames it with an 8-byte magic per kind and [`SCHEMA_VERSION`] ([`encode_msg`],
+//! [`decode_msg`]). Stats ([`StatsMsg`]) and control messages ([`ControlMsg`]), which any zenoh
+//! client may read, are JSON ([`crate::jsonmsg`]). Decoding is bounded by [`MsgLimits`] (the size
+//! on the wire and what decoding may allocate).
 
 use crate::codec::{self, CodecError};
 use crate::ids::ActorId;
@@ -17,7 +19,8 @@ use std::collections::BTreeMap;
 /// 7: its planned path's clearance (`env.observation.path_guide_clearance_m`).
 /// 8: the source of the sites' line of sight (`env.observation.site_los`).
 /// 9: that observation without `site_trend`.
-pub const SCHEMA_VERSION: u32 = 9;
+/// 10: stats and control messages in JSON ([`crate::jsonmsg`]), not in this binary codec.
+pub const SCHEMA_VERSION: u32 = 10;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -199,6 +202,7 @@ impl EnvTrajectory {
 
 /// Common header of every message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
     pub schema_version: u32,
@@ -287,6 +291,7 @@ pub enum ActorState {
 
 /// The learner's view of one actor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ActorRow {
     pub actor: ActorId,
     pub state: ActorState,
@@ -297,19 +302,27 @@ pub struct ActorRow {
     pub chunks: u64,
     /// Learner version minus the version of the actor's last chunk.
     pub policy_lag: u64,
-    /// Seconds since its last chunk.
-    pub last_seen_s: f64,
+    /// Seconds since its last accepted chunk (`None`: none yet).
+    pub last_seen_s: Option<f64>,
 }
 
-/// The learner's periodic report (`dupac/<run>/stats/learner`).
+/// The learner's periodic report (`dupac/<run>/stats/learner`, JSON: [`crate::jsonmsg`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LearnerStats {
+    /// `seq` counts the learner's stats messages (0, 1, 2, …); `policy_version` is `update`.
     pub header: Header,
+    /// Policy version: PPO updates done.
     pub update: u64,
+    /// Updates of the whole run (`train.total_timesteps` / batch).
     pub total_updates: u64,
+    /// Env steps trained on so far.
     pub global_step: u64,
+    /// Updates per second over the last stats interval.
     pub updates_per_s: f64,
+    /// Env steps trained on per second over the last stats interval.
     pub env_steps_per_s: f64,
+    /// Chunks that passed validation so far.
     pub accepted_chunks: u64,
     /// Dropped messages by drop-reason name (`validate::DropReason`).
     #[serde(deserialize_with = "crate::budget::map")]
@@ -323,23 +336,30 @@ pub struct LearnerStats {
     pub done: bool,
 }
 
-/// An actor's periodic report (`dupac/<run>/stats/actor/<id>`).
+/// An actor's periodic report (`dupac/<run>/stats/actor/<id>`, JSON: [`crate::jsonmsg`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ActorStats {
+    /// `seq` is the sequence number of the actor's next chunk; `policy_version` the version
+    /// it acts with.
     pub header: Header,
+    /// Environments this actor steps (`distributed.actor_envs`).
     pub num_envs: u32,
+    /// Env steps sent in chunks so far.
     pub env_steps: u64,
+    /// Env steps per second over the last stats interval.
     pub steps_per_s: f64,
     pub chunks_sent: u64,
     /// Weight swaps so far, and the last one's latency: learner publish → first step acted
-    /// with the new version (ms, wall clocks of both hosts).
+    /// with the new version (ms, wall clocks of both hosts; `None` before the first swap).
     pub swaps: u64,
-    pub last_swap_latency_ms: f64,
+    pub last_swap_latency_ms: Option<f64>,
+    /// Episodes ended so far.
     pub episodes: u64,
 }
 
-/// Any stats message.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Any stats message (told apart by the JSON `kind`).
+#[derive(Debug, Clone, PartialEq)]
 pub enum StatsMsg {
     Learner(LearnerStats),
     Actor(ActorStats),
@@ -347,18 +367,22 @@ pub enum StatsMsg {
 
 /// Commands on `dupac/<run>/ctrl`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Command {
     /// The run is over: actors and followers exit.
     Stop,
 }
 
+/// A command of the learner to every process of the run (`dupac/<run>/ctrl`, JSON:
+/// [`crate::jsonmsg`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ControlMsg {
     pub header: Header,
     pub command: Command,
 }
 
-/// One kind of message: its codec magic and name.
+/// One kind of binary message: its codec magic and name.
 pub trait Message: Serialize + serde::de::DeserializeOwned {
     const MAGIC: &'static [u8; 8];
     const NAME: &'static str;
@@ -371,14 +395,6 @@ impl Message for TrajectoryChunk {
 impl Message for WeightsMsg {
     const MAGIC: &'static [u8; 8] = b"DUPACWTS";
     const NAME: &'static str = "weights";
-}
-impl Message for StatsMsg {
-    const MAGIC: &'static [u8; 8] = b"DUPACSTA";
-    const NAME: &'static str = "stats";
-}
-impl Message for ControlMsg {
-    const MAGIC: &'static [u8; 8] = b"DUPACCTL";
-    const NAME: &'static str = "control";
 }
 
 /// Encodes a message (magic + [`SCHEMA_VERSION`] + bincode body).

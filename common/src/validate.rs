@@ -21,7 +21,8 @@ pub enum DropReason {
     TooLarge,
     /// Not a message of this kind, or a body that does not decode.
     Garbage,
-    /// Another [`SCHEMA_VERSION`].
+    /// Another [`SCHEMA_VERSION`] (or, for a JSON message, another
+    /// [`crate::jsonmsg::JSON_SCHEMA_VERSION`] or the binary format).
     Schema,
     /// Another `distributed.run`.
     WrongRun,
@@ -78,7 +79,7 @@ impl DropReason {
     pub fn of_codec(e: &CodecError) -> DropReason {
         match e {
             CodecError::TooLarge { .. } | CodecError::OverBudget { .. } => DropReason::TooLarge,
-            CodecError::Version { .. } => DropReason::Schema,
+            CodecError::Version { .. } | CodecError::Binary { .. } => DropReason::Schema,
             _ => DropReason::Garbage,
         }
     }
@@ -562,8 +563,8 @@ mod tests {
         cut.truncate(bytes.len() - 3);
         let e = decode_msg::<TrajectoryChunk>(&cut, lim(1 << 20), "k").expect_err("cut");
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
-        // A message of another kind is not a chunk.
-        let w = encode_msg(&ControlMsg {
+        // A message of another kind (a JSON control message) is not a chunk.
+        let w = crate::jsonmsg::encode_json(&ControlMsg {
             header: Header::new("r", 7, ActorId::LEARNER, 9),
             command: Command::Stop,
         })

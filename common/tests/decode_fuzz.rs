@@ -1,19 +1,22 @@
-//! Property tests of the network decoder ("network input never panics a process"):
-//! arbitrary bytes, and valid messages with bytes flipped, cut or extended, either decode to a
-//! value the validator can judge or give an error: never a panic, never an unbounded allocation.
+//! Property tests of the network decoders, binary and JSON ("network input never panics a
+//! process"): arbitrary bytes, and valid messages with bytes flipped, cut or extended, either
+//! decode to a value the validator can judge or give an error: never a panic, never an
+//! unbounded allocation.
 //! Inputs large enough to amplify (hundreds of thousands of empty trajectories,
 //! episode lists, site vectors) are decoded under a counting allocator, and what decoding
 //! allocates must stay within the budget derived from the configuration.
 
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::{decode_json, encode_json};
 use dupac_common::msg::{
-    ControlMsg, EnvTrajectory, EpisodeSummary, Header, MsgLimits, Outcome, StatsMsg,
-    TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
+    ActorRow, ActorState, ControlMsg, EnvTrajectory, EpisodeSummary, Header, LearnerStats,
+    MsgLimits, Outcome, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
 use dupac_common::validate::{ChunkExpect, validate_chunk};
 use proptest::prelude::*;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
+use std::collections::BTreeMap;
 
 /// Counts the bytes this thread holds allocated, and their peak.
 struct Counting;
@@ -117,8 +120,35 @@ fn judge(bytes: &[u8]) {
         let _ = validate_chunk(&c, &expect());
     }
     let _ = decode_msg::<WeightsMsg>(bytes, lim(1 << 20), "fuzz");
-    let _ = decode_msg::<StatsMsg>(bytes, lim(1 << 20), "fuzz");
-    let _ = decode_msg::<ControlMsg>(bytes, lim(1 << 20), "fuzz");
+    let _ = decode_json::<StatsMsg>(bytes, lim(1 << 20), "fuzz");
+    let _ = decode_json::<ControlMsg>(bytes, lim(1 << 20), "fuzz");
+}
+
+/// A learner's stats message (JSON) with two actor rows, drops and metrics.
+fn valid_stats() -> Vec<u8> {
+    let row = |id: u32| ActorRow {
+        actor: ActorId(id),
+        state: ActorState::Alive,
+        steps_per_s: 12.5,
+        env_steps: 100,
+        chunks: 3,
+        policy_lag: 1,
+        last_seen_s: Some(0.5),
+    };
+    encode_json(&StatsMsg::Learner(LearnerStats {
+        header: Header::new("r", 7, ActorId::LEARNER, 9),
+        update: 3,
+        total_updates: 10,
+        global_step: 768,
+        updates_per_s: 0.5,
+        env_steps_per_s: 128.0,
+        accepted_chunks: 6,
+        drops: BTreeMap::from([("garbage".to_string(), 1)]),
+        actors: vec![row(0), row(1)],
+        metrics: BTreeMap::from([("charts/episodic_return".to_string(), -2.5)]),
+        done: false,
+    }))
+    .expect("encode")
 }
 
 fn summary() -> EpisodeSummary {
@@ -187,6 +217,22 @@ proptest! {
             bytes[at % n] ^= x;
         }
         bytes.truncate(12 + cut % (bytes.len() - 11));
+        bytes.extend_from_slice(&tail);
+        judge(&bytes);
+    }
+
+    #[test]
+    fn mutated_json_stats_never_panic(
+        flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
+        cut in any::<usize>(),
+        tail in proptest::collection::vec(any::<u8>(), 0..16),
+    ) {
+        let mut bytes = valid_stats();
+        for (at, x) in flips {
+            let n = bytes.len();
+            bytes[at % n] ^= x;
+        }
+        bytes.truncate(cut % (bytes.len() + 1));
         bytes.extend_from_slice(&tail);
         judge(&bytes);
     }

@@ -9,7 +9,8 @@
 //! Weights arrive on a ring channel of 1 (only the newest matters) and are swapped between
 //! chunks. The actor refuses weights whose configuration fingerprint differs from its own,
 //! waits while no learner is alive, and follows a restarted learner (a new incarnation's
-//! weights replace the old ones even with a lower version).
+//! weights replace the old ones even with a lower version). Its stats, and the learner's
+//! `Stop`, are JSON ([`dupac_common::jsonmsg`], zenoh encoding `application/json`).
 
 use crate::netside::{Every, Latest, NetSide};
 use dupac_actor::env::{Env, EnvError};
@@ -17,11 +18,12 @@ use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::{RolloutError, Worker};
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::{decode_json, encode_json};
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::EnvTrajectory;
 use dupac_common::msg::{
-    ActorStats, Command, ControlMsg, Header, MsgLimits, StatsMsg, TrajectoryChunk, WeightsMsg,
-    decode_msg, encode_msg, unix_ms,
+    ActorStats, Command, ControlMsg, Header, MsgLimits, TrajectoryChunk, WeightsMsg, decode_msg,
+    encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_common::seed::stream_seed;
@@ -34,6 +36,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
+use zenoh::bytes::Encoding;
 use zenoh::handlers::{RingChannel, RingChannelHandler};
 use zenoh::qos::CongestionControl;
 use zenoh::sample::{Sample, SampleKind};
@@ -216,7 +219,7 @@ impl Wiring {
             session
                 .declare_subscriber(keys.ctrl())
                 .callback(move |s| {
-                    match decode_msg::<ControlMsg>(&s.payload().to_bytes(), limit, &key) {
+                    match decode_json::<ControlMsg>(&s.payload().to_bytes(), limit, &key) {
                         Ok(m) if m.command == Command::Stop => {
                             tracing::info!("the learner ended the run");
                             stop.store(true, Ordering::Relaxed);
@@ -245,6 +248,7 @@ impl Wiring {
             session
                 .declare_publisher(keys.stats_actor(id))
                 .congestion_control(CongestionControl::Drop)
+                .encoding(Encoding::APPLICATION_JSON)
                 .wait()
                 .map_err(z)?,
             "stats",
@@ -423,7 +427,7 @@ pub fn run_actor(
     let mut current: Option<Current> = None;
     let mut seq = 0u64;
     let mut episodes = 0u64;
-    let mut last_swap_latency_ms = f64::NAN;
+    let mut last_swap_latency_ms = None;
     let (mut last_stats, mut steps_at_stats) = (Instant::now(), 0u64);
     let mut waiting_logged = false;
     let batch = cfg.train.num_envs * cfg.train.num_steps;
@@ -530,12 +534,13 @@ pub fn run_actor(
             chunks_this_version = 0;
             swapped_at = Instant::now();
             // The first step acted with this version starts now.
-            last_swap_latency_ms = unix_ms().saturating_sub(cur.sent_unix_ms) as f64;
+            let latency_ms = unix_ms().saturating_sub(cur.sent_unix_ms) as f64;
+            last_swap_latency_ms = Some(latency_ms);
             if !report.versions.is_empty() {
                 report.swaps += 1;
             }
             report.versions.push(version);
-            tracing::debug!(actor = %opts.id, version, latency_ms = last_swap_latency_ms, "acting with new weights");
+            tracing::debug!(actor = %opts.id, version, latency_ms, "acting with new weights");
         }
         let policy = cur.policy.clone();
         let steps = d.chunk_steps;
@@ -590,7 +595,7 @@ pub fn run_actor(
                 last_swap_latency_ms,
                 episodes,
             };
-            wiring.stats.set(encode_msg(&StatsMsg::Actor(stats))?);
+            wiring.stats.set(encode_json(&stats)?);
             last_stats = Instant::now();
             steps_at_stats = report.env_steps;
         }

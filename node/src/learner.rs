@@ -14,7 +14,8 @@
 //! * Weights are published with `CongestionControl::Block` and high priority, and served by a
 //!   queryable for actors that join late; a liveliness token announces the learner; a
 //!   liveliness subscriber tracks actors (joined, left, silent).
-//! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`.
+//! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`;
+//!   both in JSON ([`dupac_common::jsonmsg`]) with zenoh's encoding `application/json`.
 //! * Decoding, publishing and query replies are tasks on the node's network side
 //!   ([`crate::netside`]): the PPO loop hands over encoded weights and stats and goes on.
 
@@ -23,10 +24,11 @@ use crate::netside::{Latest, NetSide};
 use dupac_common::config::Config;
 use dupac_common::dedup::MAX_TRACKED_SENDERS;
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::encode_json;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    ActorRow, ActorState, Command, ControlMsg, Header, LearnerStats, MsgLimits, StatsMsg,
-    TrajectoryChunk, WeightsMsg, encode_msg, unix_ms,
+    ActorRow, ActorState, Command, ControlMsg, Header, LearnerStats, MsgLimits, TrajectoryChunk,
+    WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps};
@@ -35,6 +37,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
+use zenoh::bytes::Encoding;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
@@ -256,6 +259,7 @@ impl LearnerNode {
             session
                 .declare_publisher(keys.stats_learner())
                 .congestion_control(CongestionControl::Drop)
+                .encoding(Encoding::APPLICATION_JSON)
                 .wait()
                 .map_err(z)?,
             "stats",
@@ -466,12 +470,10 @@ impl LearnerNode {
         };
         t.iter_mut()
             .map(|(id, a)| {
-                let last_seen_s = a
-                    .last_seen
-                    .map_or(f64::INFINITY, |s| s.elapsed().as_secs_f64());
+                let last_seen_s = a.last_seen.map(|s| s.elapsed().as_secs_f64());
                 let state = match a.state {
                     ActorState::Alive | ActorState::Silent
-                        if last_seen_s > self.silent_after.as_secs_f64() =>
+                        if last_seen_s.is_none_or(|s| s > self.silent_after.as_secs_f64()) =>
                     {
                         ActorState::Silent
                     }
@@ -487,11 +489,7 @@ impl LearnerNode {
                     env_steps: a.env_steps,
                     chunks: a.chunks,
                     policy_lag: version.saturating_sub(a.last_version),
-                    last_seen_s: if last_seen_s.is_finite() {
-                        last_seen_s
-                    } else {
-                        -1.0
-                    },
+                    last_seen_s,
                 }
             })
             .collect()
@@ -539,8 +537,7 @@ impl LearnerNode {
         self.last_stats = Instant::now();
         self.updates_at_last_stats = update;
         self.steps_at_last_stats = global_step;
-        self.stats
-            .set(encode_msg(&StatsMsg::Learner(stats.clone()))?);
+        self.stats.set(encode_json(&stats)?);
         Ok(stats)
     }
 
@@ -556,7 +553,7 @@ impl LearnerNode {
     pub fn close(self, stop_version: Option<u64>) -> Result<(), NodeError> {
         let stop = stop_version
             .map(|v| {
-                encode_msg(&ControlMsg {
+                encode_json(&ControlMsg {
                     header: self.header(v),
                     command: Command::Stop,
                 })
@@ -581,6 +578,7 @@ impl LearnerNode {
         let sent = match stop {
             Some(bytes) => session
                 .put(ctrl, bytes)
+                .encoding(Encoding::APPLICATION_JSON)
                 .congestion_control(CongestionControl::Block)
                 .priority(Priority::InteractiveHigh)
                 .wait()

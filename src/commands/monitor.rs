@@ -1,17 +1,16 @@
 //! `dupac monitor`: a read-only view of a run from any machine: policy version,
 //! updates/s, env steps/s in total and per actor, policy lag, drops by reason, training and
 //! domain metrics; a refreshing table on the terminal and, with `--jsonl`, every stats message
-//! as a JSON line.
+//! as a JSON line (as published: [`dupac_common::jsonmsg`]).
 
 use super::net::{ConnectArgs, stop_flag};
 use crate::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::{decode_json, encode_json};
 use dupac_common::keys::{KeySpace, Role};
-use dupac_common::msg::{ActorStats, LearnerStats, StatsMsg, decode_msg};
-use dupac_run::monitor::render;
-use std::collections::BTreeMap;
+use dupac_common::msg::StatsMsg;
+use dupac_run::monitor::Board;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -77,8 +76,7 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
         None => None,
     };
     let start = Instant::now();
-    let mut learner: Option<LearnerStats> = None;
-    let mut actors: BTreeMap<ActorId, ActorStats> = BTreeMap::new();
+    let mut board = Board::default();
     let mut last_draw = Instant::now() - Duration::from_secs(10);
     let interactive =
         !args.plain && !global.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
@@ -92,24 +90,25 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
         }
         if let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(200)) {
             let key = sample.key_expr().as_str().to_string();
-            match decode_msg::<StatsMsg>(&sample.payload().to_bytes(), limit, &key) {
+            match decode_json::<StatsMsg>(&sample.payload().to_bytes(), limit, &key)
+                .map_err(|e| e.to_string())
+                .and_then(|msg| on_its_key(&keys, &key, msg))
+            {
                 Ok(msg) => {
                     if let Some(f) = &mut jsonl {
-                        writeln!(f, "{}", serde_json::to_string(&msg)?)
+                        f.write_all(&encode_json(&msg)?)
+                            .and_then(|()| f.write_all(b"\n"))
                             .context("writing --jsonl")?;
                     }
-                    match msg {
-                        StatsMsg::Learner(s) => learner = Some(s),
-                        StatsMsg::Actor(a) => {
-                            actors.insert(a.header.actor, a);
-                        }
+                    if !board.take(msg) {
+                        tracing::warn!("stats ignored on {key}: too many actors shown");
                     }
                 }
                 Err(e) => tracing::warn!("stats ignored: {e}"),
             }
         }
         if last_draw.elapsed() >= Duration::from_secs(1) {
-            let table = render(learner.as_ref(), &actors);
+            let table = board.render();
             if interactive {
                 // Clear the screen and home the cursor, then draw.
                 print!("\x1b[2J\x1b[H{table}");
@@ -119,10 +118,24 @@ pub fn run(global: &GlobalArgs, args: &MonitorArgs) -> Result<ExitCode> {
             std::io::stdout().flush().ok();
             last_draw = Instant::now();
         }
-        if learner.as_ref().is_some_and(|l| l.done) && args.duration_s.is_none() {
+        if board.done() && args.duration_s.is_none() {
             break;
         }
     }
     let _ = session.close().wait();
     Ok(ExitCode::SUCCESS)
+}
+
+/// `msg` if it came on its sender's key (the learner's, or its actor id's), so that no process
+/// reports for another.
+fn on_its_key(keys: &KeySpace, key: &str, msg: StatsMsg) -> Result<StatsMsg, String> {
+    let want = match &msg {
+        StatsMsg::Learner(_) => keys.stats_learner(),
+        StatsMsg::Actor(a) => keys.stats_actor(a.header.actor),
+    };
+    if key == want {
+        Ok(msg)
+    } else {
+        Err(format!("stats on {key} belong on {want}"))
+    }
 }

@@ -12,8 +12,9 @@ use crate::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
 use dupac_actor::pairs::write_pairs_jsonl;
+use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::KeySpace;
-use dupac_common::msg::{StatsMsg, decode_msg};
+use dupac_common::msg::LearnerStats;
 use dupac_run::run_dir::{checkpoint_to_resume, ensure_free};
 use dupac_run::scenario::{guide_pairs_cached, held_out_pairs, make_pool, world_and_cache};
 use std::process::{Child, ExitCode};
@@ -153,8 +154,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         }
         if let Some(sub) = &sub
             && let Ok(Some(s)) = sub.recv_timeout(Duration::from_millis(250))
-            && let Ok(StatsMsg::Learner(st)) =
-                decode_msg::<StatsMsg>(&s.payload().to_bytes(), limit, "stats")
+            && let Ok(st) = decode_json::<LearnerStats>(&s.payload().to_bytes(), limit, "stats")
         {
             pb.set_position(st.global_step);
             let alive = st

@@ -5,6 +5,7 @@
 
 use crate::support::*;
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::JSON_SCHEMA_VERSION;
 use dupac_common::msg::{ActorState, LearnerStats, encode_msg};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -128,6 +129,17 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
         stale.header.seq = 1000 + k;
         w.publish(99, encode_msg(&stale).expect("encode"));
     }
+    // Stats of the binary format (another build's) on the learner's stats key: the monitor
+    // refuses them by name.
+    {
+        use zenoh::Wait;
+        let binary =
+            dupac_common::codec::encode(b"DUPACSTA", 9, &(1u64, 2u64), "stats").expect("encode");
+        w.session
+            .put(w.keys.stats_learner(), binary)
+            .wait()
+            .expect("put");
+    }
     let counted = w.wait_for(&p, "every rogue message counted", 30, |s| {
         [
             "garbage",
@@ -175,13 +187,25 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     assert!(
         lines
             .iter()
-            .any(|l| l["Learner"]["drops"]["garbage"].as_u64() >= Some(1)),
+            .any(|l| l["kind"] == "learner_stats" && l["drops"]["garbage"].as_u64() >= Some(1)),
         "the monitor saw the drops"
     );
     assert!(
-        lines.iter().any(|l| l["Actor"]["swaps"].as_u64() >= Some(1)
-            && l["Actor"]["last_swap_latency_ms"].as_f64().is_some()),
+        lines.iter().any(|l| l["kind"] == "actor_stats"
+            && l["swaps"].as_u64() >= Some(1)
+            && l["last_swap_latency_ms"].as_f64().is_some()),
         "the monitor saw actor stats"
+    );
+    assert!(
+        lines.iter().all(|l| l["schema"] == JSON_SCHEMA_VERSION),
+        "every line carries the schema"
+    );
+    // The rogue's binary stats were refused by name, and the table went on.
+    assert!(
+        p.read("monitor.err")
+            .contains("a binary DUPACSTA message, not JSON"),
+        "{}",
+        p.logs()
     );
     assert!(
         p.read("monitor.out").contains("policy v"),

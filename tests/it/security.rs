@@ -213,7 +213,10 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
     for _ in 0..5 {
         for (key, bytes) in [
             (keys.weights(), encode_msg(&forged).expect("encode")),
-            (keys.ctrl(), encode_msg(&stop).expect("encode")),
+            (
+                keys.ctrl(),
+                dupac_common::jsonmsg::encode_json(&stop).expect("encode"),
+            ),
         ] {
             rogue
                 .session

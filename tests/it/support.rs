@@ -4,9 +4,10 @@
 //! the test's own Zenoh client (stats watcher and rogue publisher).
 
 use dupac_common::ids::ActorId;
+use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::{
-    EnvTrajectory, Header, LearnerStats, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg,
+    EnvTrajectory, Header, LearnerStats, TrajectoryChunk, WeightsMsg, decode_msg,
 };
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -448,7 +449,8 @@ impl Watcher {
         }
     }
 
-    /// Waits (at most `secs`) for learner stats satisfying `ok`.
+    /// Waits (at most `secs`) for learner stats satisfying `ok` (each published as
+    /// `application/json`).
     pub fn wait_for(
         &self,
         procs: &Procs,
@@ -460,12 +462,14 @@ impl Watcher {
         let mut last = None;
         while t0.elapsed() < Duration::from_secs(secs) {
             if let Ok(Some(s)) = self.stats.recv_timeout(Duration::from_millis(200))
-                && let Ok(StatsMsg::Learner(st)) = decode_msg::<StatsMsg>(
+                && let Ok(st) = decode_json::<LearnerStats>(
                     &s.payload().to_bytes(),
                     dupac_common::msg::MsgLimits::both(1 << 26),
                     "stats",
                 )
             {
+                // Any zenoh client can tell the stats are JSON.
+                assert_eq!(s.encoding(), &zenoh::bytes::Encoding::APPLICATION_JSON);
                 if ok(&st) {
                     return st;
                 }
