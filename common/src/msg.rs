@@ -37,6 +37,17 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// Lower-case name, as the evaluation's CSVs and the Python package write it: `"goal"`,
+    /// `"collision"`, `"out_of_bounds"`, `"time_limit"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Goal => "goal",
+            Outcome::Collision => "collision",
+            Outcome::OutOfBounds => "out_of_bounds",
+            Outcome::TimeLimit => "time_limit",
+        }
+    }
+
     /// Terminated (a true terminal state) rather than truncated.
     pub fn is_terminal(self) -> bool {
         !matches!(self, Outcome::TimeLimit)

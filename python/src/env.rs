@@ -20,16 +20,6 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
-/// `outcome` as Python sees it.
-pub(crate) fn outcome_name(o: Outcome) -> &'static str {
-    match o {
-        Outcome::Goal => "goal",
-        Outcome::Collision => "collision",
-        Outcome::OutOfBounds => "out_of_bounds",
-        Outcome::TimeLimit => "time_limit",
-    }
-}
-
 /// `outcome` as a code for arrays: −1 none (the episode goes on), 0 goal, 1 collision, 2 out of
 /// bounds, 3 time limit.
 fn outcome_code(o: Option<Outcome>) -> i8 {
@@ -194,7 +184,7 @@ fn info_dict<'py>(py: Python<'py>, s: &Step, pair_id: u64) -> PyResult<Bound<'py
     let i = &s.info;
     let d = PyDict::new(py);
     d.set_item("pair_id", pair_id)?;
-    d.set_item("outcome", i.outcome.map(outcome_name))?;
+    d.set_item("outcome", i.outcome.map(Outcome::name))?;
     d.set_item(
         "position_m",
         Array1::from_iter(i.position_m.iter().copied()).into_pyarray(py),

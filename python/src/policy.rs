@@ -2,7 +2,6 @@
 //! train`) run on observations, and `fly`: one held-out pair flown with it exactly as `dupac fly`
 //! flies it.
 
-use crate::env::outcome_name;
 use crate::scenario::{Scenario, Split};
 use crate::{runtime_error, value_error};
 use dupac_actor::env::Env as RustEnv;
@@ -164,7 +163,7 @@ pub fn fly<'py>(
     })?;
     let mut json = serde_json::to_value(&summary).map_err(runtime_error)?;
     if let Some(o) = json.as_object_mut() {
-        o.insert("outcome".into(), outcome_name(summary.outcome).into());
+        o.insert("outcome".into(), summary.outcome.name().into());
     }
     let summary = py
         .import("json")?

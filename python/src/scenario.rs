@@ -293,7 +293,7 @@ impl Scenario {
                 });
             out
         });
-        let a = Array2::from_shape_vec((pts_len(&points), m), out).map_err(value_error)?;
+        let a = Array2::from_shape_vec((points.as_array().nrows(), m), out).map_err(value_error)?;
         Ok(a.into_pyarray(py))
     }
 
@@ -463,10 +463,6 @@ impl Scenario {
             self.association()
         )
     }
-}
-
-fn pts_len(a: &PyReadonlyArray2<'_, f64>) -> usize {
-    a.as_array().nrows()
 }
 
 /// The default configuration as TOML: every key with its default value (`dupac config`).

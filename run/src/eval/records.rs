@@ -95,12 +95,7 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
     let seed = rec.seed.to_string();
     for (i, fl) in rec.flights.iter().enumerate() {
         let (idx, pair) = (i.to_string(), fl.pair_id.to_string());
-        let outcome = match fl.outcome {
-            dupac_common::msg::Outcome::Goal => "goal",
-            dupac_common::msg::Outcome::Collision => "collision",
-            dupac_common::msg::Outcome::OutOfBounds => "out_of_bounds",
-            dupac_common::msg::Outcome::TimeLimit => "time_limit",
-        };
+        let outcome = fl.outcome.name();
         let start = rec
             .start_serving
             .get(i)
