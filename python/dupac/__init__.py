@@ -10,13 +10,25 @@ Gymnasium interface (:mod:`dupac.gym`).
 * :class:`Env`, :class:`VecEnv` – the environment (one decision per step), raw.
 * :class:`Policy`, :func:`fly` – a trained ``policy.bin`` run on observations, or flown on a pair
   exactly as ``dupac fly`` flies it.
+* :class:`Planner`, :func:`fly_path` – the shortest flyable and the coverage-aware paths, and a
+  path flown by the scripted pilot with the A3 rule (the planners ``dupac eval`` compares with).
 * :mod:`dupac.gym` – ``DupacEnv`` (a ``gymnasium.Env``, registered as ``dupac/Dupac-v0``) and
   ``DupacVecEnv`` (a ``gymnasium.vector.VectorEnv`` stepping N environments in Rust).
 
 Units are in the names: metres (``_m``), dBm (``_dbm``), local ENU coordinates of the scenario.
 """
 
-from ._dupac import Env, Policy, Scenario, VecEnv, __version__, default_config_toml, fly
+from ._dupac import (
+    Env,
+    Planner,
+    Policy,
+    Scenario,
+    VecEnv,
+    __version__,
+    default_config_toml,
+    fly,
+    fly_path,
+)
 
 #: Names of the RSRP classes by code (spec/radio.md §3).
 RSRP_CLASSES = ("excellent", "mediocre", "poor")
@@ -26,6 +38,7 @@ OUTCOMES = ("goal", "collision", "out_of_bounds", "time_limit")
 __all__ = [
     "Env",
     "OUTCOMES",
+    "Planner",
     "Policy",
     "RSRP_CLASSES",
     "Scenario",
@@ -33,6 +46,7 @@ __all__ = [
     "__version__",
     "default_config_toml",
     "fly",
+    "fly_path",
 ]
 
 from . import gym as gym  # noqa: E402  (registers dupac/Dupac-v0 with Gymnasium)

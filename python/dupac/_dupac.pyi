@@ -108,3 +108,24 @@ class Policy:
 def fly(
     scenario: Scenario, policy: Policy, pair: int = 0, split: str = "eval"
 ) -> tuple[dict[str, Any], dict[str, npt.NDArray[Any]]]: ...
+
+class Planner:
+    """The shortest flyable and the coverage-aware planners of a scenario's city."""
+
+    def __init__(self, scenario: Scenario, coverage: bool = True) -> None: ...
+    @property
+    def has_coverage(self) -> bool: ...
+    def check_point(self, point_m: npt.NDArray[np.float64]) -> None: ...
+    def shortest(
+        self, source_m: npt.NDArray[np.float64], destination_m: npt.NDArray[np.float64]
+    ) -> dict[str, Any]: ...
+    def coverage_aware(
+        self,
+        source_m: npt.NDArray[np.float64],
+        destination_m: npt.NDArray[np.float64],
+        lam: float | None = None,
+    ) -> dict[str, Any]: ...
+
+def fly_path(
+    scenario: Scenario, waypoints_m: npt.NDArray[np.float64], pair: int = 0, split: str = "eval"
+) -> tuple[dict[str, Any], dict[str, npt.NDArray[Any]]]: ...

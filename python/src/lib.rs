@@ -1,12 +1,13 @@
 //! `dupac._dupac`: the Rust core of the `dupac` Python package (python/dupac/): a scenario (the
 //! configuration, the radio world and its RSRP source, the pairs), the UAV environment one at a
-//! time and N at a time, and trained policies. The Python modules add Gymnasium's spaces and
+//! time and N at a time, the planners, and trained policies. The Python modules add Gymnasium's spaces and
 //! conventions on top (python/dupac/gym.py).
 //!
 //! Every Rust error reaches Python as an exception whose message is the error's own text
 //! (`ValueError` for bad input, `RuntimeError` otherwise); nothing here panics on user input.
 
 mod env;
+mod planner;
 mod policy;
 mod scenario;
 
@@ -20,6 +21,8 @@ fn _dupac(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<env::Env>()?;
     m.add_class::<env::VecEnv>()?;
     m.add_class::<policy::Policy>()?;
+    m.add_class::<planner::Planner>()?;
+    m.add_function(wrap_pyfunction!(planner::fly_path, m)?)?;
     m.add_function(wrap_pyfunction!(policy::fly, m)?)?;
     m.add_function(wrap_pyfunction!(scenario::default_config_toml, m)?)?;
     Ok(())

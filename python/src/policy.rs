@@ -6,6 +6,7 @@ use crate::scenario::{Scenario, Split};
 use crate::{runtime_error, value_error};
 use dupac_actor::env::Env as RustEnv;
 use dupac_actor::rollout::fly_policy;
+use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::{PolicyWeights, Scratch};
 use dupac_learner::checkpoint::load_policy;
 use numpy::ndarray::{Array1, Array2};
@@ -161,12 +162,21 @@ pub fn fly<'py>(
         }
         fly_policy(&mut env, w, p.id, p.episode(false), p.id).map_err(runtime_error)
     })?;
-    let mut json = serde_json::to_value(&summary).map_err(runtime_error)?;
+    Ok((
+        summary_dict(py, &summary)?,
+        crate::env::steps_dict(py, &steps)?,
+    ))
+}
+
+/// An episode's summary as a dict (its fields, the outcome by name).
+pub(crate) fn summary_dict<'py>(
+    py: Python<'py>,
+    summary: &EpisodeSummary,
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut json = serde_json::to_value(summary).map_err(runtime_error)?;
     if let Some(o) = json.as_object_mut() {
         o.insert("outcome".into(), summary.outcome.name().into());
     }
-    let summary = py
-        .import("json")?
-        .call_method1("loads", (json.to_string(),))?;
-    Ok((summary, crate::env::steps_dict(py, &steps)?))
+    py.import("json")?
+        .call_method1("loads", (json.to_string(),))
 }

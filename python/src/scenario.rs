@@ -87,7 +87,7 @@ pub struct Scenario {
 }
 
 /// Parses a point array `(N, 3)` in metres, refusing non-finite values.
-fn points(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
+pub(crate) fn points(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
     let v = a.as_array();
     if v.ncols() != 3 {
         return Err(value_error(format!(

@@ -226,14 +226,24 @@ pub fn shortest_with_a3(
     planner: &Planner,
     p: &Pair,
 ) -> Result<(Flight, EpisodeSummary), RunError> {
+    let shortest = planner.shortest(p.source_m, p.destination_m)?;
+    fly_path_with_a3(cfg, world, rsrp, &shortest.waypoints_m, p)
+}
+
+/// `waypoints_m` (m) flown from pair `p`'s source by the scripted pilot with A3 choosing the
+/// site (as `dupac eval` flies the planners' paths), with its episode summary.
+pub fn fly_path_with_a3(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    waypoints_m: &[Point],
+    p: &Pair,
+) -> Result<(Flight, EpisodeSummary), RunError> {
     let mut a3_cfg = cfg.clone();
     a3_cfg.env.association = Association::A3;
     let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
-    let shortest = planner.shortest(p.source_m, p.destination_m)?;
     let episode = p.episode(false);
-    let flight = fly_waypoints(&mut env, p.id, episode, &shortest.waypoints_m, |e| {
-        e.serving()
-    })?;
+    let flight = fly_waypoints(&mut env, p.id, episode, waypoints_m, |e| e.serving())?;
     let mut acc = EpisodeAccumulator::new(&a3_cfg.env);
     flight.steps.iter().for_each(|s| acc.push(s));
     let summary = acc.finish(p.id, p.shortest_m, flight.outcome);
