@@ -131,6 +131,16 @@ pub fn parse_levels(value: &str) -> Result<f64, String> {
     Ok(n)
 }
 
+/// A count of levels that may be negative (`building:min_level` of a part starting below
+/// ground), within ±[`MAX_LEVELS`].
+fn parse_signed_levels(value: &str) -> Result<f64, String> {
+    let n = number(value)?;
+    if n.abs() > MAX_LEVELS {
+        return Err(format!("levels must be in [-{MAX_LEVELS}, {MAX_LEVELS}]"));
+    }
+    Ok(n)
+}
+
 fn number(s: &str) -> Result<f64, String> {
     let s = s.trim();
     let ok = !s.is_empty()
@@ -241,9 +251,11 @@ impl HeightRules {
         if let Some(h) = tags.length_m("min_height")? {
             return Ok(h);
         }
-        let levels = match tags.levels("building:min_level")? {
+        // Levels skipped below a part may be negative (a part starting underground): the
+        // loader cuts a negative bottom at the ground.
+        let levels = match tags.parsed("building:min_level", parse_signed_levels)? {
             Some(l) => Some(l),
-            None => tags.levels("min_level")?,
+            None => tags.parsed("min_level", parse_signed_levels)?,
         };
         Ok(levels.unwrap_or(0.0) * self.level_height_m)
     }
@@ -370,6 +382,12 @@ mod tests {
         assert_eq!(r.bottom_m(Tags(&t)), Ok(6.0));
         let t = tags(json!({"min_level": "1"}));
         assert_eq!(r.bottom_m(Tags(&t)), Ok(3.0));
+        let t = tags(json!({"building:min_level": "-1"}));
+        assert_eq!(
+            r.bottom_m(Tags(&t)),
+            Ok(-3.0),
+            "cut at the ground by the loader"
+        );
         let t = tags(json!({}));
         assert_eq!(r.bottom_m(Tags(&t)), Ok(0.0));
     }
