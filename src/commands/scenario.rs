@@ -156,13 +156,9 @@ pub fn run(global: &GlobalArgs, cmd: &ScenarioCommand) -> Result<ExitCode> {
     let imported_s = t.elapsed().as_secs_f64();
     // What the loaders make of it: the city and the sites the configuration gives.
     let world = RadioWorld::build(&s.config).context("loading the imported scenario")?;
-    let b = &s.buildings;
-    let c = &s.cells;
-    let sel = s.select;
-    println!(
-        "selection box {:.6},{:.6},{:.6},{:.6}",
-        sel.lon_min_deg, sel.lat_min_deg, sel.lon_max_deg, sel.lat_max_deg
-    );
+    let (b, c, x) = (&s.buildings, &s.cells, s.select);
+    let (w, south, e, n) = (x.lon_min_deg, x.lat_min_deg, x.lon_max_deg, x.lat_max_deg);
+    println!("selection box {w:.6},{south:.6},{e:.6},{n:.6}");
     println!(
         "buildings: {} features read; kept {} outlines ({} with parts), {} parts, {} parts \
          without an outline; skipped {} not buildings, {} underground, {} not areas, {} \
