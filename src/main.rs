@@ -106,6 +106,10 @@ enum Command {
     /// The per-site 3D RSRP cache used by the environment.
     #[command(subcommand)]
     Cache(commands::cache::CacheCommand),
+    /// Another city: raw OSM buildings and OpenCelliD cells into a scenario directory and a
+    /// configuration (`scenario import`).
+    #[command(subcommand)]
+    Scenario(commands::scenario::ScenarioCommand),
     /// Held-out evaluation pairs binned by shortest flyable distance (JSON Lines).
     Pairs(commands::pairs::PairsArgs),
     /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
@@ -151,6 +155,7 @@ fn main() -> ExitCode {
         Command::Map(a) => commands::map::run(&cli.global, a),
         Command::Radio(c) => commands::radio::run(&cli.global, c),
         Command::Cache(c) => commands::cache::run(&cli.global, c),
+        Command::Scenario(c) => commands::scenario::run(&cli.global, c),
         Command::Pairs(a) => commands::pairs::run(&cli.global, a),
         Command::Plan(a) => commands::plan::run(&cli.global, a),
         Command::Train(a) => commands::train::run(&cli.global, a),

@@ -41,6 +41,10 @@ pub enum RadioError {
     },
     #[error("cache {path}: {message}")]
     Cache { path: PathBuf, message: String },
+    #[error("scenario import: {message}")]
+    Import { message: String },
+    #[error(transparent)]
+    Write(#[from] dupac_common::fsio::FsError),
 }
 
 impl RadioError {

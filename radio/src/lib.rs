@@ -15,6 +15,7 @@ pub mod class;
 pub mod coverage;
 pub mod error;
 pub mod geo;
+pub mod import;
 pub mod link;
 pub mod link_calc;
 pub mod pathloss;

@@ -131,8 +131,10 @@ use dupac_common::config::{CityKind, RadioConfig, ScenarioConfig};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Reads LTE cell estimates (`data/nyc_midtown_cells.csv`: columns `lat`, `lon`, `enb_id`, …) and
-/// merges the cells of each eNodeB into one site at their mean position.
+/// Reads LTE cell estimates (`data/nyc_midtown_cells.csv`: columns `lat`, `lon`, `enb_id`, and
+/// optionally `mcc`, `mnc`, …) and merges the cells of each eNodeB of one network (`mcc`, `mnc`,
+/// `enb_id`; eNodeB ids are unique only within a network) into one site at their mean position,
+/// named `enb:<enb_id>`, or `enb:<mcc>-<mnc>:<enb_id>` when the network is given.
 pub fn read_cells_csv(
     path: &Path,
     projection: &LocalProjection,
@@ -158,7 +160,8 @@ pub fn read_cells_csv(
             .ok_or_else(|| table_err(1, format!("missing column `{name}` (header: {headers:?})")))
     };
     let (c_lat, c_lon, c_enb) = (column("lat")?, column("lon")?, column("enb_id")?);
-    let mut by_enb: BTreeMap<u64, (f64, f64, usize)> = BTreeMap::new();
+    let (c_mcc, c_mnc) = (column("mcc").ok(), column("mnc").ok());
+    let mut by_enb: BTreeMap<(String, String, u64), (f64, f64, usize)> = BTreeMap::new();
     for record in reader.records() {
         let record = record.map_err(|e| {
             let line = record_line(&bytes, e.position());
@@ -195,15 +198,31 @@ pub fn read_cells_csv(
         let enb: u64 = s
             .parse()
             .map_err(|_| table_err(line, format!("column `enb_id`: {s:?} is not an integer")))?;
-        let e = by_enb.entry(enb).or_insert((0.0, 0.0, 0));
+        let network = |c: Option<usize>, name: &str| -> Result<String, RadioError> {
+            let v = c.and_then(|c| record.get(c)).unwrap_or("");
+            if v.chars().all(|ch| ch.is_ascii_digit()) {
+                Ok(v.to_string())
+            } else {
+                Err(table_err(
+                    line,
+                    format!("column `{name}`: {v:?} is not a network code"),
+                ))
+            }
+        };
+        let key = (network(c_mcc, "mcc")?, network(c_mnc, "mnc")?, enb);
+        let e = by_enb.entry(key).or_insert((0.0, 0.0, 0));
         e.0 += lon;
         e.1 += lat;
         e.2 += 1;
     }
     Ok(by_enb
         .into_iter()
-        .map(|(enb, (slon, slat, n))| Candidate {
-            name: format!("enb:{enb}"),
+        .map(|((mcc, mnc, enb), (slon, slat, n))| Candidate {
+            name: if mcc.is_empty() && mnc.is_empty() {
+                format!("enb:{enb}")
+            } else {
+                format!("enb:{mcc}-{mnc}:{enb}")
+            },
             xy_m: projection.to_local_m(slon / n as f64, slat / n as f64),
         })
         .collect())

@@ -416,3 +416,25 @@ fn cells_csv_with_a_missing_column_is_named() {
     let mid = p.to_local_m(-73.98, 40.755);
     assert!((c[0].xy_m[0] - mid[0]).abs() < 1e-6 && (c[0].xy_m[1] - mid[1]).abs() < 1e-6);
 }
+
+/// eNodeB ids are unique only within a network: the same id on two networks is two sites, and
+/// a network code that is not digits is named.
+#[test]
+fn cells_of_one_enodeb_id_on_two_networks_are_two_sites() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("cells.csv");
+    std::fs::write(
+        &path,
+        "lat,lon,mcc,mnc,enb_id\n40.75,-73.98,310,410,7\n40.76,-73.98,310,410,7\n40.75,-73.99,310,260,7\n",
+    )
+    .expect("write");
+    let p = dupac_radio::geo::LocalProjection::new(-73.985, 40.7525);
+    let c = dupac_radio::sites::read_cells_csv(&path, &p).expect("ok");
+    let names: Vec<&str> = c.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["enb:310-260:7", "enb:310-410:7"]);
+    std::fs::write(&path, "lat,lon,mcc,mnc,enb_id\n40.75,-73.98,310,x1,7\n").expect("write");
+    let e = dupac_radio::sites::read_cells_csv(&path, &p)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cells.csv:2") && e.contains("`mnc`"), "{e}");
+}

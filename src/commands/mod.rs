@@ -16,6 +16,7 @@ pub mod pairs;
 pub mod plan;
 pub mod radio;
 pub mod run_args;
+pub mod scenario;
 pub mod shell;
 pub mod train;
 pub mod training;

@@ -1,13 +1,14 @@
 //! The one integration-test binary of the `dupac` command (ripgrep's layout): end-to-end tests of
 //! real processes, the real Midtown data and real files, one module per area, all built on
 //! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
-//! `distributed::`, `faults::`, `netns::`, `security::`, `soak::`, `usage::`).
+//! `distributed::`, `faults::`, `netns::`, `scenario::`, `security::`, `soak::`, `usage::`).
 
 mod cli;
 mod distributed;
 mod eval;
 mod faults;
 mod netns;
+mod scenario;
 mod security;
 mod soak;
 mod support;

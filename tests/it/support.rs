@@ -62,11 +62,19 @@ pub fn small_world_args(dir: &Path) -> Vec<String> {
     .collect()
 }
 
-/// [`small_world_args`] plus short held-out pairs (two bins of 4) and a tiny PPO run (4 × 64
-/// samples per update, a [32, 32] network, evaluation and checkpoint every 2 updates): what the
-/// `train` and `eval` tests train and fly. The held-out pairs file lives in `dir`.
+/// [`small_world_args`] plus [`small_train_args`]: what the `train` and `eval` tests train and
+/// fly.
 pub fn small_run_args(dir: &Path) -> Vec<String> {
     let mut args = small_world_args(dir);
+    args.extend(small_train_args(dir));
+    args
+}
+
+/// Short held-out pairs (two bins of 4) and a tiny PPO run (4 × 64 samples per update, a
+/// [32, 32] network, evaluation and checkpoint every 2 updates), for any scenario; the held-out
+/// pairs file lives in `dir`.
+pub fn small_train_args(dir: &Path) -> Vec<String> {
+    let mut args = Vec::new();
     for kv in [
         "pairs.min_m=40".to_string(),
         "pairs.max_m=70".into(),

@@ -21,7 +21,7 @@ const DUPLICATE_VERTEX_M: f64 = 0.01;
 const MIN_FOOTPRINT_M2: f64 = 0.01;
 /// Rings wider or longer than this are rejected: no building is, and the footprint index sizes
 /// its grid by the buildings' extent (a ring around the globe asked for terabytes).
-const MAX_RING_SPAN_M: f64 = 5_000.0;
+pub(crate) const MAX_RING_SPAN_M: f64 = 5_000.0;
 
 /// Reads `path` and returns the buildings whose footprint bounds intersect `keep_box_m`
 /// (local metres).
@@ -178,7 +178,7 @@ fn prop_f64(props: Option<&JsonObject>, key: &str) -> Result<Option<f64>, String
 }
 
 /// Projects one GeoJSON polygon (outer ring then holes) into a [`Building`].
-fn polygon_to_building(
+pub(crate) fn polygon_to_building(
     polygon: &PolygonType,
     projection: &LocalProjection,
     id: &str,
