@@ -32,9 +32,25 @@ pub fn check_readable(flag: &str, path: &Path) -> Result<()> {
 }
 
 /// Refuses, before any work, `--pair INDEX` past the end of the pairs file `path` (one pair a
-/// non-blank line, counted from 0); the file's contents are judged when it is read.
-pub fn check_pair_index(path: &Path, index: usize) -> Result<()> {
+/// non-blank line, counted from 0); the file's contents are judged when it is read. With
+/// `held_out` (the default held-out file, drawn when missing), a missing `path` holds that
+/// configuration's `pairs.eval_bins_m × pairs.eval_per_bin` pairs.
+pub fn check_pair_index(
+    path: &Path,
+    index: usize,
+    held_out: Option<&dupac_common::config::Config>,
+) -> Result<()> {
     use std::io::BufRead;
+    if let Some(cfg) = held_out.filter(|_| !path.exists()) {
+        let n = cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin;
+        if index >= n {
+            anyhow::bail!(
+                "--pair {index}: the held-out set ({}, drawn on first use) has {n} pairs",
+                path.display()
+            );
+        }
+        return Ok(());
+    }
     let file = std::fs::File::open(path).map_err(|e| {
         anyhow::anyhow!(
             "cannot read pairs file {}: {e} (make one with `dupac pairs`)",

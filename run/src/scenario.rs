@@ -242,30 +242,43 @@ pub fn held_out_pairs(
     planners: &Planners,
     quiet: bool,
 ) -> Result<Vec<Pair>, RunError> {
+    let mut pairs = held_out_unguided(cfg, &planners.pairs, quiet)?;
+    guide_pairs(cfg, planners, &mut pairs)?;
+    Ok(pairs)
+}
+
+/// The held-out evaluation pairs without their guide paths: `pairs.eval_file` when it exists,
+/// else drawn (seed `pairs.eval_seed`) with `planner` and written there.
+pub fn held_out_unguided(
+    cfg: &Config,
+    planner: &Planner,
+    quiet: bool,
+) -> Result<Vec<Pair>, RunError> {
     let file = &cfg.pairs.eval_file;
-    let planner = &planners.pairs;
     if file.exists() {
-        let mut pairs = read_pairs_jsonl(file, planner, &cfg.pairs)?;
-        guide_pairs(cfg, planners, &mut pairs)?;
-        return Ok(pairs);
+        return Ok(read_pairs_jsonl(file, planner, &cfg.pairs)?);
     }
     let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
     let pb = progress_bar(total, "evaluation pairs", quiet);
-    let mut pairs = eval_pairs(planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
+    let pairs = eval_pairs(planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
     pb.finish_and_clear();
     write_pairs_jsonl(file, &pairs)?;
-    guide_pairs(cfg, planners, &mut pairs)?;
     eprintln!("wrote {} held-out pairs to {}", pairs.len(), file.display());
     Ok(pairs)
 }
 
-/// The pairs of `file` (default `pairs.eval_file`, the held-out set), with the file named in
-/// errors: what `dupac fly` and `dupac eval` fly.
+/// The pairs of `file` (default `pairs.eval_file`, the held-out set, drawn and written there
+/// when missing, as [`held_out_pairs`] does), with the file named in errors: what `dupac fly`
+/// and `dupac eval` fly.
 pub fn read_eval_pairs(
     cfg: &Config,
     file: Option<&PathBuf>,
     planners: &Planners,
 ) -> Result<(PathBuf, Vec<Pair>), RunError> {
+    if file.is_none() && !cfg.pairs.eval_file.exists() {
+        let pairs = held_out_pairs(cfg, planners, true)?;
+        return Ok((cfg.pairs.eval_file.clone(), pairs));
+    }
     let file = file.cloned().unwrap_or_else(|| cfg.pairs.eval_file.clone());
     let mut pairs = read_pairs_jsonl(&file, &planners.pairs, &cfg.pairs).context_with(|| {
         format!(

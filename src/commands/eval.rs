@@ -85,11 +85,14 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     let records_dir = args.out.join("records");
     if !args.report_only {
         // The files named by arguments before the world is built.
-        let (flag, pairs) = match &args.pairs {
-            Some(p) => ("--pairs", p),
-            None => ("pairs.eval_file", &cfg.pairs.eval_file),
-        };
-        crate::io::check_readable(flag, pairs)?;
+        // Without --pairs, a missing held-out file is drawn and written (seed `pairs.eval_seed`).
+        match &args.pairs {
+            Some(p) => crate::io::check_readable("--pairs", p)?,
+            None if cfg.pairs.eval_file.exists() => {
+                crate::io::check_readable("pairs.eval_file", &cfg.pairs.eval_file)?
+            }
+            None => {}
+        }
         for p in &args.policies {
             if let Some((_, file)) = p.split_once('=') {
                 crate::io::check_readable("--policy", std::path::Path::new(file))?;

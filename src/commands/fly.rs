@@ -20,7 +20,7 @@ use dupac_radio::class::RsrpThresholds;
 use dupac_run::flights::{
     env_rsrp_at, episodes_md, shortest_with_a3, versions_md, write_steps_csv, write_versions_csv,
 };
-use dupac_run::scenario::world_and_cache;
+use dupac_run::scenario::{held_out_unguided, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -60,7 +60,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         crate::io::check_readable("--policy", p)?;
     }
     let pairs_file = args.pairs.as_ref().unwrap_or(&cfg.pairs.eval_file).clone();
-    crate::io::check_pair_index(&pairs_file, args.pair)?;
+    crate::io::check_pair_index(&pairs_file, args.pair, args.pairs.is_none().then_some(&cfg))?;
     let mut follower = None;
     let mut built = None;
     let policy = match &args.policy {
@@ -116,7 +116,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         None => world_and_cache(&cfg, global.no_progress())?,
     };
     let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
-    let mut pairs = read_pairs_jsonl(&pairs_file, &planners.pairs, &cfg.pairs)?;
+    let mut pairs = match &args.pairs {
+        Some(file) => read_pairs_jsonl(file, &planners.pairs, &cfg.pairs)?,
+        None => held_out_unguided(&cfg, &planners.pairs, global.no_progress())?,
+    };
     if args.pair >= pairs.len() {
         bail!(
             "{}: --pair {} but the file has {} pairs",

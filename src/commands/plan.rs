@@ -64,7 +64,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     cfg.env.association = Association::A3;
     // The arguments before the world is built.
     if let Some(file) = &args.pairs {
-        crate::io::check_pair_index(file, args.pair)?;
+        crate::io::check_pair_index(file, args.pair, None)?;
     }
     for l in &args.lambdas {
         if !(l.is_finite() && *l >= 0.0) {

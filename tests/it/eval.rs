@@ -246,3 +246,83 @@ fn eval_refuses_a_bad_hindsight_value_before_flying() {
     }
     assert!(!dir.path().join("eval_bad").join("records").exists());
 }
+
+/// Without `--pairs` and without the held-out file, `fly` and `eval` draw the held-out pairs
+/// (`pairs.eval_seed`) and write them to `pairs.eval_file`, the same pairs `dupac pairs` writes;
+/// a `--pair` past the set's size is refused before anything is built.
+#[test]
+fn fly_and_eval_draw_a_missing_held_out_set() {
+    let run = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    let file = |name: &str| dir.path().join(name);
+    let with_file = |name: &str| {
+        let mut a = run.args.clone();
+        a.push("--set".into());
+        a.push(format!("pairs.eval_file=\"{}\"", file(name).display()));
+        a
+    };
+    let policy = run.policy().display().to_string();
+    let ok = |o: std::process::Output| {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    ok(dupac_output(
+        &with_file("drawn_by_fly.jsonl"),
+        &[
+            "fly".into(),
+            "-q".into(),
+            "--policy".into(),
+            policy.clone(),
+            "--pair".into(),
+            "7".into(),
+            "--out".into(),
+            file("fly").display().to_string(),
+        ],
+    ));
+    ok(dupac_output(
+        &with_file("drawn_by_eval.jsonl"),
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--no-planners".into(),
+            "--no-replay".into(),
+            "--policy".into(),
+            format!("dupac={policy}"),
+            "--out".into(),
+            file("eval").display().to_string(),
+        ],
+    ));
+    ok(dupac_output(
+        &with_file("unused.jsonl"),
+        &[
+            "pairs".into(),
+            "-q".into(),
+            "--out".into(),
+            file("by_pairs.jsonl").display().to_string(),
+        ],
+    ));
+    let by_pairs = std::fs::read_to_string(file("by_pairs.jsonl")).expect("dupac pairs");
+    for drawn in ["drawn_by_fly.jsonl", "drawn_by_eval.jsonl"] {
+        assert_eq!(
+            std::fs::read_to_string(file(drawn)).expect(drawn),
+            by_pairs,
+            "{drawn}"
+        );
+    }
+    let past = dupac_output(
+        &with_file("never.jsonl"),
+        &[
+            "fly".into(),
+            "-q".into(),
+            "--policy".into(),
+            policy,
+            "--pair".into(),
+            "8".into(),
+        ],
+    );
+    let err = String::from_utf8_lossy(&past.stderr);
+    assert!(
+        !past.status.success() && err.contains("has 8 pairs"),
+        "{err}"
+    );
+    assert!(!file("never.jsonl").exists());
+}
