@@ -12,10 +12,18 @@
 #     <p>-sw       -              the bridge `br0` and the host ends of the veth pairs
 #
 # (<p> is `dupac<pid>`, so concurrent runs do not collide; nothing is added to the machine's
-# own network namespace.) Every process uses the deploy/zenoh/*.json5 file of its role with
-# `--connect tcp/10.77.0.1:7447 --no-multicast-scouting`, and all share one tiny DUPAC config
-# (procedural 500 m city, 16 PPO updates of 256 steps). The script waits for the learner to
-# finish, then checks:
+# own network namespace.) It follows deploy/README.md as written, under a work directory in
+# place of `/` and outside the repository: the binary is stripped and installed as
+# ROOT/usr/local/bin/dupac, the Zenoh files as ROOT/etc/dupac/zenoh/*.json5; the run's config
+# is made with `dupac config > run.toml` in the "hosts'" working directory (no data/ there: the
+# Midtown city is the copy built into the binary), then `cache build` and `pairs`, the router,
+# the learner, actor 1 and the monitor with the README's step-by-step commands, and actor 2 as
+# its systemd unit starts it (deploy/systemd/actor-start.sh 2). Every process uses its role's
+# Zenoh file with `--connect tcp/10.77.0.1:7447`. The config is the default one (the real
+# Midtown scenario, its cache grid and radio) with a tiny training (16 PPO updates of 256
+# steps, pools of 50 pairs, 8 held-out pairs); DUPAC_NETNS_CITY=procedural uses a 500 m
+# procedural city instead. The script waits for the learner to finish, then checks:
+#   - the install: the stripped binary, the built-in Midtown data used (Midtown only);
 #   - the learner exited 0 within the timeout;
 #   - metrics.jsonl has one row per update (total_timesteps / (num_envs * num_steps)) and the
 #     last row is that update;
@@ -28,6 +36,8 @@
 #   default binary: target/release/dupac of this repository, or target/debug/dupac when that
 #   one is missing or newer.
 # Environment:
+#   DUPAC_NETNS_CITY=midtown     midtown (the default scenario) or procedural (a 500 m city:
+#                                no cache build of note, for the long partition run)
 #   DUPAC_NETNS_TIMEOUT=120      seconds the learner may take
 #   DUPAC_NETNS_TIMESTEPS=4096   train.total_timesteps (a multiple of 256)
 #   DUPAC_NETNS_DELAY_MS=0       one-way delay added with netem on every host's link (needs tc)
@@ -40,7 +50,8 @@
 #                                learner trained on during the partition with actor 1 alone
 #                                (dist/alive_actors 2 → 1), actor 2 rejoined (→ 2) and acted with
 #                                versions newer than the partition; drops (stale chunks) reported
-# Exit status: 0 PASS, 1 FAIL, 2 usage error, 77 skipped (not root, no `ip`, no namespaces).
+# Exit status: 0 PASS, 1 FAIL, 2 usage error, 77 skipped (not root, no `ip`, no namespaces,
+# no `strip`).
 
 set -uo pipefail
 
@@ -57,6 +68,7 @@ else
     TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-4096}
 fi
 DELAY_MS=${DUPAC_NETNS_DELAY_MS:-0}
+CITY=${DUPAC_NETNS_CITY:-midtown}
 NUM_ENVS=4
 NUM_STEPS=64
 SUBNET=10.77.0
@@ -106,12 +118,15 @@ if ! [[ "$TIMESTEPS" =~ ^[0-9]+$ ]] || [ "$TIMESTEPS" -eq 0 ] ||
 fi
 [[ "$TIMEOUT" =~ ^[0-9]+$ ]] || die "DUPAC_NETNS_TIMEOUT must be a number of seconds"
 [[ "$DELAY_MS" =~ ^[0-9]+$ ]] || die "DUPAC_NETNS_DELAY_MS must be a number of milliseconds"
+[[ "$CITY" =~ ^(midtown|procedural)$ ]] || die "DUPAC_NETNS_CITY must be midtown or procedural"
 
 [ "$(uname -s)" = Linux ] || skip "network namespaces are Linux-only (this is $(uname -s))"
 [ "$(id -u)" -eq 0 ] || skip "not root (uid $(id -u)); run with sudo"
 IP=$(command -v ip || true)
 [ -n "$IP" ] || for p in /usr/sbin/ip /sbin/ip /usr/bin/ip; do [ -x "$p" ] && IP=$p && break; done
 [ -n "$IP" ] || skip "iproute2's \`ip\` command is not installed"
+STRIP=$(command -v strip || true)
+[ -n "$STRIP" ] || skip "binutils' \`strip\` (deploy/README.md's install step) is not installed"
 if [ "$DELAY_MS" -gt 0 ]; then
     TC=$(command -v tc || true)
     [ -n "$TC" ] || [ ! -x /usr/sbin/tc ] || TC=/usr/sbin/tc
@@ -204,61 +219,86 @@ delay=""
 [ "$DELAY_MS" -eq 0 ] || delay=", netem delay $DELAY_MS ms on every link"
 log "namespaces ${CREATED_NS[*]} on bridge br0 ($SUBNET.0/24)$delay"
 
-# ---------------------------------------------------------------- the run's files
-CONFIG=$WORK/run.toml
-OUT=$WORK/learner-out
-cat >"$CONFIG" <<EOF
-# Written by deploy/netns/run.sh: the one DUPAC config every process of the rehearsal uses.
-[scenario]
-city = "procedural"
-n_sites = 8
-[scenario.procedural]
-size_m = 500
-n_sites = 8
-[cache]
-horizontal_m = 10
-vertical_m = 10
-path = "$WORK/rsrp.bin"
-[pairs]
-min_m = 40
-max_m = 70
-eval_bins_m = [50, 60]
-eval_per_bin = 4
-bin_tolerance = 0.1
-eval_file = "$WORK/eval.jsonl"
-[train]
-num_envs = $NUM_ENVS
-num_steps = $NUM_STEPS
-pool_size = 50
-checkpoint_every = 2
-eval_every = 5
-eval_pairs = 8
-total_timesteps = $TIMESTEPS
-[ppo]
-num_minibatches = 2
-hidden = [32, 32]
-[distributed]
-run = "netns-$$"
-actor_envs = 2
-chunk_steps = 32
-EOF
+FAILS=()
+REPORT=()
+check() { # check OK|FAIL message
+    REPORT+=("$1  $2")
+    [ "$1" = ok ] || FAILS+=("$2")
+}
+
+# ---------------------------------------------------------------- the install (deploy/README.md)
+# "Install": the stripped binary and the Zenoh files, under $ROOT instead of /.
+ROOT=$WORK/root
+DUPAC=$ROOT/usr/local/bin/dupac
+ZDIR=$ROOT/etc/dupac/zenoh
+"$STRIP" --strip-debug -o "$WORK/dupac" "$BIN" || die "strip --strip-debug $BIN failed"
+install -D -m 755 "$WORK/dupac" "$DUPAC" || die "install of the binary failed"
+install -d "$ZDIR" && install -m 644 "$ZENOH_DIR"/*.json5 "$ZDIR/" || die "install of the zenoh files failed"
+rm -f "$WORK/dupac"
+mib() { awk -v b="$(stat -c %s "$1")" 'BEGIN { printf "%.0f MiB", b / 1048576 }'; }
+[ "$(stat -c %s "$DUPAC")" -lt "$(stat -c %s "$BIN")" ] && s=ok || s=FAIL
+check "$s" "installed the stripped binary: $(mib "$BIN") → $(mib "$DUPAC")"
+log "installed $DUPAC ($(mib "$BIN") → $(mib "$DUPAC") stripped) and $ZDIR/*.json5"
+
+# The "hosts'" working directory, outside the repository: relative paths of the config
+# (cache.path, pairs.eval_file, the learner's --out) land here; it has no data/ folder.
+SITE=$WORK/site
+mkdir -p "$SITE" && cd "$SITE" || die "cannot make $SITE"
+
+# `dupac config > run.toml`: the default config, with the rehearsal's edits given as --set
+# (the README's "edit it"): a tiny training, this run's name.
+SETS=(
+    --set "distributed.run=netns-$$" --set distributed.actor_envs=2 --set distributed.chunk_steps=32
+    --set "train.num_envs=$NUM_ENVS" --set "train.num_steps=$NUM_STEPS" --set "train.total_timesteps=$TIMESTEPS"
+    --set train.pool_size=50 --set train.checkpoint_every=2 --set train.eval_every=5 --set train.eval_pairs=8
+    --set ppo.num_minibatches=2 --set 'ppo.hidden=[32, 32]' --set pairs.eval_per_bin=4
+)
+if [ "$CITY" = midtown ]; then
+    SETS+=(--set 'pairs.eval_bins_m=[200, 300]')
+else
+    SETS+=(
+        --set scenario.city=procedural --set scenario.n_sites=8 --set scenario.procedural.size_m=500
+        --set scenario.procedural.n_sites=8 --set cache.horizontal_m=10 --set cache.vertical_m=10
+        --set pairs.min_m=40 --set pairs.max_m=70 --set 'pairs.eval_bins_m=[50, 60]' --set pairs.bin_tolerance=0.1
+    )
+fi
+CONFIG=run.toml
+OUT=$SITE/runs/r1
+"$DUPAC" "${SETS[@]}" config >"$CONFIG" 2>"$WORK/prepare.log" || {
+    echo "FAIL: dupac config > run.toml:"
+    cat "$WORK/prepare.log"
+    exit 1
+}
 UPDATES=$((TIMESTEPS / (NUM_ENVS * NUM_STEPS)))
 
-# The RSRP cache and the held-out pairs once, before the processes that would race on them.
-if ! "$BIN" --config "$CONFIG" -q cache build >"$WORK/prepare.log" 2>&1 ||
-    ! "$BIN" --config "$CONFIG" -q pairs >>"$WORK/prepare.log" 2>&1; then
+# Step 2 (learner host) and step 3 (actor hosts; here the same working directory, so the
+# cache is only checked): the RSRP cache and the held-out pairs once, before the processes.
+T_PREP=$(date +%s.%N)
+if ! "$DUPAC" --config "$CONFIG" -v cache build >>"$WORK/prepare.log" 2>&1 ||
+    ! "$DUPAC" --config "$CONFIG" -q pairs >>"$WORK/prepare.log" 2>&1 ||
+    ! "$DUPAC" --config "$CONFIG" -q cache build >>"$WORK/prepare.log" 2>&1; then
     echo "FAIL: preparing the RSRP cache / held-out pairs:"
     cat "$WORK/prepare.log"
     exit 1
 fi
-log "config $CONFIG ($UPDATES updates), cache and pairs built; binary $BIN"
+PREP_S=$(awk -v a="$T_PREP" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
+if [ "$CITY" = midtown ]; then
+    grep -q '^city = "osm"' "$CONFIG" && s=ok || s=FAIL
+    check "$s" "run.toml from \`dupac config\`: the default (Midtown OSM) scenario"
+    grep -q 'data/nyc_midtown_buildings.geojson in .*: using the copy built into this binary' "$WORK/prepare.log" &&
+        grep -q 'data/nyc_midtown_cells.csv in .*: using the copy built into this binary' "$WORK/prepare.log" &&
+        [ ! -e "$SITE/data" ] && s=ok || s=FAIL
+    check "$s" "no data/ in $SITE: the Midtown buildings and cells built into the binary were used"
+fi
+cache=$(grep -o 'built [^ ]*: .*' "$WORK/prepare.log" | head -n 1)
+log "$CITY: $CONFIG from \`dupac config\` ($UPDATES updates); cache and pairs in ${PREP_S} s${cache:+ ($cache)}"
 
 # ---------------------------------------------------------------- the processes
 # start NAME HOST ARGS...: runs dupac in namespace <p>-HOST, output in $WORK/NAME.log.
 start() {
     local name=$1 host=$2
     shift 2
-    "$IP" netns exec "$P-$host" "$BIN" "$@" >"$WORK/$name.log" 2>&1 </dev/null &
+    "$IP" netns exec "$P-$host" "$DUPAC" "$@" >"$WORK/$name.log" 2>&1 </dev/null &
     PID[$name]=$!
 }
 # wait_exit NAME SECONDS: waits for NAME to exit; sets RC (124 if still running).
@@ -276,7 +316,7 @@ wait_exit() {
 }
 
 NET=(--connect "$ENDPOINT" --no-multicast-scouting)
-start router r router --zenoh-config "$ZENOH_DIR/router.json5" --no-multicast-scouting
+start router r router --zenoh-config "$ZDIR/router.json5" --no-multicast-scouting
 # The router is up when the learner's namespace can open a TCP connection to it.
 up=0
 for _ in $(seq 100); do
@@ -297,23 +337,20 @@ log "router up at $ENDPOINT (reached from $P-l)"
 
 # Without --duration-s the monitor leaves when the learner's stats say the run is done.
 start monitor m --config "$CONFIG" -q monitor --plain --jsonl "$WORK/monitor.jsonl" \
-    --zenoh-config "$ZENOH_DIR/monitor.json5" "${NET[@]}"
+    --zenoh-config "$ZDIR/monitor.json5" "${NET[@]}"
 T_LEARNER=$(date +%s.%N)
-start learner l --config "$CONFIG" -q learner --out "$OUT" \
-    --zenoh-config "$ZENOH_DIR/learner.json5" "${NET[@]}"
+start learner l --config "$CONFIG" -q learner --out runs/r1 \
+    --zenoh-config "$ZDIR/learner.json5" "${NET[@]}"
 start actor1 a1 --config "$CONFIG" -q actor --id 1 \
-    --zenoh-config "$ZENOH_DIR/actor.json5" "${NET[@]}"
-start actor2 a2 --config "$CONFIG" -q actor --id 2 \
-    --zenoh-config "$ZENOH_DIR/actor.json5" "${NET[@]}"
-log "learner, 2 actors and a monitor started; waiting up to ${TIMEOUT} s for the learner"
+    --zenoh-config "$ZDIR/actor.json5" "${NET[@]}"
+# Actor 2 as dupac-actor@2.service runs it: actor-start.sh with dupac.env's variables.
+"$IP" netns exec "$P-a2" env DUPAC_CONFIG="$CONFIG" DUPAC_ZENOH_DIR="$ZDIR" DUPAC_ROUTER="$ENDPOINT" \
+    DUPAC_BIN="$DUPAC" DUPAC_ACTOR_ARGS= \
+    sh "$SCRIPT_DIR/../systemd/actor-start.sh" 2 >"$WORK/actor2.log" 2>&1 </dev/null &
+PID[actor2]=$!
+log "learner, actor 1 (step by step), actor 2 (actor-start.sh) and a monitor started; waiting up to ${TIMEOUT} s for the learner"
 
 # ---------------------------------------------------------------- checks
-FAILS=()
-REPORT=()
-check() { # check OK|FAIL message
-    REPORT+=("$1  $2")
-    [ "$1" = ok ] || FAILS+=("$2")
-}
 
 # rows_now: update rows in the learner's metrics so far.
 rows_now() {
@@ -409,6 +446,9 @@ for a in 1 2; do
         check "$s" "actor 2 acted after the partition: last version ${ver:-?} > $PARTITION_END"
     fi
 done
+
+grep -qF "actor-start: actor 2 with $ZDIR/actor.json5" "$WORK/actor2.log" && s=ok || s=FAIL
+check "$s" "actor 2 started by its unit's actor-start.sh, with the shared actor.json5"
 
 rx=$("$IP" netns exec "$P-l" cat /sys/class/net/eth0/statistics/rx_bytes 2>/dev/null || echo 0)
 tx=$("$IP" netns exec "$P-l" cat /sys/class/net/eth0/statistics/tx_bytes 2>/dev/null || echo 0)

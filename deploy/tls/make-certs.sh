@@ -3,6 +3,7 @@
 # Zenoh configs with mutual TLS and access control (issue 7, docs/reliability.md).
 #
 #   deploy/tls/make-certs.sh OUT_DIR [--router-host NAME_OR_IP]... [--actors N] [--days N]
+#                            [--certs-dir DIR]
 #
 # OUT_DIR receives:
 #   ca.pem, ca.key                   the run's private CA (keep ca.key off the run's hosts)
@@ -13,26 +14,29 @@
 #                                    liveliness token only: `dupac actor --id <i>`; --actors 2)
 #   monitor.pem/.key                 CN dupac-monitor  (reads stats, weights, ctrl, liveliness:
 #                                    monitors and pilots)
-#   router.json5, learner.json5,     deploy/zenoh/secure/*.json5 with this directory's absolute
-#   actor-<i>.json5, monitor.json5   path and the first --router-host filled in; the router's
-#                                    access control has one rule set per actor id
+#   router.json5, learner.json5,     deploy/zenoh/secure/*.json5 with the files' directory on
+#   actor-<i>.json5, monitor.json5   the run's hosts (--certs-dir, e.g. /etc/dupac/tls; default
+#                                    OUT_DIR's absolute path) and the first --router-host filled
+#                                    in; the router's access control has one rule set per actor id
 #
 # Keys are ECDSA P-256 (PKCS#8 PEM), certificates X.509 v3 signed by the CA, valid --days (365).
 # Copy to each host only what its role needs: ca.pem + that role's .pem/.key + its .json5.
 # Needs openssl ≥ 1.1.1.
 set -euo pipefail
 
-usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 [ $# -ge 1 ] || usage
 OUT=$1; shift
 HOSTS=()
 DAYS=365
 ACTORS=2
+CERTS_DIR=
 while [ $# -gt 0 ]; do
   case $1 in
     --router-host) HOSTS+=("$2"); shift 2 ;;
     --days) DAYS=$2; shift 2 ;;
     --actors) ACTORS=$2; shift 2 ;;
+    --certs-dir) CERTS_DIR=$2; shift 2 ;;
     -h|--help) usage ;;
     *) echo "make-certs.sh: unknown argument '$1'" >&2; usage ;;
   esac
@@ -44,6 +48,9 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 TEMPLATES="$HERE/../zenoh/secure"
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
+CERTS_DIR=${CERTS_DIR:-$OUT}
+[[ $CERTS_DIR == /* && $CERTS_DIR != *'|'* ]] \
+  || { echo "make-certs.sh: --certs-dir must be an absolute path, not '$CERTS_DIR'" >&2; exit 2; }
 umask 077
 
 key() { openssl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$1" 2>/dev/null; }
@@ -81,7 +88,7 @@ leaf monitor dupac-monitor clientAuth
 rm -f "$OUT/ca.srl"
 
 ROUTER_HOST=${HOSTS[0]:-localhost}
-fill() { sed -e "s|CERTS_DIR|$OUT|g" -e "s|ROUTER_HOST|$ROUTER_HOST|g" "$@"; }
+fill() { sed -e "s|CERTS_DIR|$CERTS_DIR|g" -e "s|ROUTER_HOST|$ROUTER_HOST|g" "$@"; }
 for role in learner monitor; do fill "$TEMPLATES/$role.json5" >"$OUT/$role.json5"; done
 for ((i = 0; i < ACTORS; i++)); do
   fill -e "s|/actor\.pem|/actor-$i.pem|g" -e "s|/actor\.key|/actor-$i.key|g" \
@@ -113,4 +120,4 @@ fill -e "/ACTOR_RULES/r $RULES" -e "/ACTOR_SUBJECTS/r $SUBJECTS" -e "/ACTOR_POLI
   "$TEMPLATES/router.json5" >"$OUT/router.json5"
 rm -f "$RULES" "$SUBJECTS" "$POLICIES"
 chmod 644 "$OUT"/*.pem "$OUT"/*.json5
-echo "certificates and configs of the run in $OUT (router reachable as: localhost 127.0.0.1 ${HOSTS[*]+"${HOSTS[*]}"})"
+echo "certificates and configs of the run in $OUT, naming $CERTS_DIR (router reachable as: localhost 127.0.0.1 ${HOSTS[*]+"${HOSTS[*]}"})"

@@ -9,6 +9,7 @@
 
 pub mod a3;
 pub mod antenna;
+pub mod bundled;
 pub mod cache;
 pub mod city;
 pub mod class;

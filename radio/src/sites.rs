@@ -134,7 +134,9 @@ use std::path::Path;
 /// Reads LTE cell estimates (`data/nyc_midtown_cells.csv`: columns `lat`, `lon`, `enb_id`, and
 /// optionally `mcc`, `mnc`, …) and merges the cells of each eNodeB of one network (`mcc`, `mnc`,
 /// `enb_id`; eNodeB ids are unique only within a network) into one site at their mean position,
-/// named `enb:<enb_id>`, or `enb:<mcc>-<mnc>:<enb_id>` when the network is given.
+/// named `enb:<enb_id>`, or `enb:<mcc>-<mnc>:<enb_id>` when the network is given. `path` is
+/// relative to the working directory; the default Midtown path falls back to the built-in copy
+/// ([`crate::bundled::read`]).
 pub fn read_cells_csv(
     path: &Path,
     projection: &LocalProjection,
@@ -144,11 +146,12 @@ pub fn read_cells_csv(
         line,
         message,
     };
-    let bytes = std::fs::read(path).map_err(|e| RadioError::io(path, e))?;
+    let (bytes, _) = crate::bundled::read(path)?;
+    let bytes = bytes.as_ref();
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
-        .from_reader(bytes.as_slice());
+        .from_reader(bytes);
     let headers = reader
         .headers()
         .map_err(|e| table_err(1, e.to_string()))?
@@ -164,10 +167,10 @@ pub fn read_cells_csv(
     let mut by_enb: BTreeMap<(String, String, u64), (f64, f64, usize)> = BTreeMap::new();
     for record in reader.records() {
         let record = record.map_err(|e| {
-            let line = record_line(&bytes, e.position());
+            let line = record_line(bytes, e.position());
             table_err(line, e.to_string())
         })?;
-        let line = record_line(&bytes, record.position());
+        let line = record_line(bytes, record.position());
         let field = |c: usize, name: &str| -> Result<&str, RadioError> {
             record
                 .get(c)

@@ -1,9 +1,11 @@
 //! The one integration-test binary of the `dupac` command (ripgrep's layout): end-to-end tests of
 //! real processes, the real Midtown data and real files, one module per area, all built on
 //! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
-//! `distributed::`, `faults::`, `netns::`, `scenario::`, `security::`, `soak::`, `usage::`).
+//! `deploy::`, `distributed::`, `faults::`, `netns::`, `scenario::`, `security::`, `soak::`,
+//! `usage::`).
 
 mod cli;
+mod deploy;
 mod distributed;
 mod eval;
 mod faults;

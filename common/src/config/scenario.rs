@@ -7,6 +7,14 @@ use serde::{Deserialize, Serialize};
 #[allow(unused_imports)]
 use std::path::PathBuf;
 
+/// `scenario.buildings_file` of the default (Midtown) scenario, relative to the working
+/// directory; when no file is there, the copy built into the binary is used
+/// (`dupac_radio::bundled`).
+pub const MIDTOWN_BUILDINGS_FILE: &str = "data/nyc_midtown_buildings.geojson";
+/// `scenario.cells_file` of the default (Midtown) scenario, relative to the working directory;
+/// when no file is there, the copy built into the binary is used.
+pub const MIDTOWN_CELLS_FILE: &str = "data/nyc_midtown_cells.csv";
+
 /// Which kind of city a scenario is built from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -66,13 +74,17 @@ pub struct ScenarioConfig {
     pub name: String,
     /// Which kind of city the scenario is built from.
     pub city: CityKind,
-    /// GeoJSON of building footprints (OSM export format of `data/README.md`).
+    /// GeoJSON of building footprints (OSM export format of `data/README.md`), relative to the
+    /// working directory. The default path, when no file is there, reads the Midtown copy
+    /// built into the binary.
     pub buildings_file: PathBuf,
     /// How OSM building outlines that have 3D parts are extruded.
     pub detail: BuildingDetail,
     /// The flight area (spec/env.md "World"); its centre is the frame origin.
     pub area: LonLatBox,
-    /// LTE cell-site estimates (CSV with `lat,lon,...,enb_id`), used when `sites_file` is unset.
+    /// LTE cell-site estimates (CSV with `lat,lon,...,enb_id`), used when `sites_file` is unset;
+    /// relative to the working directory. The default path, when no file is there, reads the
+    /// Midtown copy built into the binary.
     pub cells_file: PathBuf,
     /// Optional explicit sites (CSV or TOML), replacing the placement from `cells_file`.
     pub sites_file: Option<PathBuf>,
@@ -95,7 +107,7 @@ impl Default for ScenarioConfig {
         Self {
             name: "midtown".into(),
             city: CityKind::Osm,
-            buildings_file: "data/nyc_midtown_buildings.geojson".into(),
+            buildings_file: MIDTOWN_BUILDINGS_FILE.into(),
             detail: BuildingDetail::Parts,
             area: LonLatBox {
                 lon_min_deg: -73.9935,
@@ -103,7 +115,7 @@ impl Default for ScenarioConfig {
                 lat_min_deg: 40.7460,
                 lat_max_deg: 40.7590,
             },
-            cells_file: "data/nyc_midtown_cells.csv".into(),
+            cells_file: MIDTOWN_CELLS_FILE.into(),
             sites_file: None,
             n_sites: 30,
             roof_search_m: 50.0,

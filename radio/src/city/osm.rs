@@ -23,16 +23,21 @@ const MIN_FOOTPRINT_M2: f64 = 0.01;
 /// its grid by the buildings' extent (a ring around the globe asked for terabytes).
 pub(crate) const MAX_RING_SPAN_M: f64 = 5_000.0;
 
-/// Reads `path` and returns the buildings whose footprint bounds intersect `keep_box_m`
-/// (local metres).
+/// Reads `path` (relative to the working directory; the default Midtown path falls back to the
+/// built-in copy, [`crate::bundled::read`]) and returns the buildings whose footprint bounds
+/// intersect `keep_box_m` (local metres).
 pub fn load_buildings(
     path: &Path,
     projection: &LocalProjection,
     detail: BuildingDetail,
     keep_box_m: Bounds2,
 ) -> Result<Vec<Building>, RadioError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RadioError::io(path, e))?;
-    parse_buildings(&text, path, projection, detail, keep_box_m)
+    let (bytes, _) = crate::bundled::read(path)?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| RadioError::GeoJson {
+        path: path.to_path_buf(),
+        message: format!("not UTF-8: {e}"),
+    })?;
+    parse_buildings(text, path, projection, detail, keep_box_m)
 }
 
 /// [`load_buildings`] on text already read; `path` only names the source in errors.
