@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# End-to-end throughput of `dupac train` on the default Midtown scenario (issue 5): the
+# End-to-end throughput of `dupac train` on the default Midtown scenario: the
 # single-process trainer against the learner with 1, 2 and 4 actor processes on the same cores,
 # and the weight-broadcast latency seen by the actors (publish → first step acted with the new
 # version) from a monitor's stats stream.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# How far one learner process scales with its actors (issue 32): the real learner (`dupac
+# How far one learner process scales with its actors: the real learner (`dupac
 # learner`, router on loopback) against N actor processes that replay recorded chunks
 # (`dupac actor --replay`: actors of unbounded speed, each sending its share of every version
 # as soon as the weights arrive), N = 1 2 4 8 16, with today's default configuration.

@@ -43,7 +43,7 @@
 #   DUPAC_NETNS_DELAY_MS=0       one-way delay added with netem on every host's link (needs tc)
 #   DUPAC_NETNS_KEEP=1           keep the work directory (logs, run output) after a PASS
 #   DUPAC_NETNS_PARTITION_S=0    > 0: partition actor 2 (its link down) for this many seconds
-#                                once training runs, then heal it (issue 7). Longer than the
+#                                once training runs, then heal it. Longer than the
 #                                zenoh lease (10 s) to be a real partition. The run is then
 #                                long (DUPAC_NETNS_TIMESTEPS defaults to 256 * 100000) and is
 #                                stopped with SIGINT once actor 2 is back; extra checks: the
@@ -362,7 +362,7 @@ rows_now() {
 alive_seq() { grep -o '"dist/alive_actors":[0-9]*' "$OUT/metrics.jsonl" 2>/dev/null | cut -d: -f2; }
 
 if [ "$PARTITION_S" -gt 0 ]; then
-    # ------------------------------------------------------------ the partition (issue 7)
+    # ------------------------------------------------------------ the partition
     for _ in $(seq 300); do [ "$(rows_now)" -ge 20 ] && break; sleep 0.1; done
     before=$(rows_now)
     [ "$before" -ge 20 ] && s=ok || s=FAIL

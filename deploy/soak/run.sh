@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak test of the distributed system (issue 7, docs/reliability.md): a learner and N actors on
+# Soak test of the distributed system (docs/reliability.md): a learner and N actors on
 # this machine (loopback TCP) train a fixed budget while actors are killed with SIGKILL and
 # restarted at random, and the learner is killed with SIGKILL in the middle and restarted with
 # --resume. Then the same budget again without faults, as the baseline. Reports:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Makes a private certificate authority and the certificates of one DUPAC run, plus ready-to-use
-# Zenoh configs with mutual TLS and access control (issue 7, docs/reliability.md).
+# Zenoh configs with mutual TLS and access control (docs/reliability.md).
 #
 #   deploy/tls/make-certs.sh OUT_DIR [--router-host NAME_OR_IP]... [--actors N] [--days N]
 #                            [--certs-dir DIR]
