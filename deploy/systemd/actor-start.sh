@@ -17,7 +17,8 @@
 #   DUPAC_ROUTER      router endpoint, e.g. tcp/10.0.0.1:7447           (optional: else the
 #                     connect endpoints of the Zenoh config are used)
 #   DUPAC_ZENOH_DIR   folder of the Zenoh configs (default /etc/dupac/zenoh)
-#   DUPAC_BIN         the dupac binary (default /usr/local/bin/dupac)
+#   DUPAC_BIN         the dupac binary (default /usr/local/bin/dupac; for a run by hand:
+#                     the units' ExecStartPre builds the cache with /usr/local/bin/dupac)
 #   DUPAC_ACTOR_ARGS  extra arguments, split at spaces (e.g. `--threads 8`)
 set -eu
 

@@ -36,11 +36,11 @@ pub struct Planner {
 
 /// One point `(3,)` in metres.
 fn point(a: &PyReadonlyArray1<'_, f64>, what: &str) -> PyResult<Point> {
-    match a.as_slice()? {
-        [x, y, z] => Ok(Point::new(*x, *y, *z)),
-        other => Err(value_error(format!(
-            "{what}: expected 3 coordinates x, y, z in metres, got {}",
-            other.len()
+    let v = a.as_array();
+    match v.len() {
+        3 => Ok(Point::new(v[0], v[1], v[2])),
+        n => Err(value_error(format!(
+            "{what}: expected 3 coordinates x, y, z in metres, got {n}"
         ))),
     }
 }

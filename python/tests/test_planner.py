@@ -94,5 +94,12 @@ def test_bad_endpoints_are_refused_with_the_reason(planner):
         planner.shortest(np.array([1e6, 0.0, 60.0]), np.array([0.0, 0.0, 60.0]))
     with pytest.raises(ValueError, match="finite"):
         planner.check_point(np.array([np.nan, 0.0, 60.0]))
+    # Any NumPy layout: a strided view and a row of a Fortran-ordered array.
+    strided = np.repeat(np.array([0.0, 0.0, 1e4]), 2)[::2]
+    fortran_row = np.asfortranarray(np.array([[0.0, 0.0, 1e4], [1.0, 1.0, 1e4]]))[0]
+    for p in (strided, fortran_row):
+        assert not p.flags.c_contiguous
+        with pytest.raises(ValueError, match="altitude band"):
+            planner.check_point(p)
     with pytest.raises(ValueError, match="3 coordinates"):
         planner.check_point(np.array([0.0, 0.0]))

@@ -9,7 +9,6 @@ use dupac_radio::import::opencellid::CellRules;
 use dupac_radio::import::osm::OsmRules;
 use dupac_radio::import::scenario::{ImportPlan, import_scenario};
 use dupac_radio::import::tags::{DEFAULT_LEVEL_HEIGHT_M, HeightRules};
-use dupac_radio::world::RadioWorld;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -29,7 +28,7 @@ pub struct ImportArgs {
     #[arg(long, value_name = "FILE")]
     pub buildings: PathBuf,
     /// OpenCelliD cells: CSV in its columns (radio,mcc,net,area,cell,unit,lon,lat,range,…), with
-    /// or without the header line, or gzip-compressed (`.csv.gz`).
+    /// or without the header line, or gzip-compressed (e.g. `.csv.gz`).
     #[arg(long, value_name = "FILE")]
     pub cells: PathBuf,
     /// The flight area, `LON_MIN,LAT_MIN,LON_MAX,LAT_MAX` (WGS84 degrees, west,south,east,north).
@@ -154,8 +153,7 @@ pub fn run(global: &GlobalArgs, cmd: &ScenarioCommand) -> Result<ExitCode> {
     let t = Instant::now();
     let s = import_scenario(&plan)?;
     let imported_s = t.elapsed().as_secs_f64();
-    // What the loaders make of it: the city and the sites the configuration gives.
-    let world = RadioWorld::build(&s.config).context("loading the imported scenario")?;
+    let world = &s.world;
     let (b, c, x) = (&s.buildings, &s.cells, s.select);
     let (w, south, e, n) = (x.lon_min_deg, x.lat_min_deg, x.lon_max_deg, x.lat_max_deg);
     println!("selection box {w:.6},{south:.6},{e:.6},{n:.6}");

@@ -2,8 +2,8 @@
 //!
 //! OpenCelliD's columns (its data exchange format, shared with Mozilla Location Service):
 //! `radio,mcc,net,area,cell,unit,lon,lat,range,samples,changeable,created,updated,averageSignal`
-//! ([`OPENCELLID_COLUMNS`]), with or without that header line, plain or gzip-compressed (`.gz`,
-//! as OpenCelliD ships it). Rows of the chosen `radio` whose position is inside the selection
+//! ([`OPENCELLID_COLUMNS`]), with or without that header line, plain or gzip-compressed (as
+//! OpenCelliD ships it; told by its magic bytes). Rows of the chosen `radio` whose position is inside the selection
 //! box are kept, in file order, their positions as written; an LTE `cell` is the 28-bit E-UTRAN
 //! cell identity, whose eNodeB id is `cell >> 8` and local cell id `cell & 0xFF` (3GPP TS
 //! 36.413 §9.2.1.38); another radio's cell is a site of its own. The sites loader merges the
@@ -72,15 +72,18 @@ pub struct ImportedCells {
     pub counts: CellCounts,
 }
 
-/// Reads `path` (gzip when its name ends in `.gz`) and imports it ([`import_cells_from`]).
+/// Reads `path` (gzip when it starts with gzip's magic bytes `1f 8b`, RFC 1952, whatever its
+/// name) and imports it ([`import_cells_from`]).
 pub fn import_cells(
     path: &Path,
     select: &LonLatBox,
     rules: &CellRules,
 ) -> Result<ImportedCells, RadioError> {
+    use std::io::BufRead;
     let file = std::fs::File::open(path).map_err(|e| RadioError::io(path, e))?;
-    let reader = std::io::BufReader::new(file);
-    if path.extension().is_some_and(|e| e == "gz") {
+    let mut reader = std::io::BufReader::new(file);
+    let head = reader.fill_buf().map_err(|e| RadioError::io(path, e))?;
+    if head.starts_with(&[0x1f, 0x8b]) {
         import_cells_from(
             flate2::read::MultiGzDecoder::new(reader),
             path,
@@ -354,7 +357,8 @@ mod tests {
     fn gzip_files_are_read() {
         use std::io::Write;
         let dir = tempfile::tempdir().expect("tmp");
-        let path = dir.path().join("310.csv.gz");
+        // Told by its magic bytes, not its name.
+        let path = dir.path().join("310.CSV.GZ");
         let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         gz.write_all(b"LTE,310,410,1,256,7,-73.95,40.75,500,3,1,1,2,0\n")
             .expect("gz");

@@ -3,7 +3,7 @@
 //! `min_height_m`, `has_parts`, …), by the rules of `docs/scenario.md`:
 //!
 //! - a feature tagged `building` (not `no`) is an outline, one tagged `building:part` a part;
-//!   anything else, and underground features (`location=underground`, negative `layer`), are
+//!   anything else, and underground features (`location=underground`), are
 //!   skipped; only `Polygon`s and `MultiPolygon`s are areas;
 //! - a part belongs to the smallest outline containing its centroid (an outline with parts is
 //!   replaced by them, as Simple 3D Buildings says); a part in no outline becomes a building;
@@ -201,10 +201,9 @@ pub fn import_buildings_text(
             continue;
         };
         let text_tag = |tags: &Map<String, Value>, k: &str| Tags(tags).get(k).ok().flatten();
-        let layer_below = text_tag(&tags, "layer")
-            .and_then(|l| l.parse::<i64>().ok())
-            .is_some_and(|l| l < 0);
-        if layer_below || text_tag(&tags, "location").as_deref() == Some("underground") {
+        // `layer` orders crossing features (a building under a viaduct is `layer=-1`), not
+        // depth (wiki Key:layer): only `location=underground` marks a building below ground.
+        if text_tag(&tags, "location").as_deref() == Some("underground") {
             counts.underground += 1;
             continue;
         }
@@ -429,38 +428,57 @@ fn cell(p: [f64; 2], size_m: f64) -> (i64, i64) {
     )
 }
 
-/// Each part's outline: the smallest outline one of whose footprints contains its centroid.
+/// Each part's outline: the smallest outline one of whose footprints contains its centroid
+/// (ties: the first). The parts' centroids are indexed on a grid (one entry per part); each
+/// footprint visits the grid cells under its bounds, or every part when those are more, so
+/// neither memory nor time grows with a footprint's size.
 fn attach_parts(raws: &mut [Raw]) {
+    let parts: Vec<usize> = (0..raws.len())
+        .filter(|&i| raws[i].kind == Kind::Part)
+        .collect();
+    if parts.is_empty() {
+        return;
+    }
     let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (i, r) in raws
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.kind == Kind::Outline)
-    {
+    for &p in &parts {
+        grid.entry(cell(raws[p].centroid_m, GRID_M))
+            .or_default()
+            .push(p);
+    }
+    let mut parent: Vec<Option<usize>> = vec![None; raws.len()];
+    for (o, r) in raws.iter().enumerate() {
+        if r.kind != Kind::Outline {
+            continue;
+        }
         for b in &r.footprints {
             let bb = b.bounds_m();
             let (x0, y0) = cell([bb.min_m.x, bb.min_m.y], GRID_M);
             let (x1, y1) = cell([bb.max_m.x, bb.max_m.y], GRID_M);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    grid.entry((x, y)).or_default().push(i);
+            let cells =
+                (i128::from(x1) - i128::from(x0) + 1) * (i128::from(y1) - i128::from(y0) + 1);
+            let mut consider = |p: usize| {
+                let c = raws[p].centroid_m;
+                let smaller = parent[p].is_none_or(|q| r.area_m2 < raws[q].area_m2);
+                if smaller && b.contains_xy(c[0], c[1]) {
+                    parent[p] = Some(o);
                 }
+            };
+            if cells <= parts.len() as i128 {
+                for y in y0..=y1 {
+                    for x in x0..=x1 {
+                        grid.get(&(x, y))
+                            .into_iter()
+                            .flatten()
+                            .for_each(|&p| consider(p));
+                    }
+                }
+            } else {
+                parts.iter().for_each(|&p| consider(p));
             }
         }
     }
-    for i in 0..raws.len() {
-        if raws[i].kind != Kind::Part {
-            continue;
-        }
-        let c = raws[i].centroid_m;
-        let parent = grid
-            .get(&cell(c, GRID_M))
-            .into_iter()
-            .flatten()
-            .copied()
-            .filter(|&o| raws[o].footprints.iter().any(|b| b.contains_xy(c[0], c[1])))
-            .min_by(|&a, &b| raws[a].area_m2.total_cmp(&raws[b].area_m2).then(a.cmp(&b)));
-        raws[i].parent = parent;
+    for p in parts {
+        raws[p].parent = parent[p];
     }
 }
 

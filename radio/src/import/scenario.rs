@@ -9,6 +9,7 @@ use super::opencellid::{CellCounts, CellRules, import_cells};
 use super::osm::{BuildingCounts, OsmRules, import_buildings};
 use crate::error::RadioError;
 use crate::geo::LocalProjection;
+use crate::world::RadioWorld;
 use dupac_common::config::{Config, LonLatBox, PairsConfig, ScenarioConfig};
 use std::path::{Path, PathBuf};
 
@@ -50,6 +51,8 @@ pub struct ImportSummary {
     pub config_path: PathBuf,
     /// The text of `config.toml`.
     pub config_toml: String,
+    /// The world the loaders make of the written files (what `map` and `train` load).
+    pub world: RadioWorld,
 }
 
 /// `area` widened by `margin_m` metres on every side (in its own projection).
@@ -67,7 +70,8 @@ pub fn widen(area: &LonLatBox, margin_m: f64) -> LonLatBox {
 }
 
 /// Imports the plan's buildings and cells and writes the scenario directory. `config.toml` is
-/// written last, after the configuration validated: a directory with one is complete.
+/// written last, after the configuration validated and the written files loaded as the world
+/// `map` and `train` build: a directory with one is complete.
 pub fn import_scenario(plan: &ImportPlan) -> Result<ImportSummary, RadioError> {
     let bad = |message: String| RadioError::Import { message };
     let config_path = plan.out.join("config.toml");
@@ -90,10 +94,12 @@ pub fn import_scenario(plan: &ImportPlan) -> Result<ImportSummary, RadioError> {
     if !(l > 0.0 && l <= 20.0) {
         return Err(bad(format!("level height {l} m: must be in (0, 20]")));
     }
-    if !(plan.osm.nearby_m.is_finite() && (0.0..=5_000.0).contains(&plan.osm.nearby_m)) {
+    // 0 turns the nearby rule off; under 1 m the neighbour grid would have more cells than the
+    // coordinates can index.
+    let r = plan.osm.nearby_m;
+    if !(r == 0.0 || (1.0..=5_000.0).contains(&r)) {
         return Err(bad(format!(
-            "nearby radius {} m: must be in [0, 5000]",
-            plan.osm.nearby_m
+            "nearby radius {r} m: must be 0 (off) or in [1, 5000]"
         )));
     }
     // The area's own checks (the configuration's), before any work.
@@ -126,6 +132,12 @@ pub fn import_scenario(plan: &ImportPlan) -> Result<ImportSummary, RadioError> {
         .map_err(|e| bad(e.to_string()))?;
     dupac_common::fsio::write_atomic(&paths.buildings, buildings.geojson.as_bytes())?;
     dupac_common::fsio::write_atomic(&paths.cells, cells.csv.as_bytes())?;
+    let world = RadioWorld::build(&config).map_err(|e| {
+        bad(format!(
+            "the imported files do not load, so no {} was written: {e}",
+            config_path.display()
+        ))
+    })?;
     dupac_common::fsio::write_atomic(&config_path, text.as_bytes())?;
     Ok(ImportSummary {
         select,
@@ -134,6 +146,7 @@ pub fn import_scenario(plan: &ImportPlan) -> Result<ImportSummary, RadioError> {
         config,
         config_path,
         config_toml: text,
+        world,
     })
 }
 

@@ -242,6 +242,14 @@ impl HeightRules {
             // `building:levels=0` is a roof on pillars or a ruin: no height from it.
             return Ok(None);
         }
+        if h >= MAX_HEIGHT_M {
+            // The loader refuses a roof at or above MAX_HEIGHT_M: a mistagged count, not a tower.
+            return Err(TagError {
+                tag: "building:levels".into(),
+                value: tags.get("building:levels")?.unwrap_or_default(),
+                why: format!("with the roof, {h:.0} m: not a roof height below {MAX_HEIGHT_M} m"),
+            });
+        }
         Ok(Some((h, HeightSource::Levels)))
     }
 
@@ -327,6 +335,22 @@ mod tests {
         assert!(parse_levels("-1").is_err());
         assert!(parse_levels("1000").is_err());
         assert!(parse_levels("3-4").is_err());
+    }
+
+    /// Levels and roof adding up past the loader's limit are a tag error (ignored, or refused
+    /// with `--strict`), never a building the loader would refuse after the files are written.
+    #[test]
+    fn levels_and_roof_past_the_limit_are_a_tag_error() {
+        let r = HeightRules::default();
+        let t = tags(json!({"building:levels": "300", "roof:height": "1999"}));
+        let e = r.roof_m(Tags(&t)).expect_err("past the limit");
+        assert_eq!(e.tag, "building:levels");
+        let t = tags(json!({"building:levels": "300"}));
+        assert!(
+            r.roof_m(Tags(&t))
+                .expect("ok")
+                .is_some_and(|(h, _)| h < MAX_HEIGHT_M)
+        );
     }
 
     #[test]

@@ -201,7 +201,13 @@ fn skipped_features_are_counted_and_bottoms_above_the_roof_dropped() {
             feature(
                 2,
                 square(-73.984, 40.75, 1e-4),
-                json!({"building": "yes", "layer": "-1"}),
+                json!({"building": "yes", "location": "underground"}),
+            ),
+            // Under a viaduct: `layer` orders crossings, the building stands.
+            feature(
+                6,
+                square(-73.981, 40.75, 1e-4),
+                json!({"building": "yes", "layer": "-1", "height": "8"}),
             ),
             feature(
                 3,
@@ -218,7 +224,8 @@ fn skipped_features_are_counted_and_bottoms_above_the_roof_dropped() {
         &rules(),
     )
     .expect("ok");
-    assert_eq!(props.len(), 1);
+    assert_eq!(props.len(), 2);
+    assert_eq!(props[1]["height_m"], json!(8.0));
     assert_eq!(props[0]["min_height_m"], json!(0.0));
     assert_eq!(
         props[0]["height_source"],
