@@ -372,6 +372,31 @@ fn bad_raw_input_is_named() {
         e.contains("raw/buildings.geojson") && e.contains("osm:way/105") && e.contains("`height`"),
         "{e}"
     );
+    // A flight area too small for episodes (the pairs' distances would collapse) is refused,
+    // the extract's own box selecting what to keep.
+    let area = area_arg();
+    let tiny = run_in(
+        dir,
+        &[
+            "scenario",
+            "import",
+            "--buildings",
+            "raw/buildings.geojson",
+            "--cells",
+            "raw/cells.csv",
+            "--box",
+            "2.3430,48.8520,2.3431,48.8521",
+            "--select",
+            &area,
+            "--out",
+            "scenarios/town",
+        ],
+    );
+    let e = String::from_utf8_lossy(&tiny.stderr);
+    assert!(
+        !tiny.status.success() && e.contains("too small for episodes"),
+        "{e}"
+    );
     let mut cells = raw_cells();
     cells.push_str("LTE,310,410,7,2560,5,2.343,north,2000,5,1,1,2,\n");
     std::fs::write(dir.join("raw/cells.csv"), cells).expect("write");

@@ -120,8 +120,12 @@ pub fn import_cells_from(
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
         .trim(csv::Trim::All)
-        .from_reader(input);
-    let mut records = reader.records();
+        // A marked blank line is one field; a short row fails on its first missing column.
+        .flexible(true)
+        .from_reader(MarkBlankLines::new(input));
+    let mut records = reader
+        .records()
+        .filter(|r| !matches!(r, Ok(rec) if rec.len() == 1 && rec[0].is_empty()));
     let first = match records.next() {
         None => return Err(err(1, "file is empty".into())),
         Some(r) => r.map_err(|e| err(line_of(&e), e.to_string()))?,
@@ -259,6 +263,58 @@ fn line_of(e: &csv::Error) -> u64 {
     e.position().map_or(0, csv::Position::line)
 }
 
+/// Puts one space on every blank line, so that the csv reader (which skips blank lines without
+/// counting them in its line numbers) numbers each record by its line in the file; the reader
+/// then yields each blank line as one empty field, which the import skips.
+struct MarkBlankLines<R> {
+    inner: R,
+    buf: Vec<u8>,
+    pos: usize,
+    line_start: bool,
+    marked: bool,
+}
+
+impl<R: Read> MarkBlankLines<R> {
+    fn new(inner: R) -> Self {
+        MarkBlankLines {
+            inner,
+            buf: Vec::with_capacity(8192),
+            pos: 0,
+            line_start: true,
+            marked: false,
+        }
+    }
+}
+
+impl<R: Read> Read for MarkBlankLines<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        if out.is_empty() {
+            return Ok(0);
+        }
+        if self.pos == self.buf.len() {
+            self.buf.resize(8192, 0);
+            let n = self.inner.read(&mut self.buf)?;
+            self.buf.truncate(n);
+            self.pos = 0;
+        }
+        let mut w = 0;
+        while w < out.len() && self.pos < self.buf.len() {
+            let b = self.buf[self.pos];
+            if self.line_start && !self.marked && (b == b'\n' || b == b'\r') {
+                out[w] = b' ';
+                self.marked = true;
+            } else {
+                out[w] = b;
+                self.pos += 1;
+                self.line_start = b == b'\n';
+                self.marked = false;
+            }
+            w += 1;
+        }
+        Ok(w)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -337,6 +393,17 @@ mod tests {
         assert!(e.to_string().contains("`net`"), "{e}");
         let e = run("").expect_err("empty");
         assert!(e.to_string().contains("empty"), "{e}");
+        // Blank lines count (LF and CRLF), before the header too; the rows around them are read.
+        let e = run(&format!(
+            "\n{HEADER}LTE,310,410,1,256,7,-73.95,40.75,500,3,1,1,2,0\n\r\n\nLTE,310,410,1,257,7,abc,40.75,500,3,1,1,2,0\n"
+        ))
+        .expect_err("lon");
+        assert!(e.to_string().contains("cells.csv:6"), "{e}");
+        let ok = run(&format!(
+            "\n{HEADER}\r\nLTE,310,410,1,256,7,-73.95,40.75,500,3,1,1,2,0\n\n"
+        ))
+        .expect("blank lines skipped");
+        assert_eq!(ok.counts.rows, 1);
     }
 
     #[test]

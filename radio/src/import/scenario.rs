@@ -235,7 +235,20 @@ fn config_toml(
     let scale = b.width_m().min(b.height_m()) / default_short_side_m();
     if scale < 1.0 && scale.is_finite() {
         let d = PairsConfig::default();
-        let m = |x: f64| Value::Float((x * scale / 5.0).round().max(1.0) * 5.0);
+        let r = |x: f64| (x * scale / 5.0).round().max(1.0) * 5.0;
+        if r(d.min_m) >= r(d.max_m) {
+            return Err(RadioError::Import {
+                message: format!(
+                    "the flight area {:.0} m × {:.0} m is too small for episodes: its pair \
+                     distances would span {} m to {} m",
+                    b.width_m(),
+                    b.height_m(),
+                    r(d.min_m),
+                    r(d.max_m)
+                ),
+            });
+        }
+        let m = |x: f64| Value::Float(r(x));
         pairs.insert("min_m".into(), m(d.min_m));
         pairs.insert("max_m".into(), m(d.max_m));
         let mut bins: Vec<Value> = d.eval_bins_m.iter().map(|&x| m(x)).collect();
