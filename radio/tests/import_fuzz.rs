@@ -14,6 +14,9 @@ use proptest::prelude::*;
 use serde_json::{Value, json};
 use std::path::Path;
 
+mod common;
+use common::mutate;
+
 const SELECT: LonLatBox = LonLatBox {
     lon_min_deg: -73.990,
     lon_max_deg: -73.980,
@@ -55,16 +58,6 @@ const CELLS: &str = "radio,mcc,net,area,cell,unit,lon,lat,range,samples,changeab
 LTE,310,410,7,10535937,7,-73.9822783,40.7475568,500,3,1,1,2,-80\n\
 LTE,310,410,7,10535938,7,-73.9822,40.7476,,3,1,1,2,\n\
 GSM,310,410,7,4321,,-73.983,40.748,2000,5,1,1,2,\n";
-
-fn mutate(mut bytes: Vec<u8>, flips: Vec<(usize, u8)>, cut: usize, tail: Vec<u8>) -> Vec<u8> {
-    for (at, x) in flips {
-        let n = bytes.len();
-        bytes[at % n] ^= x;
-    }
-    bytes.truncate(cut % (bytes.len() + 1));
-    bytes.extend_from_slice(&tail);
-    bytes
-}
 
 /// The import of `text` either succeeds with output the city loader reads, or fails naming the
 /// file.

@@ -184,7 +184,11 @@ fn write_extract(dir: &Path) {
 }
 
 fn import(dir: &Path, extra: &[&str]) -> Output {
-    let area = area_arg();
+    import_box(dir, &area_arg(), extra)
+}
+
+/// `dupac scenario import` of the extract with the flight area `area` (`W,S,E,N`).
+fn import_box(dir: &Path, area: &str, extra: &[&str]) -> Output {
     let mut args = vec![
         "scenario",
         "import",
@@ -193,7 +197,7 @@ fn import(dir: &Path, extra: &[&str]) -> Output {
         "--cells",
         "raw/cells.csv",
         "--box",
-        &area,
+        area,
         "--out",
         "scenarios/town",
     ];
@@ -374,23 +378,10 @@ fn bad_raw_input_is_named() {
     );
     // A flight area too small for episodes (the pairs' distances would collapse) is refused,
     // the extract's own box selecting what to keep.
-    let area = area_arg();
-    let tiny = run_in(
+    let tiny = import_box(
         dir,
-        &[
-            "scenario",
-            "import",
-            "--buildings",
-            "raw/buildings.geojson",
-            "--cells",
-            "raw/cells.csv",
-            "--box",
-            "2.3430,48.8520,2.3431,48.8521",
-            "--select",
-            &area,
-            "--out",
-            "scenarios/town",
-        ],
+        "2.3430,48.8520,2.3431,48.8521",
+        &["--select", &area_arg()],
     );
     let e = String::from_utf8_lossy(&tiny.stderr);
     assert!(

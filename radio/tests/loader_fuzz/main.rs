@@ -18,6 +18,10 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+#[path = "../common/mod.rs"]
+mod common;
+use common::mutate;
+
 mod regressions;
 
 const GEO_PATH: &str = "fuzz-buildings.geojson";
@@ -472,17 +476,6 @@ fn city_config() -> ScenarioConfig {
 fn city() -> &'static City {
     static CITY: OnceLock<City> = OnceLock::new();
     CITY.get_or_init(|| City::load(&city_config()).expect("procedural city"))
-}
-
-/// Flips bytes of a valid file, cuts it and appends a tail.
-fn mutate(mut bytes: Vec<u8>, flips: Vec<(usize, u8)>, cut: usize, tail: Vec<u8>) -> Vec<u8> {
-    for (at, x) in flips {
-        let n = bytes.len();
-        bytes[at % n] ^= x;
-    }
-    bytes.truncate(cut % (bytes.len() + 1));
-    bytes.extend_from_slice(&tail);
-    bytes
 }
 
 proptest! {
