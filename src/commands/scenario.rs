@@ -60,7 +60,7 @@ pub struct ImportArgs {
     #[arg(long, default_value_t = DEFAULT_LEVEL_HEIGHT_M, value_name = "M", help_heading = "Heights")]
     pub level_height_m: f64,
     /// A building without height or levels: the 75th percentile of tagged buildings within
-    /// this radius (m; 0: off) …
+    /// this radius (m; 0: off, else ≥ 1) …
     #[arg(
         long,
         default_value_t = 150.0,
