@@ -388,6 +388,13 @@ fn bad_raw_input_is_named() {
         !tiny.status.success() && e.contains("too small for episodes"),
         "{e}"
     );
+    // A neighbour radius below 1 m is refused before any work (it would overflow the grid).
+    let tiny_r = import(dir, &["--nearby-m", "1e-300"]);
+    let e = String::from_utf8_lossy(&tiny_r.stderr);
+    assert!(
+        !tiny_r.status.success() && e.contains("nearby radius"),
+        "{e}"
+    );
     let mut cells = raw_cells();
     cells.push_str("LTE,310,410,7,2560,5,2.343,north,2000,5,1,1,2,\n");
     std::fs::write(dir.join("raw/cells.csv"), cells).expect("write");
