@@ -333,6 +333,7 @@ mod tests {
             position_m: [x, 0.0, 50.0],
             serving,
             serving_rsrp_dbm: rsrp,
+            measured_serving_rsrp_dbm: rsrp,
             best_site: serving,
             best_rsrp_dbm: rsrp,
             sinr_db: sinr,

@@ -19,7 +19,11 @@ pub struct StepInfo {
     #[serde(with = "dupac_common::geometry::serde_point")]
     pub position_m: Point,
     pub serving: SiteId,
+    /// The serving site's true RSRP (dBm): what metrics score.
     pub serving_rsrp_dbm: f64,
+    /// What the UAV measured of it (dBm; noisy and filtered under the real channel, equal to
+    /// `serving_rsrp_dbm` where measurement is exact).
+    pub measured_serving_rsrp_dbm: f64,
     /// The strongest site and its RSRP at this position.
     pub best_site: SiteId,
     pub best_rsrp_dbm: f64,
@@ -61,7 +65,10 @@ pub struct StepRecord {
     /// UAV position after the move (m).
     pub position_m: [f32; 3],
     pub serving: u16,
+    /// True RSRP of the serving site (dBm).
     pub serving_rsrp_dbm: f32,
+    /// What the UAV measured of it (dBm).
+    pub measured_serving_rsrp_dbm: f32,
     /// The strongest site here and its RSRP.
     pub best_site: u16,
     pub best_rsrp_dbm: f32,
@@ -84,6 +91,7 @@ impl StepRecord {
             position_m: [p[0] as f32, p[1] as f32, p[2] as f32],
             serving: info.serving.0,
             serving_rsrp_dbm: info.serving_rsrp_dbm as f32,
+            measured_serving_rsrp_dbm: info.measured_serving_rsrp_dbm as f32,
             best_site: info.best_site.0,
             best_rsrp_dbm: info.best_rsrp_dbm as f32,
             sinr_db: sinr_db as f32,

@@ -152,6 +152,7 @@ pub fn fly<'py>(
         })?;
         let mut env = RustEnv::new(&sh.cfg, sh.world.clone(), sh.rsrp.clone())
             .map_err(value_error)?;
+        env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
         if env.layout().len() != w.obs_dim {
             return Err(value_error(format!(
                 "{}: the policy expects {} observations, the scenario gives {}: build it with Scenario(policy=…)",

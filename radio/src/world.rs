@@ -2,6 +2,7 @@
 //! exact mode (a line-of-sight ray cast per query; spec/radio.md D9).
 
 use crate::antenna::AntennaPattern;
+use crate::channel::Channel;
 use crate::city::City;
 use crate::error::RadioError;
 use crate::link::{LinkBudget, LinkModel, Transmitter};
@@ -9,6 +10,7 @@ use crate::sites::{Site, place_sites};
 use dupac_common::config::{Config, RadioConfig};
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
+use std::sync::Arc;
 
 /// City, sites and radio model, ready for link queries.
 #[derive(Debug, Clone)]
@@ -19,6 +21,8 @@ pub struct RadioWorld {
     antennas: Vec<AntennaPattern>,
     pub link: LinkModel,
     pub radio: RadioConfig,
+    /// The shadow-fading realisations (`radio.channel.model = "real"`; `None`: deterministic).
+    pub channel: Option<Arc<Channel>>,
 }
 
 impl RadioWorld {
@@ -42,12 +46,19 @@ impl RadioWorld {
                 )
             })
             .collect();
+        let channel = Channel::new(
+            &radio.channel,
+            city.area_m,
+            sites.iter().map(|s| s.kind.scenario()).collect(),
+        )
+        .map(Arc::new);
         RadioWorld {
             city,
             sites,
             antennas,
             link: LinkModel::from_config(radio),
             radio: radio.clone(),
+            channel,
         }
     }
 
@@ -149,7 +160,11 @@ impl RadioWorld {
         rsrp_params.a3 = Default::default();
         rsrp_params.rsrp_excellent_dbm = 0.0;
         rsrp_params.rsrp_poor_dbm = 0.0;
-        h.write_str(&toml::to_string(&rsrp_params).unwrap_or_default());
+        // The channel's fading is applied on top of the cache, never stored in it: its section is
+        // left out, so one cache (and the fingerprint it had before the section) serves every
+        // channel.
+        let text = toml::to_string(&rsrp_params).unwrap_or_default();
+        h.write_str(text.split("\n[channel]\n").next().unwrap_or_default());
         h.finish()
     }
 }

@@ -25,6 +25,7 @@ pub fn evaluate(
         .par_iter()
         .map(|p| {
             let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
+            env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
             let ep = p.episode(false);
             Ok(fly_policy(&mut env, policy, p.id, ep, p.id)?.0)
         })

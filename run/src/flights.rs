@@ -242,6 +242,7 @@ pub fn fly_path_with_a3(
     let mut a3_cfg = cfg.clone();
     a3_cfg.env.association = Association::A3;
     let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
+    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     let episode = p.episode(false);
     let flight = fly_waypoints(&mut env, p.id, episode, waypoints_m, |e| e.serving())?;
     let mut acc = EpisodeAccumulator::new(&a3_cfg.env);

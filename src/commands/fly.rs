@@ -134,6 +134,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let p = &chosen[0];
     let episode = p.episode(false);
     let mut env = Env::new(&cfg, world.clone(), rsrp.clone())?;
+    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     if env.layout().len() != policy.obs_dim {
         bail!(
             "{}: the policy expects {} observations, this configuration gives {}",

@@ -123,6 +123,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     }
 
     let mut env = Env::new(&cfg, world.clone(), cache.clone())?;
+    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut traces = Vec::new();

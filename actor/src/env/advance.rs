@@ -172,6 +172,7 @@ impl Env {
             position_m: to,
             serving: self.serving,
             serving_rsrp_dbm: link.serving_rsrp_dbm,
+            measured_serving_rsrp_dbm: link.measured_serving_rsrp_dbm,
             best_site: link.best_site,
             best_rsrp_dbm: link.best_rsrp_dbm,
             class: link.class,

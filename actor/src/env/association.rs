@@ -7,6 +7,7 @@ use dupac_common::config::Association;
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_radio::a3::{A3Params, A3State};
+use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpClass;
 
 /// Association state of one episode.
@@ -43,15 +44,17 @@ impl Associator {
         (a, first)
     }
 
-    /// The serving site after a step, given the agent's choice (used only by `Learned`).
-    pub fn next(&mut self, chosen: SiteId, rsrp_dbm: &[f64]) -> SiteId {
+    /// The serving site after a step, given the agent's choice (used only by `Learned`): A3
+    /// compares what the UAV measures (`measured_dbm`), the oracle knows the true RSRP
+    /// (`true_dbm`); both dBm.
+    pub fn next(&mut self, chosen: SiteId, measured_dbm: &[f64], true_dbm: &[f64]) -> SiteId {
         match self {
             Associator::Learned => chosen,
             Associator::A3(state) => {
-                state.step(rsrp_dbm);
+                state.step(measured_dbm);
                 state.serving()
             }
-            Associator::BestRsrp => argmax(rsrp_dbm),
+            Associator::BestRsrp => argmax(true_dbm),
         }
     }
 }
@@ -70,26 +73,31 @@ pub(super) struct Link {
     /// RSRP (dBm) and class of the site serving after the step.
     pub serving_rsrp_dbm: f64,
     pub class: RsrpClass,
+    /// What the UAV measured of the serving site's RSRP (dBm).
+    pub measured_serving_rsrp_dbm: f64,
     /// The strongest site at the new position and its RSRP (dBm).
     pub best_site: SiteId,
     pub best_rsrp_dbm: f64,
 }
 
 impl Env {
-    /// Associate: every site's RSRP at `to` (dBm, from the RSRP source), then the serving site by
+    /// Associate: every site's RSRP at `to` (dBm, [`Env::measure`]), then the serving site by
     /// the association rule (`site`, the policy's choice, under the learned association: a
     /// decision's choice takes effect at its first step, so a handover only there; A3 or the
     /// strongest site otherwise), the handover and ping-pong counted.
     pub(super) fn associate(&mut self, to: Point, site: SiteId) -> Link {
-        self.rsrp.rsrp_all_dbm(to, &mut self.rsrp_dbm);
+        self.measure(to);
         let before = self.serving;
-        self.serving = self.associator.next(site, &self.rsrp_dbm);
+        self.serving = self
+            .associator
+            .next(site, &self.measured_dbm, &self.rsrp_dbm);
         let counter = self.handovers;
         let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
         let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
         let class = self.thresholds.classify(serving_rsrp_dbm);
         let best_site = argmax(&self.rsrp_dbm);
         Link {
+            measured_serving_rsrp_dbm: self.measured_dbm[self.serving.index()],
             before,
             counter,
             handover,
@@ -98,6 +106,27 @@ impl Env {
             class,
             best_site,
             best_rsrp_dbm: self.rsrp_dbm[best_site.index()],
+        }
+    }
+}
+
+impl Env {
+    /// Measure: every site's true RSRP at `p_m` (dBm): the RSRP source's, less the episode's
+    /// shadow fading in each link's line-of-sight state; then what the UAV measures of it.
+    pub(super) fn measure(&mut self, p_m: Point) {
+        self.rsrp.rsrp_all_dbm(p_m, &mut self.rsrp_dbm);
+        if let Some(field) = &self.field {
+            if !self.rsrp.los_all(p_m, &mut self.los_scratch) {
+                RsrpSource::los_all(self.world.as_ref(), p_m, &mut self.los_scratch);
+            }
+            field.shadow_db(p_m, &self.los_scratch, &mut self.shadow_scratch_db);
+            for (r, s) in self.rsrp_dbm.iter_mut().zip(&self.shadow_scratch_db) {
+                *r -= s;
+            }
+        }
+        match self.measurer.as_mut() {
+            Some(m) => m.measure(&self.rsrp_dbm, &mut self.measured_dbm),
+            None => self.measured_dbm.copy_from_slice(&self.rsrp_dbm),
         }
     }
 }

@@ -34,7 +34,9 @@ use dupac_common::ids::SiteId;
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS};
 use dupac_radio::a3::A3Params;
 use dupac_radio::cache::RsrpSource;
+use dupac_radio::channel::{FieldSplit, Measurer};
 use dupac_radio::class::RsrpThresholds;
+use dupac_radio::shadow::ShadowField;
 use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
@@ -140,7 +142,21 @@ pub struct Env {
     velocity_per_max_step: Vector,
     serving: SiteId,
     associator: Associator,
+    /// Every site's true RSRP at the UAV (dBm): the deterministic value less the episode's
+    /// shadow fading. Rewards and metrics score it.
     rsrp_dbm: Vec<f64>,
+    /// What the UAV measures of it (dBm; `radio.channel`): observed by the policy and compared by
+    /// A3. The true RSRP where the channel is measured exactly.
+    measured_dbm: Vec<f64>,
+    /// The episode's shadow-fading realisation (`radio.channel.model = "real"`).
+    field: Option<Arc<ShadowField>>,
+    /// Which realisations episodes draw from.
+    field_split: FieldSplit,
+    /// The measurement error and layer-3 filter (`radio.channel`, operator knowledge).
+    measurer: Option<Measurer>,
+    /// Scratch: every site's line of sight and shadow fading at the UAV.
+    los_scratch: Vec<f64>,
+    shadow_scratch_db: Vec<f64>,
     step: u32,
     time_limit: u32,
     distance_flown_m: f64,
@@ -205,6 +221,15 @@ impl Env {
             serving: SiteId(0),
             associator: Associator::Learned,
             rsrp_dbm: vec![f64::NEG_INFINITY; m],
+            measured_dbm: vec![f64::NEG_INFINITY; m],
+            field: None,
+            field_split: FieldSplit::Train,
+            measurer: cfg.radio.channel.measured().then(|| {
+                let c = &cfg.radio.channel;
+                Measurer::new(m, c.measurement_sigma_db, c.l3_filter_k, dt)
+            }),
+            los_scratch: vec![0.0; m],
+            shadow_scratch_db: vec![0.0; m],
             step: 0,
             time_limit: 0,
             distance_flown_m: 0.0,
@@ -264,9 +289,28 @@ impl Env {
         self.serving
     }
 
-    /// RSRP of every site at the current position (dBm).
+    /// True RSRP of every site at the current position (dBm; with the episode's shadow fading
+    /// under the real channel).
     pub fn rsrp_dbm(&self) -> &[f64] {
         &self.rsrp_dbm
+    }
+
+    /// What the UAV measures of every site's RSRP at the current position (dBm): noisy and
+    /// layer-3 filtered under the real channel with operator knowledge, the true RSRP otherwise.
+    pub fn measured_dbm(&self) -> &[f64] {
+        &self.measured_dbm
+    }
+
+    /// Draws the shadow-fading realisations of later episodes from `split` (training's by
+    /// default; evaluation flies pair `id`, its reset seed, in evaluation field `id mod
+    /// radio.channel.eval_fields`).
+    pub fn set_field_split(&mut self, split: FieldSplit) {
+        self.field_split = split;
+    }
+
+    /// The current episode's shadow-fading realisation (none in the deterministic world).
+    pub fn field(&self) -> Option<&Arc<ShadowField>> {
+        self.field.as_ref()
     }
 
     pub fn episode(&self) -> Option<&Episode> {
@@ -355,8 +399,16 @@ impl Env {
         self.handovers.reset();
         self.substeps.clear();
         self.done = false;
-        self.rsrp.rsrp_all_dbm(self.position_m, &mut self.rsrp_dbm);
-        let (assoc, first) = Associator::start(self.cfg.association, self.a3, &self.rsrp_dbm);
+        self.field = self
+            .world
+            .channel
+            .as_ref()
+            .map(|c| c.episode_field(self.field_split, seed));
+        if let Some(m) = self.measurer.as_mut() {
+            m.reset(seed);
+        }
+        self.measure(self.position_m);
+        let (assoc, first) = Associator::start(self.cfg.association, self.a3, &self.measured_dbm);
         self.associator = assoc;
         self.serving = first;
         self.write_observation();

@@ -160,12 +160,12 @@ impl Env {
         obs[s.serving_one_hot.clone()].fill(0.0);
         obs[s.serving_one_hot.start + self.serving.index()] = 1.0;
         if let Some(r) = &s.rsrp_all {
-            for (i, v) in self.rsrp_dbm.iter().enumerate() {
+            for (i, v) in self.measured_dbm.iter().enumerate() {
                 obs[r.start + i] = rsrp_norm(*v);
             }
         }
         if let Some(r) = &s.rsrp_serving {
-            obs[r.start] = rsrp_norm(self.rsrp_dbm[self.serving.index()]);
+            obs[r.start] = rsrp_norm(self.measured_dbm[self.serving.index()]);
         }
         if let Some(r) = &s.site_features {
             let mut obs = std::mem::take(&mut self.obs);
@@ -185,7 +185,7 @@ impl Env {
     pub(super) fn site_features_into(&self, out: &mut [f32]) {
         let o = &self.cfg.observation;
         let p = self.position_m;
-        let best = self.rsrp_dbm[argmax(&self.rsrp_dbm).index()].max(RSRP_FLOOR_DBM);
+        let best = self.measured_dbm[argmax(&self.measured_dbm).index()].max(RSRP_FLOOR_DBM);
         let unit2 = |x: f64, y: f64| {
             let n = x.hypot(y);
             (n > 1e-9).then(|| [x / n, y / n])
@@ -209,7 +209,7 @@ impl Env {
         }
         for (k, site) in self.world.sites.iter().enumerate() {
             let f = &mut out[k * per_site..][..per_site];
-            let w = self.rsrp_dbm[k].max(RSRP_FLOOR_DBM);
+            let w = self.measured_dbm[k].max(RSRP_FLOOR_DBM);
             let q = site.position_m;
             let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
             let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);

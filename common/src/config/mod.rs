@@ -5,6 +5,7 @@
 //! [`Config::load`] parses, applies overrides and validates once; everything downstream receives a
 //! resolved, valid [`Config`].
 
+mod channel;
 mod check;
 pub mod describe;
 mod distributed;
@@ -13,6 +14,7 @@ mod learn;
 mod radio;
 mod scenario;
 
+pub use channel::*;
 pub use distributed::*;
 pub use env::*;
 pub use learn::*;

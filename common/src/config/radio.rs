@@ -104,6 +104,8 @@ pub struct RadioConfig {
     pub antenna: AntennaConfig,
     /// The A3 handover rule of the base method.
     pub a3: A3Config,
+    /// Shadow fading, measurement error and filter (`model = "deterministic"`: none).
+    pub channel: super::ChannelConfig,
 }
 
 impl Default for RadioConfig {
@@ -120,6 +122,7 @@ impl Default for RadioConfig {
             rsrp_poor_dbm: -100.0,
             antenna: AntennaConfig::default(),
             a3: A3Config::default(),
+            channel: super::ChannelConfig::default(),
         }
     }
 }
@@ -189,6 +192,7 @@ impl RadioConfig {
             ));
         }
         positive("radio.d3d_min_m", r.d3d_min_m)?;
+        r.channel.validate()?;
         finite("radio.rsrp_excellent_dbm", r.rsrp_excellent_dbm)?;
         if !(r.rsrp_poor_dbm.is_finite() && r.rsrp_poor_dbm < r.rsrp_excellent_dbm) {
             return Err(bad("radio.rsrp_poor_dbm", "must be < rsrp_excellent_dbm"));

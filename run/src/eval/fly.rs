@@ -237,6 +237,7 @@ fn fly_one(
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
+    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     let episode = crate::scenario::episode(cfg, planners, p)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,

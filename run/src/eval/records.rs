@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
 pub const RECORDS_MAGIC: &[u8; 8] = b"DUPACEVR";
-pub const RECORDS_VERSION: u32 = 3;
+pub const RECORDS_VERSION: u32 = 4;
 
 /// The records of one method and seed, with what the metrics need from the configuration.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
@@ -83,6 +83,7 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
         "z_m",
         "serving",
         "serving_rsrp_dbm",
+        "measured_serving_rsrp_dbm",
         "best_site",
         "best_rsrp_dbm",
         "sinr_db",
@@ -132,6 +133,7 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
                 &st.position_m[2].to_string(),
                 &st.serving.to_string(),
                 &st.serving_rsrp_dbm.to_string(),
+                &st.measured_serving_rsrp_dbm.to_string(),
                 &st.best_site.to_string(),
                 &st.best_rsrp_dbm.to_string(),
                 &st.sinr_db.to_string(),

@@ -1,0 +1,173 @@
+//! The real channel (`radio.channel.model = "real"`, docs/env.md "Channel"): the shadow-fading
+//! realisations a world's episodes fly in ([`Channel`]), and what the UAV measures of the RSRP
+//! ([`Measurer`]: a per-step measurement error and the layer-3 filter of TS 36.331 §5.5.3.2).
+
+use crate::pathloss::Scenario;
+use crate::shadow::{FieldGrid, ShadowField};
+use dupac_common::config::ChannelConfig;
+use dupac_common::geometry::Bounds2;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::sync::{Arc, OnceLock};
+
+/// Domain tag of the training realisations' streams ("sftrain").
+pub const TRAIN_DOMAIN: u64 = 0x6e69_6172_7466_73;
+/// Domain tag of the evaluation realisations' streams ("sfeval").
+pub const EVAL_DOMAIN: u64 = 0x6c61_7665_6673;
+/// Domain tag of the measurement-error streams ("meas").
+pub const MEASUREMENT_DOMAIN: u64 = 0x7361_656d;
+
+/// Which realisations an episode draws from: training's, or evaluation's (never trained in).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FieldSplit {
+    #[default]
+    Train,
+    Eval,
+}
+
+/// The shadow-fading realisations of a world, each drawn when first used and then shared.
+pub struct Channel {
+    cfg: ChannelConfig,
+    grid: FieldGrid,
+    scenarios: Vec<Scenario>,
+    train: Vec<OnceLock<Arc<ShadowField>>>,
+    eval: Vec<OnceLock<Arc<ShadowField>>>,
+}
+
+impl std::fmt::Debug for Channel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Channel")
+            .field("cfg", &self.cfg)
+            .field("grid", &self.grid)
+            .finish()
+    }
+}
+
+impl Channel {
+    /// The channel of `cfg` over `area_m` for sites of `scenarios`; `None` for the
+    /// deterministic model.
+    pub fn new(cfg: &ChannelConfig, area_m: Bounds2, scenarios: Vec<Scenario>) -> Option<Channel> {
+        if !cfg.shadowing() {
+            return None;
+        }
+        let slots = |n: u32| (0..n).map(|_| OnceLock::new()).collect();
+        Some(Channel {
+            cfg: cfg.clone(),
+            grid: FieldGrid::covering(area_m, cfg.shadowing_grid_m),
+            scenarios,
+            train: slots(cfg.train_fields),
+            eval: slots(cfg.eval_fields),
+        })
+    }
+
+    pub fn config(&self) -> &ChannelConfig {
+        &self.cfg
+    }
+
+    /// Realisation `index` (modulo the split's count) of `split`.
+    pub fn field(&self, split: FieldSplit, index: u64) -> Arc<ShadowField> {
+        let (slots, domain) = match split {
+            FieldSplit::Train => (&self.train, TRAIN_DOMAIN),
+            FieldSplit::Eval => (&self.eval, EVAL_DOMAIN),
+        };
+        let i = (index % slots.len() as u64) as u32;
+        slots[i as usize]
+            .get_or_init(|| {
+                let t = std::time::Instant::now();
+                let f = ShadowField::generate(
+                    self.grid,
+                    &self.scenarios,
+                    self.cfg.field_seed,
+                    domain,
+                    i,
+                );
+                tracing::debug!(
+                    ?split,
+                    index = i,
+                    secs = t.elapsed().as_secs_f64(),
+                    "shadow-fading field drawn"
+                );
+                Arc::new(f)
+            })
+            .clone()
+    }
+
+    /// The realisation an episode reset with `seed` flies in: in training one chosen by the
+    /// seed's hash; in evaluation, whose seed is the pair's id, field `id mod eval_fields`, so
+    /// every method flies a pair in the same field.
+    pub fn episode_field(&self, split: FieldSplit, seed: u64) -> Arc<ShadowField> {
+        match split {
+            FieldSplit::Train => self.field(
+                split,
+                dupac_common::seed::stream_seed(seed, TRAIN_DOMAIN, 0),
+            ),
+            FieldSplit::Eval => self.field(split, seed),
+        }
+    }
+}
+
+/// Layer-3 filter coefficient a per step of `dt_s` (s) for `filterCoefficient` k: a = 1/2^(k/4)
+/// per 200 ms (TS 36.331 §5.5.3.2), adapted so that the filter's time constant is kept at
+/// another input period (its note on other sample rates): a_step = 1 − (1 − a)^(dt/0.2 s).
+/// k = 0 gives 1 (no filtering).
+pub fn l3_coefficient(k: u32, dt_s: f64) -> f64 {
+    let a = 0.5f64.powf(f64::from(k) / 4.0);
+    1.0 - (1.0 - a).powf(dt_s / 0.2)
+}
+
+/// What the UAV measures of every site's RSRP each step: the true value plus an independent
+/// N(0, σ²) error (dB), layer-3 filtered in dB (TS 36.331 §5.5.3.2: F_n = (1 − a)·F_{n−1} +
+/// a·M_n, F_0 = M_1).
+#[derive(Debug, Clone)]
+pub struct Measurer {
+    sigma_db: f64,
+    a: f64,
+    rng: ChaCha8Rng,
+    filtered_dbm: Vec<f64>,
+    started: bool,
+}
+
+impl Measurer {
+    /// A measurer of `n_sites` sites with error σ `sigma_db` (dB) and filter coefficient
+    /// `filter_k` at a step period of `dt_s` (s).
+    pub fn new(n_sites: usize, sigma_db: f64, filter_k: u32, dt_s: f64) -> Measurer {
+        Measurer {
+            sigma_db,
+            a: l3_coefficient(filter_k, dt_s),
+            rng: ChaCha8Rng::seed_from_u64(0),
+            filtered_dbm: vec![f64::NEG_INFINITY; n_sites],
+            started: false,
+        }
+    }
+
+    /// The per-step filter coefficient.
+    pub fn coefficient(&self) -> f64 {
+        self.a
+    }
+
+    /// Starts an episode: the errors of an episode reset with `seed` are a stream of their own.
+    pub fn reset(&mut self, seed: u64) {
+        let mut key = [0u8; 32];
+        key[..8].copy_from_slice(&seed.to_le_bytes());
+        key[8..16].copy_from_slice(&MEASUREMENT_DOMAIN.to_le_bytes());
+        self.rng = ChaCha8Rng::from_seed(key);
+        self.started = false;
+    }
+
+    /// One step: measures `true_dbm` (dBm) into `out` (dBm, filtered). A site that cannot be
+    /// measured (−∞) restarts its filter.
+    pub fn measure(&mut self, true_dbm: &[f64], out: &mut [f64]) {
+        for ((t, f), o) in true_dbm.iter().zip(&mut self.filtered_dbm).zip(out) {
+            let e: f64 = StandardNormal.sample(&mut self.rng);
+            let m = t + self.sigma_db * e;
+            *f = if self.started && f.is_finite() && m.is_finite() {
+                (1.0 - self.a) * *f + self.a * m
+            } else {
+                m
+            };
+            *o = *f;
+        }
+        self.started = true;
+    }
+}
