@@ -13,6 +13,7 @@ use dupac_radio::sites::{Mount, Site, SiteKind};
 use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
+mod channel;
 mod sites;
 
 /// A scripted RSRP field: site `s` gives `f(s, p)`.

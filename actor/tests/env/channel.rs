@@ -1,0 +1,142 @@
+//! The real channel in the environment: the true RSRP has the episode's shadow fading, the UAV
+//! observes and A3 compares the measured one, both are recorded, and the metrics score the true.
+
+use super::*;
+use dupac_actor::metrics::flight_metrics;
+use dupac_actor::record::{FlightRecord, StepRecord};
+use dupac_common::config::ChannelModel;
+use dupac_radio::channel::FieldSplit;
+
+const FLAT: fn(usize, Point) -> f64 = |s, _| if s == 0 { -75.0 } else { -78.0 };
+
+fn real_env(assoc: Association, split: FieldSplit) -> Env {
+    let mut cfg = unguided();
+    cfg.env.association = assoc;
+    cfg.radio.channel.model = ChannelModel::Real;
+    let w = world();
+    // The world's channel comes from the configuration it was built with.
+    let w = Arc::new(RadioWorld::from_parts(
+        w.city.clone(),
+        w.sites.clone(),
+        &cfg.radio,
+    ));
+    let mut e = Env::new(&cfg, w, Arc::new(Field(FLAT, 2))).expect("env");
+    e.set_field_split(split);
+    e
+}
+
+/// Flies 40 steps north from (0, −60, 50) and returns every step's info.
+fn fly(e: &mut Env, seed: u64) -> Vec<dupac_actor::record::StepInfo> {
+    e.reset(
+        seed,
+        ep(Point::new(0.0, -60.0, 50.0), Point::new(0.0, 60.0, 50.0)),
+    )
+    .expect("reset");
+    (0..40)
+        .map(|_| e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").info)
+        .collect()
+}
+
+#[test]
+fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
+    let mut e = real_env(Association::A3, FieldSplit::Train);
+    let steps = fly(&mut e, 9);
+    let field = e.field().expect("a real channel draws a field").clone();
+    let w = e.world();
+    let mut measured_differs = 0;
+    for s in &steps {
+        let p = s.position_m;
+        let los: Vec<f64> = (0..2)
+            .map(|k| f64::from(u8::from(w.los(SiteId(k as u16), p))))
+            .collect();
+        let mut sf = [0.0; 2];
+        field.shadow_db(p, &los, &mut sf);
+        let k = s.serving.index();
+        let want = FLAT(k, p) - sf[k];
+        assert!(
+            (s.serving_rsrp_dbm - want).abs() < 1e-9,
+            "true RSRP {} is the model's less the field's shadowing {}",
+            s.serving_rsrp_dbm,
+            want
+        );
+        assert!(sf[k].abs() > 1e-6, "the field shadows");
+        if (s.measured_serving_rsrp_dbm - s.serving_rsrp_dbm).abs() > 1e-3 {
+            measured_differs += 1;
+        }
+    }
+    assert!(measured_differs > 30, "measured ≠ true on most steps");
+    // The same seed flies the same field and the same errors; evaluation draws other fields.
+    let mut again = real_env(Association::A3, FieldSplit::Train);
+    assert_eq!(fly(&mut again, 9), steps);
+    let mut eval = real_env(Association::A3, FieldSplit::Eval);
+    assert_ne!(fly(&mut eval, 9), steps);
+    // The observation carries the measured RSRP, not the true one.
+    let o = e.observation();
+    let r = e.layout().range(field::RSRP_ALL);
+    if let Some(r) = r {
+        let c = e.config().observation.rsrp_centre_dbm;
+        let sc = e.config().observation.rsrp_scale_db;
+        for k in 0..2 {
+            let want = ((e.measured_dbm()[k] - c) / sc) as f32;
+            assert!((o[r.start + k] - want).abs() < 1e-5);
+        }
+    }
+}
+
+#[test]
+fn metrics_score_the_true_rsrp_and_records_keep_both() {
+    let mut e = real_env(Association::A3, FieldSplit::Eval);
+    let steps = fly(&mut e, 3);
+    let records: Vec<StepRecord> = steps
+        .iter()
+        .map(|s| StepRecord::from_info(s, 0.0))
+        .collect();
+    for (r, s) in records.iter().zip(&steps) {
+        assert_eq!(r.serving_rsrp_dbm, s.serving_rsrp_dbm as f32);
+        assert_eq!(
+            r.measured_serving_rsrp_dbm,
+            s.measured_serving_rsrp_dbm as f32
+        );
+    }
+    let flight = FlightRecord {
+        method: "t".into(),
+        seed: 1,
+        pair_id: 0,
+        bin_m: 100.0,
+        shortest_m: 120.0,
+        straight_m: 120.0,
+        outcome: dupac_common::msg::Outcome::TimeLimit,
+        source_m: Point::new(0.0, -60.0, 50.0),
+        destination_m: Point::new(0.0, 60.0, 50.0),
+        remaining_m: 80.0,
+        steps: records.clone(),
+    };
+    let m = flight_metrics(&flight, 0, 20, 3.0);
+    let true_mean = records
+        .iter()
+        .map(|r| f64::from(r.serving_rsrp_dbm))
+        .sum::<f64>()
+        / records.len() as f64;
+    let measured_mean = records
+        .iter()
+        .map(|r| f64::from(r.measured_serving_rsrp_dbm))
+        .sum::<f64>()
+        / records.len() as f64;
+    assert!(
+        (m.mean_rsrp_dbm - true_mean).abs() < 1e-4,
+        "{} vs {true_mean}",
+        m.mean_rsrp_dbm
+    );
+    assert!((m.mean_rsrp_dbm - measured_mean).abs() > 1e-3);
+}
+
+#[test]
+fn the_deterministic_world_measures_exactly() {
+    let mut e = env_with(Association::A3, FLAT);
+    let steps = fly(&mut e, 9);
+    assert!(e.field().is_none());
+    for s in &steps {
+        assert_eq!(s.serving_rsrp_dbm, FLAT(s.serving.index(), s.position_m));
+        assert_eq!(s.measured_serving_rsrp_dbm, s.serving_rsrp_dbm);
+    }
+}
