@@ -71,6 +71,26 @@ fn benches(c: &mut Criterion) {
         g.finish();
     }
 
+    // The real channel (`radio.channel.model = "real"`): shadow fading from the episode's field
+    // and the measurement error with its filter on top of the same cache, against the same
+    // episodes above (its budget: at most 15 % more per cached step).
+    let mut real_cfg = cfg.clone();
+    real_cfg.radio.channel.model = dupac_common::config::ChannelModel::Real;
+    let real_world = Arc::new(RadioWorld::from_parts(
+        world.city.clone(),
+        world.sites.clone(),
+        &real_cfg.radio,
+    ));
+    let mut env = Env::new(&real_cfg, real_world, cache.clone()).expect("env");
+    let mut k = 0usize;
+    env.reset(0, episodes[0].clone()).expect("reset");
+    let mut g = c.benchmark_group("env");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("step_cache_full_fan_real_channel", |b| {
+        b.iter(|| fly_on(&mut env, &mut k, &episodes, false))
+    });
+    g.finish();
+
     // The peer in the same run: the same episodes without their path, the guide off and the
     // straight-line progress (the unguided settings).
     let mut unguided_cfg = cfg.clone();

@@ -12,7 +12,7 @@ use rand_distr::{Distribution, StandardNormal};
 use std::sync::{Arc, OnceLock};
 
 /// Domain tag of the training realisations' streams ("sftrain").
-pub const TRAIN_DOMAIN: u64 = 0x6e69_6172_7466_73;
+pub const TRAIN_DOMAIN: u64 = 0x006e_6961_7274_6673;
 /// Domain tag of the evaluation realisations' streams ("sfeval").
 pub const EVAL_DOMAIN: u64 = 0x6c61_7665_6673;
 /// Domain tag of the measurement-error streams ("meas").

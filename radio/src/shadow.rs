@@ -296,16 +296,17 @@ impl ShadowField {
     }
 }
 
-/// An RSRP source with a shadow-fading realisation on top: what the coverage-aware planner
-/// plans on when it knows the true field (`radio.channel.knowledge = "true_field"`).
-pub struct ShadowedSource<'a> {
-    pub base: &'a dyn RsrpSource,
-    pub field: &'a ShadowField,
+/// An RSRP source with a shadow-fading realisation on top: the true RSRP of an episode's field,
+/// for the metrics (SINR, hindsight) and for planners that know the true field
+/// (`radio.channel.knowledge = "true_field"`).
+pub struct ShadowedSource {
+    pub base: Arc<dyn RsrpSource + Send + Sync>,
+    pub field: Arc<ShadowField>,
     /// Casts a ray per site where the base source does not know the line of sight.
-    pub world: &'a crate::world::RadioWorld,
+    pub world: Arc<crate::world::RadioWorld>,
 }
 
-impl RsrpSource for ShadowedSource<'_> {
+impl RsrpSource for ShadowedSource {
     fn num_sites(&self) -> usize {
         self.base.num_sites()
     }
@@ -315,7 +316,7 @@ impl RsrpSource for ShadowedSource<'_> {
         self.base.rsrp_all_dbm(p_m, out);
         let mut los = vec![0.0; m];
         if !self.base.los_all(p_m, &mut los) {
-            RsrpSource::los_all(self.world, p_m, &mut los);
+            RsrpSource::los_all(self.world.as_ref(), p_m, &mut los);
         }
         let mut sf = vec![0.0; m];
         self.field.shadow_db(p_m, &los, &mut sf);

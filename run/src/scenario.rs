@@ -11,7 +11,9 @@ use dupac_actor::pairs::{
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Config, RadioMode};
 use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::class::RsrpThresholds;
+use dupac_radio::shadow::ShadowedSource;
 use dupac_radio::world::RadioWorld;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -35,6 +37,25 @@ pub fn world_and_cache(
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     Ok((world, Arc::new(cache)))
+}
+
+/// The true RSRP of the episodes reset with `seed` in `split` (evaluation: the pair's id): `rsrp`
+/// less the shadow fading of their field under the real channel (`radio.channel.model =
+/// "real"`), `rsrp` itself in the deterministic world.
+pub fn true_source(
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    split: FieldSplit,
+    seed: u64,
+) -> SharedRsrp {
+    match &world.channel {
+        Some(c) => Arc::new(ShadowedSource {
+            base: rsrp.clone(),
+            field: c.episode_field(split, seed),
+            world: world.clone(),
+        }),
+        None => rsrp.clone(),
+    }
 }
 
 /// `cfg` without the path guide (`env.observation.path_guide` off, the straight-line

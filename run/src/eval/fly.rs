@@ -12,10 +12,11 @@ use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::record::{FlightRecord, StepRecord};
 use dupac_actor::rollout::fly_policy;
-use dupac_common::config::{Association, Config};
+use dupac_common::config::{Association, Config, Knowledge};
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
 use std::path::Path;
@@ -59,16 +60,37 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .find(|c| c.env.needs_path())
         .unwrap_or(&unguided_cfg);
     let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), &planners)?;
-    let pairs = select(pairs, args.per_bin);
+    let mut pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         return Err(refused!("{}: no pairs", file.display()));
     }
+    // With knowledge of the true field, each evaluation field's planners plan on it.
+    let field_planners = true_field_planners(cfg, &unguided_cfg, &flown, &world, &rsrp, coverage);
+    if let Some(fp) = &field_planners {
+        for (k, planners) in fp.iter().enumerate() {
+            let mut mine: Vec<Pair> = pairs
+                .iter()
+                .filter(|p| p.id % fp.len() as u64 == k as u64)
+                .cloned()
+                .collect();
+            crate::scenario::guide_pairs(guide_cfg, planners, &mut mine)?;
+            for q in mine {
+                if let Some(p) = pairs.iter_mut().find(|p| p.id == q.id) {
+                    *p = q;
+                }
+            }
+        }
+    }
+    let planners_of = |p: &Pair| match &field_planners {
+        Some(fp) => &fp[(p.id % fp.len() as u64) as usize],
+        None => &planners,
+    };
     let m = world.num_sites();
     let start_serving: Vec<u16> = pairs
         .iter()
         .map(|p| {
             let mut all = vec![f64::NAN; m];
-            rsrp.rsrp_all_dbm(p.source_m, &mut all);
+            true_rsrp(&world, &rsrp, p.id).rsrp_all_dbm(p.source_m, &mut all);
             argmax(&all)
         })
         .collect();
@@ -138,7 +160,15 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             .par_iter()
             .zip(&shortest)
             .map(|(p, sp)| {
-                let r = fly_one(&mcfg, &world, &rsrp, &planners, method, p, sp.as_deref());
+                let r = fly_one(
+                    &mcfg,
+                    &world,
+                    &rsrp,
+                    planners_of(p),
+                    method,
+                    p,
+                    sp.as_deref(),
+                );
                 pb.inc(1);
                 r
             })
@@ -252,12 +282,13 @@ fn fly_one(
         Kind::Hindsight(h) => {
             let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
             let m = world.num_sites();
+            let truth = true_rsrp(world, rsrp, p.id);
             let mut rows = vec![f64::NAN; w.len() * m];
             for (row, pos) in rows.chunks_mut(m).zip(w) {
-                rsrp.rsrp_all_dbm(*pos, row);
+                truth.rsrp_all_dbm(*pos, row);
             }
             let mut start = vec![f64::NAN; m];
-            rsrp.rsrp_all_dbm(p.source_m, &mut start);
+            truth.rsrp_all_dbm(p.source_m, &mut start);
             let sites =
                 hindsight_association(&rows, m, argmax(&start), h.cost_db, h.min_stay_steps);
             let mut next = sites.into_iter().map(SiteId);
@@ -275,6 +306,7 @@ fn fly_one(
         }
     };
     let mut all = vec![f64::NAN; world.num_sites()];
+    let truth = true_rsrp(world, rsrp, p.id);
     let remaining_m = steps.last().map_or(p.shortest_m, |s| s.distance_to_goal_m);
     let outcome = steps
         .last()
@@ -283,7 +315,7 @@ fn fly_one(
     let steps = steps
         .iter()
         .map(|s| {
-            rsrp.rsrp_all_dbm(s.position_m, &mut all);
+            truth.rsrp_all_dbm(s.position_m, &mut all);
             StepRecord::from_info(s, sinr_db(&all, usize::from(s.serving.0), NOISE_PER_RE_DBM))
         })
         .collect();
@@ -300,4 +332,36 @@ fn fly_one(
         remaining_m,
         steps,
     })
+}
+
+/// The true RSRP pair `id` is flown in: evaluation field `id mod radio.channel.eval_fields`
+/// under the real channel ([`crate::scenario::true_source`]).
+fn true_rsrp(world: &Arc<RadioWorld>, rsrp: &SharedRsrp, id: u64) -> SharedRsrp {
+    crate::scenario::true_source(world, rsrp, FieldSplit::Eval, id)
+}
+
+/// With `radio.channel.knowledge = "true_field"` under the real channel, one set of planners per
+/// evaluation field, their coverage classes from that field's true RSRP: the guide and the
+/// coverage-aware planner of a pair plan on the field it is flown in. `None` otherwise (they
+/// plan on the model without shadowing, as an operator would).
+fn true_field_planners<'w>(
+    cfg: &Config,
+    unguided_cfg: &Config,
+    flown: &[Config],
+    world: &'w Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    coverage: bool,
+) -> Option<Vec<crate::scenario::Planners<'w>>> {
+    let c = &cfg.radio.channel;
+    if world.channel.is_none() || c.knowledge != Knowledge::TrueField {
+        return None;
+    }
+    Some(
+        (0..u64::from(c.eval_fields))
+            .map(|k| {
+                let truth = true_rsrp(world, rsrp, k);
+                crate::scenario::Planners::new(unguided_cfg, flown, world, &truth, coverage)
+            })
+            .collect(),
+    )
 }
