@@ -15,15 +15,19 @@ use std::sync::{Arc, OnceLock};
 pub const TRAIN_DOMAIN: u64 = 0x006e_6961_7274_6673;
 /// Domain tag of the evaluation realisations' streams ("sfeval").
 pub const EVAL_DOMAIN: u64 = 0x6c61_7665_6673;
+/// Domain tag of the test split's realisations ("sftest").
+pub const TEST_DOMAIN: u64 = 0x7473_6574_6673;
 /// Domain tag of the measurement-error streams ("meas").
 pub const MEASUREMENT_DOMAIN: u64 = 0x7361_656d;
 
-/// Which realisations an episode draws from: training's, or evaluation's (never trained in).
+/// Which realisations an episode draws from: training's, evaluation's on the validation pairs
+/// (never trained in), or the test split's (used once, by the final evaluation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FieldSplit {
     #[default]
     Train,
     Eval,
+    Test,
 }
 
 /// The shadow-fading realisations of a world, each drawn when first used and then shared.
@@ -33,6 +37,7 @@ pub struct Channel {
     scenarios: Vec<Scenario>,
     train: Vec<OnceLock<Arc<ShadowField>>>,
     eval: Vec<OnceLock<Arc<ShadowField>>>,
+    test: Vec<OnceLock<Arc<ShadowField>>>,
 }
 
 impl std::fmt::Debug for Channel {
@@ -58,6 +63,7 @@ impl Channel {
             scenarios,
             train: slots(cfg.train_fields),
             eval: slots(cfg.eval_fields),
+            test: slots(cfg.eval_fields),
         })
     }
 
@@ -70,6 +76,7 @@ impl Channel {
         let (slots, domain) = match split {
             FieldSplit::Train => (&self.train, TRAIN_DOMAIN),
             FieldSplit::Eval => (&self.eval, EVAL_DOMAIN),
+            FieldSplit::Test => (&self.test, TEST_DOMAIN),
         };
         let i = (index % slots.len() as u64) as u32;
         slots[i as usize]
@@ -94,15 +101,15 @@ impl Channel {
     }
 
     /// The realisation an episode reset with `seed` flies in: in training one chosen by the
-    /// seed's hash; in evaluation, whose seed is the pair's id, field `id mod eval_fields`, so
-    /// every method flies a pair in the same field.
+    /// seed's hash; in evaluation (validation or test), whose seed is the pair's id, field
+    /// `id mod eval_fields`, so every method flies a pair in the same field.
     pub fn episode_field(&self, split: FieldSplit, seed: u64) -> Arc<ShadowField> {
         match split {
             FieldSplit::Train => self.field(
                 split,
                 dupac_common::seed::stream_seed(seed, TRAIN_DOMAIN, 0),
             ),
-            FieldSplit::Eval => self.field(split, seed),
+            FieldSplit::Eval | FieldSplit::Test => self.field(split, seed),
         }
     }
 }

@@ -143,13 +143,19 @@ fn one_seed_one_field_and_the_splits_differ() {
         f.shadow_db(p, &[1.0, 0.0, 0.5], &mut o);
         o
     };
-    for i in 0..cfg.train_fields {
-        for j in 0..cfg.eval_fields {
-            let (t, e) = (
-                ch.field(FieldSplit::Train, u64::from(i)),
-                ch.field(FieldSplit::Eval, u64::from(j)),
-            );
-            assert_ne!(shadow(&t), shadow(&e), "train {i} = eval {j}");
+    let all = |split| {
+        (0..8u64)
+            .map(|i| shadow(&ch.field(split, i)))
+            .collect::<Vec<_>>()
+    };
+    let (train, eval, test) = (
+        all(FieldSplit::Train),
+        all(FieldSplit::Eval),
+        all(FieldSplit::Test),
+    );
+    for (a, b) in [(&train, &eval), (&train, &test), (&eval, &test)] {
+        for x in a {
+            assert!(b.iter().all(|y| y != x), "a realisation is in two splits");
         }
     }
     // Evaluation flies pair id k in field k mod eval_fields: the same for every method.

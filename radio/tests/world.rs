@@ -438,3 +438,33 @@ fn cells_of_one_enodeb_id_on_two_networks_are_two_sites() {
         .to_string();
     assert!(e.contains("cells.csv:2") && e.contains("`mnc`"), "{e}");
 }
+
+/// The RSRP cache stores the deterministic model only, so one cache serves every channel: the
+/// world's fingerprint (the cache's staleness key) leaves `radio.channel` out, and is the same
+/// string it was before that section existed (the section is cut from the end of the text).
+#[test]
+fn the_channel_does_not_change_the_world_fingerprint() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cfg = procedural_config(dir.path());
+    let det = RadioWorld::build(&cfg).expect("world");
+    let mut real_cfg = cfg.clone();
+    real_cfg.radio.channel.model = dupac_common::config::ChannelModel::Real;
+    real_cfg.radio.channel.measurement_sigma_db = 5.0;
+    let real = RadioWorld::build(&real_cfg).expect("world");
+    assert!(det.channel.is_none() && real.channel.is_some());
+    assert_eq!(det.fingerprint(), real.fingerprint());
+    // An RSRP parameter still changes it.
+    let mut other = cfg.clone();
+    other.radio.tx_power_dbm += 1.0;
+    assert_ne!(
+        det.fingerprint(),
+        RadioWorld::build(&other).expect("world").fingerprint()
+    );
+    // The channel section is the last of the text the fingerprint cuts.
+    let text = toml::to_string(&cfg.radio).expect("toml");
+    assert!(
+        text.trim_end()
+            .ends_with(&format!("knowledge = \"{}\"", "operator"))
+            && text.contains("\n[channel]\n")
+    );
+}

@@ -43,7 +43,7 @@ pub struct ChannelConfig {
     /// Shadow-fading realisations training draws from (one per episode, chosen by its seed).
     pub train_fields: u32,
     /// Shadow-fading realisations evaluation uses (pair `id` flies in field `id mod
-    /// eval_fields`), never seen in training.
+    /// eval_fields`), never seen in training; the test split has as many of its own.
     pub eval_fields: u32,
     /// Standard deviation of one step's RSRP measurement error (dB), independent per site and
     /// step: TS 36.133 §9.1.2 intra-frequency relative RSRP accuracy ±2 dB, taken as σ. 0: exact.
