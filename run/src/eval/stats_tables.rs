@@ -232,18 +232,30 @@ pub fn markdown(s: &mut String, data: &[MethodData], st: &SeedStats) {
     );
     for (seed, d) in &st.per_seed {
         let (ho_km, pp_km) = d.per_km();
+        let cells = [
+            (100.0 * d.rate(Outcome::Goal).rate, 1),
+            (100.0 * d.rate(Outcome::Collision).rate, 1),
+            (100.0 * d.rate(Outcome::TimeLimit).rate, 1),
+            (100.0 * d.ci(None, |m| m.overhead).mean, 1),
+            (d.ci(None, |m| m.mean_rsrp_dbm).mean, 1),
+            (100.0 * d.ci(None, |m| m.frac_class[0]).mean, 1),
+            (100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean, 2),
+            (ho_km, 2),
+            (pp_km, 2),
+        ]
+        .map(|(v, digits)| {
+            if v.is_nan() {
+                "–".to_string()
+            } else {
+                format!("{v:.digits$}")
+            }
+        });
         let _ = writeln!(
             s,
-            "| {} | {seed} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {ho_km:.2} | {pp_km:.2} |",
+            "| {} | {seed} | {} | {} |",
             d.label,
             d.flights.len(),
-            100.0 * d.rate(Outcome::Goal).rate,
-            100.0 * d.rate(Outcome::Collision).rate,
-            100.0 * d.rate(Outcome::TimeLimit).rate,
-            100.0 * d.ci(None, |m| m.overhead).mean,
-            d.ci(None, |m| m.mean_rsrp_dbm).mean,
-            100.0 * d.ci(None, |m| m.frac_class[0]).mean,
-            100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
+            cells.join(" | ")
         );
     }
     if st.comparisons.is_empty() {
