@@ -1,6 +1,7 @@
 //! `dupac fly` and `dupac eval` end to end with a policy trained once per test binary on the
 //! small procedural run ([`trained_run`]): the methods an evaluation flies and replays, its
-//! tables and figures, `failures.csv`, a refused `--hindsight` value, and a report that is a
+//! tables and figures, `failures.csv`, the seed-aware tables (`per_seed.csv`, `paired.csv`, the
+//! bootstrap columns), refused `--hindsight` and `--bootstrap` values, and a report that is a
 //! function of the saved records alone.
 
 use crate::support::{TrainedRun, dupac_output, trained_run};
@@ -293,6 +294,33 @@ fn eval_refuses_a_bad_hindsight_value_before_flying() {
         assert!(!e.status.success() && err.contains(says), "{err}");
     }
     assert!(!dir.path().join("eval_bad").join("records").exists());
+}
+
+/// `--bootstrap 0` is refused before anything is flown, naming the option.
+#[test]
+fn eval_refuses_a_bootstrap_without_resamples_before_flying() {
+    let run = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("eval_bad");
+    let e = dupac_output(
+        &run.args,
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--bootstrap".into(),
+            "0".into(),
+            "--policy".into(),
+            format!("dupac={}", run.policy().display()),
+            "--out".into(),
+            out.display().to_string(),
+        ],
+    );
+    let err = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        !e.status.success() && err.contains("--bootstrap 0"),
+        "{err}"
+    );
+    assert!(!out.join("records").exists());
 }
 
 /// Without `--pairs` and without the held-out file, `fly` and `eval` draw the held-out pairs
