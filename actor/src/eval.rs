@@ -1,8 +1,8 @@
 //! Evaluation's computations over recorded flights (spec/env.md "Metrics"; the records are
 //! [`crate::record`], the per-flight metrics [`crate::metrics`]): the SINR of a step, the
 //! hindsight association of a recorded route, and the statistics across flights (means with
-//! 95 % t intervals, Wilson intervals for rates). Pure functions over plain data: the report of
-//! `dupac eval` is computed from saved records without flying again.
+//! 95 % t intervals, the t quantile from statrs; Wilson intervals for rates). Pure functions over
+//! plain data: the report of `dupac eval` is computed from saved records without flying again.
 
 use serde::Serialize;
 
@@ -173,23 +173,19 @@ pub fn mean_ci95(xs: &[f64]) -> MeanCi {
     }
 }
 
-/// The 0.975 quantile of Student's t with `dof` degrees of freedom (table to 30, then the
-/// Cornish–Fisher expansion around the normal quantile; error < 1e-3).
+/// Degrees of freedom past which [`t975`] is the normal quantile: statrs' t inverse (through
+/// the inverse regularised beta function) loses digits past about 10⁶ degrees of freedom and does
+/// not return past about 10⁸, while past 10⁵ the normal quantile is within 3 · 10⁻⁵ of t's.
+pub const T_NORMAL_PAST_DOF: usize = 100_000;
+
+/// The 0.975 quantile of Student's t with `dof` degrees of freedom (statrs' inverse CDF; the
+/// normal's past [`T_NORMAL_PAST_DOF`]; NaN for 0 degrees of freedom).
 pub fn t975(dof: usize) -> f64 {
-    const T: [f64; 30] = [
-        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
-        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
-        2.052, 2.048, 2.045, 2.042,
-    ];
+    use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
     match dof {
         0 => f64::NAN,
-        d if d <= 30 => T[d - 1],
-        d => {
-            let z: f64 = 1.959_963_985;
-            let n = d as f64;
-            z + (z.powi(3) + z) / (4.0 * n)
-                + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * n * n)
-        }
+        d if d > T_NORMAL_PAST_DOF => Normal::standard().inverse_cdf(0.975),
+        d => StudentsT::new(0.0, 1.0, d as f64).map_or(f64::NAN, |t| t.inverse_cdf(0.975)),
     }
 }
 
@@ -410,16 +406,23 @@ mod tests {
 
     #[test]
     fn confidence_intervals_against_hand_computed_values() {
-        // 1..=5: mean 3, s = √2.5, t(4) = 2.776 → half-width 2.776 · √(2.5 / 5).
+        // 1..=5: mean 3, s = √2.5, t(4) = 2.776445 → half-width 2.776445 · √(2.5 / 5).
         let c = mean_ci95(&[1.0, 2.0, 3.0, 4.0, 5.0, f64::NAN]);
         assert_eq!(c.n, 5);
         assert!((c.mean - 3.0).abs() < 1e-12);
-        assert!((c.half_width - 2.776 * 0.5f64.sqrt()).abs() < 1e-9);
+        assert!((c.half_width - 2.776_445 * 0.5f64.sqrt()).abs() < 1e-6);
         assert!(mean_ci95(&[4.0]).half_width.is_nan());
         assert!(mean_ci95(&[]).mean.is_nan());
-        // t(∞) → 1.96; t(31) ≈ 2.0395, t(120) ≈ 1.9799.
-        assert!((t975(31) - 2.0395).abs() < 1e-3);
-        assert!((t975(120) - 1.9799).abs() < 1e-3);
+        // Tabulated quantiles: t(1) = 12.7062, t(10) = 2.2281, t(31) = 2.0395, t(120) = 1.9799;
+        // t(∞) → 1.95996.
+        for (dof, t) in [(1, 12.7062), (10, 2.2281), (31, 2.0395), (120, 1.9799)] {
+            assert!((t975(dof) - t).abs() < 1e-4, "t({dof}) = {}", t975(dof));
+        }
+        // Past statrs' range, the normal quantile (t(10⁶) = 1.959966).
+        assert!((t975(T_NORMAL_PAST_DOF) - 1.959_988).abs() < 1e-5);
+        assert!((t975(1_000_000) - 1.959_966).abs() < 1e-5);
+        assert!((t975(usize::MAX) - 1.959_964).abs() < 1e-6);
+        assert!(t975(0).is_nan());
         // Wilson: 8 of 10 → [0.490, 0.943] (z = 1.96).
         let w = wilson95(8, 10);
         assert!((w.rate - 0.8).abs() < 1e-12);

@@ -15,6 +15,7 @@ use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
 use dupac_run::eval::records::read_records;
 use dupac_run::eval::report::write_tables;
+use dupac_run::eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -63,6 +64,11 @@ pub struct EvalArgs {
     /// on DUPAC's moves").
     #[arg(long = "hindsight", value_name = "C[:mts]")]
     pub hindsight: Vec<String>,
+    /// Resamples of the report's bootstrap over training seeds and pairs (its seed-aware
+    /// intervals and paired differences; drawn from a fixed seed, so the report is the same on
+    /// every run).
+    #[arg(long, value_name = "B", default_value_t = DEFAULT_RESAMPLES)]
+    pub bootstrap: usize,
 }
 
 impl EvalArgs {
@@ -83,6 +89,7 @@ impl EvalArgs {
 pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     let cfg = global.config()?;
     let records_dir = args.out.join("records");
+    let boot = Bootstrap::with_resamples(args.bootstrap)?;
     if !args.report_only {
         // The files named by arguments before the world is built.
         // Without --pairs, a missing held-out file is drawn and written (seed `pairs.eval_seed`).
@@ -105,7 +112,8 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
         bail!("{}: no records to report on", records_dir.display());
     }
     dupac_plot::ensure_font()?;
-    let (methods, bins) = write_tables(&args.out, &files, &args.dupac_label, &args.base_label)?;
+    let (methods, bins) =
+        write_tables(&args.out, &files, &args.dupac_label, &args.base_label, boot)?;
     draw_fig3(&args.out, &methods, &bins)?;
     draw_fig4(&args.out, &methods, &bins)?;
     draw_pareto(&args.out, &methods)?;

@@ -1,15 +1,18 @@
 //! `dupac fly` and `dupac eval` end to end with a policy trained once per test binary on the
 //! small procedural run ([`trained_run`]): the methods an evaluation flies and replays, its
-//! tables and figures, `failures.csv`, a refused `--hindsight` value, and a report that is a
+//! tables and figures, `failures.csv`, the seed-aware tables (`per_seed.csv`, `paired.csv`, the
+//! bootstrap columns), refused `--hindsight` and `--bootstrap` values, and a report that is a
 //! function of the saved records alone.
 
 use crate::support::{TrainedRun, dupac_output, trained_run};
 use std::path::{Path, PathBuf};
 
 /// The tables `dupac eval` writes from its records.
-const TABLES: [&str; 5] = [
+const TABLES: [&str; 7] = [
     "report.md",
     "summary.csv",
+    "per_seed.csv",
+    "paired.csv",
     "fig3_fig4_bins.csv",
     "pareto.csv",
     "failures.csv",
@@ -181,6 +184,52 @@ fn eval_flies_every_method_and_replays_the_association() {
     assert!(!failures.lines().any(|l| l.starts_with("shortest_a3,")));
 }
 
+/// The seed-aware tables: the bootstrap interval around each rate, a row per seed (the two
+/// "seeds" are one policy file, so their rows agree), and `dupac` against each planner flight
+/// by flight.
+#[test]
+fn eval_writes_per_seed_rows_and_paired_differences() {
+    let ev = evaluated();
+    let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
+    for label in ["dupac", "shortest_a3"] {
+        let col = |name: &str| column(&summary, label, name);
+        assert!(
+            col("success_boot_lo") <= col("success") && col("success") <= col("success_boot_hi"),
+            "{summary}"
+        );
+    }
+    let per_seed = std::fs::read_to_string(ev.join("per_seed.csv")).expect("per_seed.csv");
+    assert!(
+        per_seed.starts_with("method,seed,flights,success,"),
+        "{per_seed}"
+    );
+    let dupac: Vec<Vec<&str>> = per_seed
+        .lines()
+        .filter(|l| l.starts_with("dupac,"))
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(dupac.len(), 2, "{per_seed}");
+    assert_eq!((dupac[0][1], dupac[1][1], dupac[0][2]), ("0", "1", "8"));
+    assert_eq!(dupac[0][2..], dupac[1][2..], "{per_seed}");
+    let paired = std::fs::read_to_string(ev.join("paired.csv")).expect("paired.csv");
+    let mut lines = paired.lines();
+    assert_eq!(
+        lines.next(),
+        Some("method_a,method_b,metric,n,mean_diff,lo,hi,excludes_zero")
+    );
+    let against: Vec<&str> = lines
+        .filter(|l| l.contains(",success,"))
+        .map(|l| l.split(',').nth(1).unwrap_or(""))
+        .collect();
+    assert_eq!(
+        against,
+        ["coverage_l1", "shortest_a3", "shortest_oracle"],
+        "{paired}"
+    );
+    // 2 seed indices × 8 pairs, every flight matched with the planner's.
+    assert!(paired.contains("dupac,shortest_a3,success,16,"), "{paired}");
+}
+
 /// `--report-only` in a fresh directory holding nothing but a copy of the records writes the same
 /// tables as the evaluation that flew them.
 #[test]
@@ -245,6 +294,33 @@ fn eval_refuses_a_bad_hindsight_value_before_flying() {
         assert!(!e.status.success() && err.contains(says), "{err}");
     }
     assert!(!dir.path().join("eval_bad").join("records").exists());
+}
+
+/// `--bootstrap 0` is refused before anything is flown, naming the option.
+#[test]
+fn eval_refuses_a_bootstrap_without_resamples_before_flying() {
+    let run = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("eval_bad");
+    let e = dupac_output(
+        &run.args,
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--bootstrap".into(),
+            "0".into(),
+            "--policy".into(),
+            format!("dupac={}", run.policy().display()),
+            "--out".into(),
+            out.display().to_string(),
+        ],
+    );
+    let err = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        !e.status.success() && err.contains("--bootstrap 0"),
+        "{err}"
+    );
+    assert!(!out.join("records").exists());
 }
 
 /// Without `--pairs` and without the held-out file, `fly` and `eval` draw the held-out pairs

@@ -2,12 +2,15 @@
 //! seeds per method) and with the planners (shortest path with A3 and with the best-RSRP
 //! oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a learned
 //! site choice's moves re-flown with A3, the oracle and the hindsight association ([`fly`]);
-//! the statistics and the report's tables from the records alone ([`report`]). The figures are
-//! the binary's (`dupac eval`).
+//! the statistics and the report's tables from the records alone ([`report`]; seed-aware
+//! intervals, per-seed rows and paired differences: [`stats`], [`stats_tables`]). The figures
+//! are the binary's (`dupac eval`).
 
 pub mod fly;
 pub mod records;
 pub mod report;
+pub mod stats;
+pub mod stats_tables;
 
 use crate::error::{Context, RunError};
 use dupac_actor::pairs::Pair;

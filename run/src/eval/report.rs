@@ -2,8 +2,12 @@
 //! together) success, collision and timeout rates with Wilson intervals, means with Student-t
 //! intervals, per-km handovers and ping-pongs, SINR, site regret; `summary.csv`,
 //! `fig3_fig4_bins.csv`, `failures.csv` and `report.md` with the paper's numbers beside ours.
+//! The seed-aware statistics (bootstrap intervals over seeds and pairs, `per_seed.csv`,
+//! `paired.csv`) are [`super::stats_tables`]'.
 
 use super::records::RecordsFile;
+use super::stats::Bootstrap;
+use super::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
 use crate::error::RunError;
 use dupac_actor::eval::{MeanCi, NOISE_PER_RE_DBM, Rate, mean_ci95, wilson95};
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
@@ -65,7 +69,8 @@ impl MethodData {
     }
 }
 
-pub fn gather(files: &[RecordsFile]) -> Vec<MethodData> {
+/// Each method's data from its records files (any number of seeds each).
+pub fn gather<'a>(files: impl IntoIterator<Item = &'a RecordsFile>) -> Vec<MethodData> {
     let mut by: BTreeMap<String, MethodData> = BTreeMap::new();
     for f in files {
         let d = by.entry(f.method.clone()).or_insert_with(|| MethodData {
@@ -126,23 +131,29 @@ pub fn fmt_rate(r: Rate) -> String {
     )
 }
 
-/// The report's tables into `out` (`summary.csv`, `fig3_fig4_bins.csv`, `failures.csv`,
-/// `report.md`, `dupac` and `base` being the labels compared with the paper's methods); returns
-/// the methods' data (association replays `LABEL+…` left out: the figures show methods) and the
-/// distance bins, for the figures.
+/// The report's tables into `out` (`summary.csv`, `per_seed.csv`, `paired.csv`,
+/// `fig3_fig4_bins.csv`, `failures.csv`, `report.md`, `dupac` and `base` being the labels
+/// compared with the paper's methods and with each other, `boot` the seed-aware intervals'
+/// bootstrap); returns the methods' data (association replays `LABEL+…` left out: the figures
+/// show methods) and the distance bins, for the figures.
 pub fn write_tables(
     out: &Path,
     files: &[RecordsFile],
     dupac: &str,
     base: &str,
+    boot: Bootstrap,
 ) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
     let data = gather(files);
     let bins = bins_of(&data);
+    let seed_stats = SeedStats::compute(files, dupac, base, boot);
+    write_per_seed(&out.join("per_seed.csv"), &seed_stats)?;
+    write_paired(&out.join("paired.csv"), &seed_stats)?;
     // summary.csv
     write_atomic_with(&out.join("summary.csv"), |w| {
         writeln!(
             w,
-            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret"
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret{}",
+            SeedStats::summary_header()
         )?;
         for d in &data {
             let s = d.rate(Outcome::Goal);
@@ -152,7 +163,7 @@ pub fn write_tables(
             let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}{}",
                 d.label,
                 d.seeds,
                 d.flights.len(),
@@ -175,6 +186,7 @@ pub fn write_tables(
                 d.all_ci(|m| m.mean_site_regret_db).mean,
                 100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
                 100.0 * d.all_ci(|m| m.frac_class_regret).mean,
+                seed_stats.summary_columns(&d.label),
             )?;
         }
         Ok(())
@@ -220,7 +232,7 @@ pub fn write_tables(
         .collect();
     crate::run_dir::write_plain(
         &out.join("report.md"),
-        report_md(&data, dupac, base, regret_threshold_db(files)).as_bytes(),
+        report_md(&data, dupac, base, regret_threshold_db(files), &seed_stats).as_bytes(),
     )?;
     Ok((methods, bins))
 }
@@ -293,12 +305,18 @@ fn regret_threshold_db(files: &[RecordsFile]) -> f64 {
     files.first().map_or(3.0, |f| f.site_regret_threshold_db)
 }
 
-fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> String {
+fn report_md(
+    data: &[MethodData],
+    dupac: &str,
+    base: &str,
+    regret_db: f64,
+    seed_stats: &SeedStats,
+) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# DUPAC evaluation report\n");
     let _ = writeln!(
         s,
-        "Distance, overhead, RSRP and class fractions are over successful flights; rates over all flights; intervals are 95 % (Student t for means across seeds and pairs, Wilson for rates). SINR: serving RSRP against all other sites as full-load co-channel interferers plus thermal noise per resource element ({NOISE_PER_RE_DBM:.1} dBm).\n"
+        "Distance, overhead, RSRP and class fractions are over successful flights; rates over all flights. The intervals of this table are 95 % and count every flight as independent, all seeds together (Student t for means, Wilson for rates); \"Seed-aware intervals\" below gives 95 % bootstrap intervals over training seeds and pairs, \"Paired differences\" compares methods flight by flight. SINR: serving RSRP against all other sites as full-load co-channel interferers plus thermal noise per resource element ({NOISE_PER_RE_DBM:.1} dBm).\n"
     );
     let _ = writeln!(
         s,
@@ -331,6 +349,7 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> St
             100.0 * d.all_ci(|m| m.frac_class_regret).mean,
         );
     }
+    markdown(&mut s, data, seed_stats);
     route_or_association(&mut s, data);
     let find = |l: &str| data.iter().find(|d| d.label == l);
     let _ = writeln!(s, "\n## Against the paper\n");
@@ -408,7 +427,7 @@ fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> St
     }
     let _ = writeln!(
         s,
-        "\nFigures: `fig3.png` (Fig. 3: flight distance, overhead and mean RSRP against the shortest distance), `fig4.png` (Fig. 4: time per RSRP class per bin), `pareto.png` (overhead against time in excellent RSRP, every method). Data: `summary.csv`, `fig3_fig4_bins.csv`; every step: `records/*.bin` (`dupac eval --report-only --out DIR` recomputes this report from them)."
+        "\nFigures: `fig3.png` (Fig. 3: flight distance, overhead and mean RSRP against the shortest distance), `fig4.png` (Fig. 4: time per RSRP class per bin), `pareto.png` (overhead against time in excellent RSRP, every method). Data: `summary.csv`, `per_seed.csv`, `paired.csv`, `fig3_fig4_bins.csv`; every step: `records/*.bin` (`dupac eval --report-only --out DIR` recomputes this report from them)."
     );
     s
 }
