@@ -110,7 +110,8 @@ enum Command {
     /// configuration (`scenario import`).
     #[command(subcommand)]
     Scenario(commands::scenario::ScenarioCommand),
-    /// Held-out evaluation pairs binned by shortest flyable distance (JSON Lines).
+    /// Held-out pairs binned by shortest flyable distance (JSON Lines): the validation and the
+    /// test split.
     Pairs(commands::pairs::PairsArgs),
     /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
     Plan(commands::plan::PlanArgs),

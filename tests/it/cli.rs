@@ -350,6 +350,8 @@ fn pairs_then_plan_writes_a_flown_comparison() {
     let mut args: Vec<String> = vec![
         "pairs".into(),
         "-q".into(),
+        "--split".into(),
+        "validation".into(),
         "--out".into(),
         pairs.display().to_string(),
     ];

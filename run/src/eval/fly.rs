@@ -1,7 +1,7 @@
 //! Flying the evaluation: every method over every pair in parallel, each flight recorded;
 //! a learned site choice's moves re-flown with other associations (route against association).
 
-use super::records::{RecordsFile, write_records};
+use super::records::{RecordsFile, write_records, write_split};
 use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight, refused, select};
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
@@ -10,7 +10,7 @@ use dupac_actor::env::Env;
 use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::record::{FlightRecord, StepRecord};
+use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
@@ -58,11 +58,17 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .iter()
         .find(|c| c.env.needs_path())
         .unwrap_or(&unguided_cfg);
-    let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), &planners)?;
+    let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), args.split, &planners)?;
     let pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         return Err(refused!("{}: no pairs", file.display()));
     }
+    std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
+    let split_line = match &args.pairs {
+        Some(f) => format!("split: file (--pairs {})", f.display()),
+        None => args.split.describe(&cfg.pairs),
+    };
+    write_split(dir, &split_line, &file)?;
     let m = world.num_sites();
     let start_serving: Vec<u16> = pairs
         .iter()
@@ -92,7 +98,6 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     } else {
         vec![None; pairs.len()]
     };
-    std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
     for method in &methods {
         let mut mcfg = match &method.kind {
             Kind::Policy(_) => cfg.clone(),
@@ -273,6 +278,26 @@ fn fly_one(
             fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
         }
     };
+    Ok(flight_record(
+        world,
+        rsrp,
+        &method.label,
+        method.seed,
+        p,
+        &steps,
+    ))
+}
+
+/// The record of pair `p`'s flight `steps` (its SINR per step from every site's RSRP), as
+/// `method` (`label`, training `seed`) flew it.
+pub(crate) fn flight_record(
+    world: &RadioWorld,
+    rsrp: &SharedRsrp,
+    label: &str,
+    seed: u32,
+    p: &Pair,
+    steps: &[StepInfo],
+) -> FlightRecord {
     let mut all = vec![f64::NAN; world.num_sites()];
     let remaining_m = steps.last().map_or(p.shortest_m, |s| s.distance_to_goal_m);
     let outcome = steps
@@ -286,9 +311,9 @@ fn fly_one(
             StepRecord::from_info(s, sinr_db(&all, usize::from(s.serving.0), NOISE_PER_RE_DBM))
         })
         .collect();
-    Ok(FlightRecord {
-        method: method.label.clone(),
-        seed: method.seed,
+    FlightRecord {
+        method: label.to_string(),
+        seed,
         pair_id: p.id,
         bin_m: p.bin_m.unwrap_or(p.shortest_m),
         shortest_m: p.shortest_m,
@@ -298,5 +323,5 @@ fn fly_one(
         destination_m: p.destination_m,
         remaining_m,
         steps,
-    })
+    }
 }

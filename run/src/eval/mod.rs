@@ -10,7 +10,7 @@ pub mod records;
 pub mod report;
 
 use crate::error::{Context, RunError};
-use dupac_actor::pairs::Pair;
+use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::checkpoint::load_policy;
@@ -31,8 +31,10 @@ pub struct EvalPlan {
     /// λ of the coverage-aware planner (empty: 0.5, 1, 2, 4).
     pub lambdas: Vec<f64>,
     pub no_planners: bool,
-    /// Pairs file (default `pairs.eval_file`).
+    /// Pairs file (default: the file of `split`).
     pub pairs: Option<PathBuf>,
+    /// The held-out split flown without `pairs` (default validation).
+    pub split: Split,
     /// The first K pairs of every bin.
     pub per_bin: Option<usize>,
     /// No `LABEL+a3` / `LABEL+oracle` replays.

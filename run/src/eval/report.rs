@@ -127,22 +127,31 @@ pub fn fmt_rate(r: Rate) -> String {
 }
 
 /// The report's tables into `out` (`summary.csv`, `fig3_fig4_bins.csv`, `failures.csv`,
-/// `report.md`, `dupac` and `base` being the labels compared with the paper's methods); returns
-/// the methods' data (association replays `LABEL+…` left out: the figures show methods) and the
+/// `report.md`, `dupac` and `base` being the labels compared with the paper's methods; `split`
+/// the `split: …` line of the records, [`super::records::read_split`], `None` for records that
+/// have none); returns the methods' data (association replays `LABEL+…` left out: the figures show methods) and the
 /// distance bins, for the figures.
 pub fn write_tables(
     out: &Path,
     files: &[RecordsFile],
     dupac: &str,
     base: &str,
+    split: Option<&str>,
 ) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
     let data = gather(files);
     let bins = bins_of(&data);
+    let split_line = split.unwrap_or("split: not recorded (records written before the split was)");
+    // The split's name (`validation`, `test`, `file` for `--pairs`) for the CSV.
+    let split_name = split_line
+        .strip_prefix("split: ")
+        .and_then(|r| r.split_whitespace().next())
+        .filter(|_| split.is_some())
+        .unwrap_or("unrecorded");
     // summary.csv
     write_atomic_with(&out.join("summary.csv"), |w| {
         writeln!(
             w,
-            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret"
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret,split"
         )?;
         for d in &data {
             let s = d.rate(Outcome::Goal);
@@ -152,7 +161,7 @@ pub fn write_tables(
             let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{split_name}",
                 d.label,
                 d.seeds,
                 d.flights.len(),
@@ -220,7 +229,7 @@ pub fn write_tables(
         .collect();
     crate::run_dir::write_plain(
         &out.join("report.md"),
-        report_md(&data, dupac, base, regret_threshold_db(files)).as_bytes(),
+        report_md(&data, dupac, base, regret_threshold_db(files), split_line).as_bytes(),
     )?;
     Ok((methods, bins))
 }
@@ -293,9 +302,15 @@ fn regret_threshold_db(files: &[RecordsFile]) -> f64 {
     files.first().map_or(3.0, |f| f.site_regret_threshold_db)
 }
 
-fn report_md(data: &[MethodData], dupac: &str, base: &str, regret_db: f64) -> String {
+fn report_md(
+    data: &[MethodData],
+    dupac: &str,
+    base: &str,
+    regret_db: f64,
+    split_line: &str,
+) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# DUPAC evaluation report\n");
+    let _ = writeln!(s, "{split_line}\n\n# DUPAC evaluation report\n");
     let _ = writeln!(
         s,
         "Distance, overhead, RSRP and class fractions are over successful flights; rates over all flights; intervals are 95 % (Student t for means across seeds and pairs, Wilson for rates). SINR: serving RSRP against all other sites as full-load co-channel interferers plus thermal noise per resource element ({NOISE_PER_RE_DBM:.1} dBm).\n"
