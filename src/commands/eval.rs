@@ -16,6 +16,7 @@ use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
 use dupac_run::eval::records::{read_records, read_split};
 use dupac_run::eval::report::write_tables;
+use dupac_run::tune_a3::read_tuned;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,6 +40,10 @@ pub struct EvalArgs {
     /// missing file is drawn from its seed and written. The report names it.
     #[arg(long, value_enum, value_name = "validation|test")]
     pub split: Option<super::pairs::SplitArg>,
+    /// A tuned A3 setting (`dupac tune-a3`'s `tuned_a3.toml`): the planners are flown with it
+    /// too, as `shortest_a3tuned` and `coverage_l<λ>+a3tuned`.
+    #[arg(long, value_name = "FILE")]
+    pub a3_tuned: Option<PathBuf>,
     /// Pairs per distance bin: the first K of each bin (default: all).
     #[arg(long, value_name = "K")]
     pub per_bin: Option<usize>,
@@ -79,12 +84,17 @@ impl EvalArgs {
 
     /// What to fly, for the run layer.
     fn plan(&self) -> Result<EvalPlan> {
+        let a3_tuned = match &self.a3_tuned {
+            Some(f) => Some(read_tuned(f)?),
+            None => None,
+        };
         Ok(EvalPlan {
             policies: self.policies.clone(),
             lambdas: self.lambdas.clone(),
             no_planners: self.no_planners,
             pairs: self.pairs.clone(),
             split: self.split(),
+            a3_tuned,
             per_bin: self.per_bin,
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),

@@ -109,6 +109,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             Kind::Shortest(a) | Kind::Replay(a) => *a,
             Kind::Hindsight(_) => Association::Learned,
         };
+        if let Some(t) = &method.a3 {
+            t.apply(&mut mcfg.radio.a3);
+        }
         if let Kind::Policy(p) = &method.kind {
             if mcfg.env.site_every_step && p.site_head.is_none() {
                 // Only the equivariant head scores the sites of a later step: a policy of the
@@ -212,6 +215,7 @@ fn replay_associations(
                 label: label.clone(),
                 seed: method.seed,
                 kind,
+                a3: None,
             };
             let v = pairs
                 .par_iter()
