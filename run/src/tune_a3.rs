@@ -326,12 +326,18 @@ pub fn grid_csv(results: &[SettingResult], chosen: &SettingResult) -> String {
 }
 
 /// `tuned_a3.toml`: `[radio.a3]` with the chosen setting's three keys, a configuration file of
-/// its own (`--config tuned_a3.toml`), with a comment that says where it came from.
-pub fn tuned_toml(chosen: &SettingResult, reference: &SettingResult, pairs_file: &Path) -> String {
+/// its own (`--config tuned_a3.toml`), with a comment that says where it came from (the pairs
+/// file, the guide path's λ, the chosen and the reference setting's measures).
+pub fn tuned_toml(
+    chosen: &SettingResult,
+    reference: &SettingResult,
+    pairs_file: &Path,
+    lambda: f64,
+) -> String {
     let c = chosen.setting;
     format!(
         "# A3 tuned by `dupac tune-a3` on the validation split ({}), {} flights of the\n\
-         # λ-guide path: excellent {:.2} %, {:.3} handovers/km, {:.3} ping-pongs/km\n\
+         # λ = {lambda} guide path: excellent {:.2} %, {:.3} handovers/km, {:.3} ping-pongs/km\n\
          # (reference {} dB / {} dB / {} ms: {:.2} %, {:.3}, {:.3}).\n\
          # Use: `dupac train --association a3 --config THIS_FILE`, or with a configuration of your\n\
          # own: --set radio.a3.offset_db={} --set radio.a3.hysteresis_db={} --set radio.a3.time_to_trigger_ms={}\n\

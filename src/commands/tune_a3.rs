@@ -65,7 +65,7 @@ pub fn run(global: &GlobalArgs, args: &TuneA3Args) -> Result<ExitCode> {
     let tuned_file = args.out.join("tuned_a3.toml");
     crate::io::write_atomic(
         &tuned_file,
-        tuned_toml(chosen, reference, &cfg.pairs.eval_file).as_bytes(),
+        tuned_toml(chosen, reference, &cfg.pairs.eval_file, args.lambda).as_bytes(),
     )?;
     println!(
         "| setting (offset dB / hysteresis dB / TTT ms) | excellent (%) | handovers/km | ping-pongs/km | SINR < −6 dB (%) |"

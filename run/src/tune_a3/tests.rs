@@ -127,7 +127,7 @@ fn the_tuned_file_reads_back_and_is_a_configuration_file() {
         result(3.0, 1.0, 160.0, 90.0, 3.0, 0.6),
         result(2.0, 0.5, 40.0, 91.0, 4.0, 0.4),
     ];
-    let text = tuned_toml(&rs[1], &rs[0], Path::new("out/pairs/eval_pairs.jsonl"));
+    let text = tuned_toml(&rs[1], &rs[0], Path::new("out/pairs/eval_pairs.jsonl"), 1.0);
     let dir = tempfile::tempdir().expect("tmp");
     let f = dir.path().join("tuned_a3.toml");
     std::fs::write(&f, &text).expect("write");
