@@ -110,7 +110,8 @@ enum Command {
     /// configuration (`scenario import`).
     #[command(subcommand)]
     Scenario(commands::scenario::ScenarioCommand),
-    /// Held-out evaluation pairs binned by shortest flyable distance (JSON Lines).
+    /// Held-out pairs binned by shortest flyable distance (JSON Lines): the validation and the
+    /// test split.
     Pairs(commands::pairs::PairsArgs),
     /// Shortest and coverage-aware paths of one pair, flown with A3: table, PNG, CSVs.
     Plan(commands::plan::PlanArgs),
@@ -130,6 +131,10 @@ enum Command {
     /// Evaluate policies and planners on the held-out pairs: step records, the paper's figures,
     /// rates, SINR, a Pareto plot, report.md.
     Eval(commands::eval::EvalArgs),
+    /// Tune the base method's A3 (offset × hysteresis × time-to-trigger) on the validation
+    /// split's guide paths: `a3_grid.csv`, `tuned_a3.toml`.
+    #[command(name = "tune-a3")]
+    TuneA3(commands::tune_a3::TuneA3Args),
     /// Write a trained policy as safetensors plus a JSON of its observation layout and
     /// normalisers (`policy.safetensors`, `policy.json`), for NumPy, PyTorch and other readers.
     Export(commands::export::ExportArgs),
@@ -165,6 +170,7 @@ fn main() -> ExitCode {
         Command::Router(a) => commands::net::run_router(&cli.global, a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Eval(a) => commands::eval::run(&cli.global, a),
+        Command::TuneA3(a) => commands::tune_a3::run(&cli.global, a),
         Command::Export(a) => commands::export::run(a),
         Command::Config(a) => commands::config::run(&cli.global, a),
         Command::Completions(a) => commands::shell::completions(a),

@@ -1,6 +1,7 @@
-//! Source/destination pairs (spec/env.md "Episodes"): the held-out evaluation set (distance bins of
-//! the shortest flyable path), the training pool (shortest path ~ uniform in `[min_m, max_m]`),
-//! and their JSON-lines files.
+//! Source/destination pairs (spec/env.md "Episodes"): the held-out sets (distance bins of the
+//! shortest flyable path; two splits, [`Split`]: validation, which chose the design, and test,
+//! used once), the training pool (shortest path ~ uniform in `[min_m, max_m]`), and their
+//! JSON-lines files.
 //!
 //! # Determinism
 //! Every candidate pair has its own ChaCha8 stream: key = (seed, domain) packed into the 32-byte
@@ -9,10 +10,10 @@
 //! evaluated in parallel in fixed batches of [`BATCH`] and accepted strictly in index order, so
 //! the result depends on the seed only, never on the number of threads.
 //!
-//! The evaluation set uses domain [`EVAL_DOMAIN`] with `pairs.eval_seed`, the training pool domain
-//! [`TRAIN_DOMAIN`] with its own seed: the two never share a ChaCha key, even for equal seeds, so
-//! a training pair never repeats an evaluation pair (their coordinates come from independent
-//! streams of continuous draws).
+//! The validation set uses domain [`EVAL_DOMAIN`] with `pairs.eval_seed`, the test set domain
+//! [`TEST_DOMAIN`] with `pairs.test_seed`, the training pool domain [`TRAIN_DOMAIN`] with its own
+//! seed: no two of them share a ChaCha key, even for equal seeds, so no pair of one repeats a
+//! pair of another (their coordinates come from independent streams of continuous draws).
 //!
 //! # Sampling one candidate for a target length D (m)
 //! Up to [`TRIES_PER_CANDIDATE`] times: a source uniform in area × band, rejected until
@@ -43,6 +44,12 @@ use std::sync::Arc;
 pub const EVAL_DOMAIN: u64 = 0x6c61_7665;
 /// Domain tag of the training pool's random streams ("train").
 pub const TRAIN_DOMAIN: u64 = 0x6e_6961_7274;
+/// Domain tag of the test set's random streams ("test").
+pub const TEST_DOMAIN: u64 = 0x7473_6574;
+
+mod split;
+pub use split::Split;
+
 /// Candidates evaluated per parallel batch (fixed: the result must not depend on threads).
 pub const BATCH: usize = 64;
 /// Attempts (source, destination, plan) per candidate before it is given up.
@@ -382,32 +389,46 @@ fn collect(
     out
 }
 
-/// The held-out evaluation set (spec/env.md "Episodes"): for each bin D of `cfg.eval_bins_m`
-/// (m, in order), `cfg.eval_per_bin` pairs whose shortest flyable path is within
-/// `cfg.bin_tolerance`·D of D, drawn with `cfg.eval_seed` (domain [`EVAL_DOMAIN`]); ids count
-/// from 0 across bins. Deterministic for a seed regardless of the thread count. A bin that cannot
-/// be filled (the city is too small) is returned short, with a warning. `progress(n)` is called
-/// with the number of pairs newly accepted. `env` must be the configuration the planner was built
-/// with (its band is the planner's).
+/// The held-out validation set (spec/env.md "Episodes"): [`split_pairs`] of
+/// [`Split::Validation`] (`cfg.eval_seed`, domain [`EVAL_DOMAIN`]).
 pub fn eval_pairs(
     planner: &Planner,
     cfg: &PairsConfig,
     env: &EnvConfig,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Vec<Pair> {
+    split_pairs(planner, cfg, env, Split::Validation, progress)
+}
+
+/// A held-out split (spec/env.md "Episodes"): for each bin D of `cfg.eval_bins_m` (m, in
+/// order), `cfg.eval_per_bin` pairs whose shortest flyable path is within `cfg.bin_tolerance`·D
+/// of D, drawn with the split's seed and domain ([`Split::seed`], [`Split::domain`]); ids count
+/// from 0 across bins. Deterministic for a seed regardless of the thread count. A bin that cannot
+/// be filled (the city is too small) is returned short, with a warning. `progress(n)` is called
+/// with the number of pairs newly accepted. `env` must be the configuration the planner was built
+/// with (its band is the planner's).
+pub fn split_pairs(
+    planner: &Planner,
+    cfg: &PairsConfig,
+    env: &EnvConfig,
+    split: Split,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Pair> {
     warn_band(planner, env);
+    let (seed, domain) = (split.seed(cfg), split.domain());
     let mut out = Vec::new();
     for (b, &bin_m) in cfg.eval_bins_m.iter().enumerate() {
         let got = collect(cfg.eval_per_bin, progress, |k| {
-            let mut rng = stream(cfg.eval_seed, EVAL_DOMAIN, ((b as u64) << 32) | k);
+            let mut rng = stream(seed, domain, ((b as u64) << 32) | k);
             candidate(planner, cfg, bin_m, Some(bin_m), &mut rng)
         });
         if got.len() < cfg.eval_per_bin {
             tracing::warn!(
+                split = split.name(),
                 bin_m,
                 got = got.len(),
                 wanted = cfg.eval_per_bin,
-                "evaluation bin could not be filled"
+                "held-out bin could not be filled"
             );
         }
         out.extend(got);

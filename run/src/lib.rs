@@ -18,3 +18,4 @@ pub mod run_dir;
 pub mod scenario;
 pub mod tensorboard;
 pub mod train_loop;
+pub mod tune_a3;

@@ -6,7 +6,8 @@ use crate::guide_cache::{GuideCache, guide_clearance_m};
 use crate::progress::progress_bar;
 use dupac_actor::env::Episode;
 use dupac_actor::pairs::{
-    Pair, attach_paths, eval_pairs, plan_path, read_pairs_jsonl, training_pool, write_pairs_jsonl,
+    Pair, Split, attach_paths, plan_path, read_pairs_jsonl, split_pairs, training_pool,
+    write_pairs_jsonl,
 };
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Config, RadioMode};
@@ -256,51 +257,84 @@ pub fn episode(cfg: &Config, planners: &Planners, p: &Pair) -> Result<Episode, R
     Ok(q.episode(false))
 }
 
-/// The held-out evaluation pairs: `pairs.eval_file` when it exists, else generated and written
-/// there; guided as `cfg`'s episodes are ([`guide_pairs`]).
+/// The held-out evaluation pairs (the validation split): `pairs.eval_file` when it exists, else
+/// generated and written there; guided as `cfg`'s episodes are ([`guide_pairs`]).
 pub fn held_out_pairs(
     cfg: &Config,
     planners: &Planners,
     quiet: bool,
 ) -> Result<Vec<Pair>, RunError> {
-    let mut pairs = held_out_unguided(cfg, &planners.pairs, quiet)?;
+    split_guided(cfg, planners, Split::Validation, quiet)
+}
+
+/// The pairs of `split`, guided as `cfg`'s episodes are ([`guide_pairs`]): its file when it
+/// exists, else drawn and written there ([`split_unguided`]).
+pub fn split_guided(
+    cfg: &Config,
+    planners: &Planners,
+    split: Split,
+    quiet: bool,
+) -> Result<Vec<Pair>, RunError> {
+    let mut pairs = split_unguided(cfg, &planners.pairs, split, quiet)?;
     guide_pairs(cfg, planners, &mut pairs)?;
     Ok(pairs)
 }
 
-/// The held-out evaluation pairs without their guide paths: `pairs.eval_file` when it exists,
-/// else drawn (seed `pairs.eval_seed`) with `planner` and written there.
+/// The held-out evaluation pairs (the validation split) without their guide paths:
+/// `pairs.eval_file` when it exists, else drawn (seed `pairs.eval_seed`) with `planner` and
+/// written there.
 pub fn held_out_unguided(
     cfg: &Config,
     planner: &Planner,
     quiet: bool,
 ) -> Result<Vec<Pair>, RunError> {
-    let file = &cfg.pairs.eval_file;
+    split_unguided(cfg, planner, Split::Validation, quiet)
+}
+
+/// The pairs of `split` without their guide paths: its file ([`Split::file`]) when it exists,
+/// else drawn (its seed, [`Split::seed`]) with `planner` and written there.
+pub fn split_unguided(
+    cfg: &Config,
+    planner: &Planner,
+    split: Split,
+    quiet: bool,
+) -> Result<Vec<Pair>, RunError> {
+    let file = split.file(&cfg.pairs);
     if file.exists() {
-        return Ok(read_pairs_jsonl(file, planner, &cfg.pairs)?);
+        return read_pairs_jsonl(file, planner, &cfg.pairs)
+            .context_with(|| format!("reading the {} pairs ({})", split.name(), split.file_key()));
     }
     let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
-    let pb = progress_bar(total, "evaluation pairs", quiet);
-    let pairs = eval_pairs(planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
+    let pb = progress_bar(total, &format!("{} pairs", split.name()), quiet);
+    let pairs = split_pairs(planner, &cfg.pairs, &cfg.env, split, &|n| pb.inc(n));
     pb.finish_and_clear();
     write_pairs_jsonl(file, &pairs)?;
-    eprintln!("wrote {} held-out pairs to {}", pairs.len(), file.display());
+    eprintln!(
+        "wrote {} {} pairs ({} = {}) to {}",
+        pairs.len(),
+        split.name(),
+        split.seed_key(),
+        split.seed(&cfg.pairs),
+        file.display()
+    );
     Ok(pairs)
 }
 
-/// The pairs of `file` (default `pairs.eval_file`, the held-out set, drawn and written there
-/// when missing, as [`held_out_pairs`] does), with the file named in errors: what `dupac fly`
-/// and `dupac eval` fly.
+/// The pairs of `file`, or (without one) of `split`'s file, drawn and written when missing as
+/// [`split_guided`] does, with the file named in errors: what `dupac fly` and `dupac eval`
+/// fly.
 pub fn read_eval_pairs(
     cfg: &Config,
     file: Option<&PathBuf>,
+    split: Split,
     planners: &Planners,
 ) -> Result<(PathBuf, Vec<Pair>), RunError> {
-    if file.is_none() && !cfg.pairs.eval_file.exists() {
-        let pairs = held_out_pairs(cfg, planners, true)?;
-        return Ok((cfg.pairs.eval_file.clone(), pairs));
+    let default = split.file(&cfg.pairs).to_path_buf();
+    if file.is_none() && !default.exists() {
+        let pairs = split_guided(cfg, planners, split, true)?;
+        return Ok((default, pairs));
     }
-    let file = file.cloned().unwrap_or_else(|| cfg.pairs.eval_file.clone());
+    let file = file.cloned().unwrap_or(default);
     let mut pairs = read_pairs_jsonl(&file, &planners.pairs, &cfg.pairs).context_with(|| {
         format!(
             "reading pairs {} (make them with `dupac pairs`)",

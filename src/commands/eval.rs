@@ -10,12 +10,14 @@
 use crate::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use dupac_actor::pairs::Split;
 use dupac_plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_pareto};
 use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
-use dupac_run::eval::records::read_records;
+use dupac_run::eval::records::{read_records, read_split};
 use dupac_run::eval::report::write_tables;
 use dupac_run::eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
+use dupac_run::tune_a3::read_tuned;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -31,9 +33,18 @@ pub struct EvalArgs {
     /// Leave the planners out (shortest path with A3 and with the oracle, coverage-aware).
     #[arg(long)]
     pub no_planners: bool,
-    /// Pairs file (default `pairs.eval_file`, the held-out set).
-    #[arg(long, value_name = "FILE")]
+    /// Pairs file (default: the file of `--split`).
+    #[arg(long, value_name = "FILE", conflicts_with = "split")]
     pub pairs: Option<PathBuf>,
+    /// The held-out split to fly: `validation` (`pairs.eval_file`, the default: the set the
+    /// design was chosen on) or `test` (`pairs.test_file`, for the final report only); a
+    /// missing file is drawn from its seed and written. The report names it.
+    #[arg(long, value_enum, value_name = "validation|test")]
+    pub split: Option<super::pairs::SplitArg>,
+    /// A tuned A3 setting (`dupac tune-a3`'s `tuned_a3.toml`): the planners are flown with it
+    /// too, as `shortest_a3tuned` and `coverage_l<λ>+a3tuned`.
+    #[arg(long, value_name = "FILE")]
+    pub a3_tuned: Option<PathBuf>,
     /// Pairs per distance bin: the first K of each bin (default: all).
     #[arg(long, value_name = "K")]
     pub per_bin: Option<usize>,
@@ -72,17 +83,28 @@ pub struct EvalArgs {
 }
 
 impl EvalArgs {
+    /// The split flown (validation unless `--split` says otherwise).
+    fn split(&self) -> Split {
+        self.split.map_or(Split::Validation, |s| s.split())
+    }
+
     /// What to fly, for the run layer.
-    fn plan(&self) -> EvalPlan {
-        EvalPlan {
+    fn plan(&self) -> Result<EvalPlan> {
+        let a3_tuned = match &self.a3_tuned {
+            Some(f) => Some(read_tuned(f)?),
+            None => None,
+        };
+        Ok(EvalPlan {
             policies: self.policies.clone(),
             lambdas: self.lambdas.clone(),
             no_planners: self.no_planners,
             pairs: self.pairs.clone(),
+            split: self.split(),
+            a3_tuned,
             per_bin: self.per_bin,
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),
-        }
+        })
     }
 }
 
@@ -92,11 +114,12 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     let boot = Bootstrap::with_resamples(args.bootstrap)?;
     if !args.report_only {
         // The files named by arguments before the world is built.
-        // Without --pairs, a missing held-out file is drawn and written (seed `pairs.eval_seed`).
+        // Without --pairs, a missing split file is drawn and written (from the split's seed).
+        let split = args.split();
         match &args.pairs {
             Some(p) => crate::io::check_readable("--pairs", p)?,
-            None if cfg.pairs.eval_file.exists() => {
-                crate::io::check_readable("pairs.eval_file", &cfg.pairs.eval_file)?
+            None if split.file(&cfg.pairs).exists() => {
+                crate::io::check_readable(split.file_key(), split.file(&cfg.pairs))?
             }
             None => {}
         }
@@ -105,15 +128,23 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
                 crate::io::check_readable("--policy", std::path::Path::new(file))?;
             }
         }
-        fly_all(&cfg, &args.plan(), &records_dir, global.no_progress())?;
+        let plan = args.plan()?;
+        fly_all(&cfg, &plan, &records_dir, global.no_progress())?;
     }
     let files = read_records(&records_dir)?;
     if files.is_empty() {
         bail!("{}: no records to report on", records_dir.display());
     }
     dupac_plot::ensure_font()?;
-    let (methods, bins) =
-        write_tables(&args.out, &files, &args.dupac_label, &args.base_label, boot)?;
+    let split = read_split(&records_dir);
+    let (methods, bins) = write_tables(
+        &args.out,
+        &files,
+        &args.dupac_label,
+        &args.base_label,
+        boot,
+        split.as_deref(),
+    )?;
     draw_fig3(&args.out, &methods, &bins)?;
     draw_fig4(&args.out, &methods, &bins)?;
     draw_pareto(&args.out, &methods)?;

@@ -20,3 +20,4 @@ pub mod scenario;
 pub mod shell;
 pub mod train;
 pub mod training;
+pub mod tune_a3;

@@ -1,29 +1,59 @@
-//! `dupac pairs`: the held-out evaluation pairs (spec/env.md "Episodes"), binned by shortest
-//! flyable distance, seeded, written as JSON Lines.
+//! `dupac pairs`: the held-out pairs (spec/env.md "Episodes"), binned by shortest flyable
+//! distance, seeded, written as JSON Lines: both splits (validation, `pairs.eval_seed` →
+//! `pairs.eval_file`; test, `pairs.test_seed` → `pairs.test_file`), or the one `--split` names.
 
 use crate::GlobalArgs;
-use anyhow::{Context, Result};
-use clap::Args;
-use dupac_actor::pairs::{eval_pairs, write_pairs_jsonl};
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use dupac_actor::pairs::{Split, split_pairs, write_pairs_jsonl};
 use dupac_actor::planner::Planner;
 use dupac_radio::world::RadioWorld;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// A held-out split on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SplitArg {
+    /// `pairs.eval_seed` → `pairs.eval_file`: the set training evaluates on and the design was
+    /// chosen on.
+    Validation,
+    /// `pairs.test_seed` → `pairs.test_file`: for the final report only.
+    Test,
+}
+
+impl SplitArg {
+    pub fn split(self) -> Split {
+        match self {
+            SplitArg::Validation => Split::Validation,
+            SplitArg::Test => Split::Test,
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct PairsArgs {
-    /// Output file (default `pairs.eval_file`, `out/pairs/eval_pairs.jsonl`).
+    /// Only this split (default: both, each to its file).
+    #[arg(long, value_enum, value_name = "validation|test")]
+    pub split: Option<SplitArg>,
+    /// Output file of the one split `--split` names (default its file, `pairs.eval_file` or
+    /// `pairs.test_file`).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
 }
 
 pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
     let cfg = global.config()?;
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| cfg.pairs.eval_file.clone());
+    if args.out.is_some() && args.split.is_none() {
+        bail!(
+            "--out names one file: give --split validation or --split test with it (without \
+             --out, both splits are written to pairs.eval_file and pairs.test_file)"
+        );
+    }
+    let splits: Vec<Split> = match args.split {
+        Some(s) => vec![s.split()],
+        None => Split::ALL.to_vec(),
+    };
     let t = Instant::now();
     let world = RadioWorld::build(&cfg).context("building the radio world")?;
     let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
@@ -32,30 +62,43 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
         100.0 * planner.free_space().free_voxel_fraction(),
         t.elapsed().as_secs_f64()
     );
-    let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
-    let pb = dupac_run::progress::progress_bar(total, "evaluation pairs", global.no_progress());
-    let pairs = eval_pairs(&planner, &cfg.pairs, &cfg.env, &|n| pb.inc(n));
-    pb.finish_and_clear();
-    write_pairs_jsonl(&out, &pairs)?;
-    println!("| bin (m) | pairs | mean shortest (m) | mean straight (m) | shortest / straight |");
-    println!("|---:|---:|---:|---:|---:|");
-    for bin in &cfg.pairs.eval_bins_m {
-        let b: Vec<_> = pairs.iter().filter(|p| p.bin_m == Some(*bin)).collect();
-        let n = b.len().max(1) as f64;
-        let sh = b.iter().map(|p| p.shortest_m).sum::<f64>() / n;
-        let st = b.iter().map(|p| p.straight_m).sum::<f64>() / n;
+    for split in splits {
+        let out = args
+            .out
+            .clone()
+            .unwrap_or_else(|| split.file(&cfg.pairs).to_path_buf());
+        let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
+        let label = format!("{} pairs", split.name());
+        let pb = dupac_run::progress::progress_bar(total, &label, global.no_progress());
+        let pairs = split_pairs(&planner, &cfg.pairs, &cfg.env, split, &|n| pb.inc(n));
+        pb.finish_and_clear();
+        write_pairs_jsonl(&out, &pairs)?;
+        println!("{}\n", split.describe(&cfg.pairs));
         println!(
-            "| {bin:.0} | {} | {sh:.1} | {st:.1} | {:.3} |",
-            b.len(),
-            sh / st
+            "| bin (m) | pairs | mean shortest (m) | mean straight (m) | shortest / straight |"
+        );
+        println!("|---:|---:|---:|---:|---:|");
+        for bin in &cfg.pairs.eval_bins_m {
+            let b: Vec<_> = pairs.iter().filter(|p| p.bin_m == Some(*bin)).collect();
+            let n = b.len().max(1) as f64;
+            let sh = b.iter().map(|p| p.shortest_m).sum::<f64>() / n;
+            let st = b.iter().map(|p| p.straight_m).sum::<f64>() / n;
+            println!(
+                "| {bin:.0} | {} | {sh:.1} | {st:.1} | {:.3} |",
+                b.len(),
+                sh / st
+            );
+        }
+        println!();
+        eprintln!(
+            "wrote {} {} pairs to {} in {:.1} s ({} = {})",
+            pairs.len(),
+            split.name(),
+            out.display(),
+            t.elapsed().as_secs_f64(),
+            split.seed_key(),
+            split.seed(&cfg.pairs)
         );
     }
-    eprintln!(
-        "wrote {} pairs to {} in {:.1} s (seed {})",
-        pairs.len(),
-        out.display(),
-        t.elapsed().as_secs_f64(),
-        cfg.pairs.eval_seed
-    );
     Ok(ExitCode::SUCCESS)
 }

@@ -350,6 +350,8 @@ fn pairs_then_plan_writes_a_flown_comparison() {
     let mut args: Vec<String> = vec![
         "pairs".into(),
         "-q".into(),
+        "--split".into(),
+        "validation".into(),
         "--out".into(),
         pairs.display().to_string(),
     ];
@@ -387,7 +389,7 @@ fn pairs_then_plan_writes_a_flown_comparison() {
     // The same seed gives the same file.
     let again = dir.path().join("again.jsonl");
     let mut args2 = args.clone();
-    args2[3] = again.display().to_string();
+    args2[5] = again.display().to_string();
     let a2: Vec<&str> = args2.iter().map(String::as_str).collect();
     assert!(dupac(&a2, None).status.success());
     assert_eq!(

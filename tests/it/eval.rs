@@ -372,6 +372,8 @@ fn fly_and_eval_draw_a_missing_held_out_set() {
         &[
             "pairs".into(),
             "-q".into(),
+            "--split".into(),
+            "validation".into(),
             "--out".into(),
             file("by_pairs.jsonl").display().to_string(),
         ],

@@ -479,7 +479,10 @@ fn no_value_that_validation_accepts_panics_building_the_world() {
             let set = format!("{key}={}", HOSTILE[(i + 5 * k) % HOSTILE.len()]);
             // The world and its cache; then, if validation accepted the value, the planner
             // and the pairs.
-            for command in [&["cache", "build"][..], &["pairs", "--out", &pairs_out][..]] {
+            for command in [
+                &["cache", "build"][..],
+                &["pairs", "--split", "validation", "--out", &pairs_out][..],
+            ] {
                 let mut child = dupac_cmd()
                     .arg("--config")
                     .arg(&config)

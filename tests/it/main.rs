@@ -2,6 +2,7 @@
 //! real processes, the real Midtown data and real files, one module per area, all built on
 //! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
 //! `deploy::`, `distributed::`, `faults::`, `netns::`, `scenario::`, `security::`, `soak::`,
+//! `splits::`, `tune::`,
 //! `usage::`).
 
 mod cli;
@@ -13,6 +14,8 @@ mod netns;
 mod scenario;
 mod security;
 mod soak;
+mod splits;
 mod support;
 mod train;
+mod tune;
 mod usage;

@@ -255,6 +255,10 @@ fn an_imported_city_maps_and_trains() {
         cfg["pairs"]["eval_file"].as_str(),
         Some("scenarios/town/pairs/eval_pairs.jsonl")
     );
+    assert_eq!(
+        cfg["pairs"]["test_file"].as_str(),
+        Some("scenarios/town/pairs/test_pairs.jsonl")
+    );
     // The area is ≈ 0.31 of Midtown's short side: the pair distances scale with it.
     assert!(
         cfg["pairs"]["max_m"]

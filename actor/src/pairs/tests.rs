@@ -246,3 +246,71 @@ fn bad_lines_name_file_and_line() {
         Err(PairsError::Read { .. })
     ));
 }
+
+/// The smallest distance (m) between an endpoint (source or destination) of a pair of `a` and
+/// one of a pair of `b`.
+fn closest_endpoints_m(a: &[Pair], b: &[Pair]) -> f64 {
+    let ends = |v: &[Pair]| -> Vec<Point> {
+        v.iter()
+            .flat_map(|p| [p.source_m, p.destination_m])
+            .collect()
+    };
+    let (ea, eb) = (ends(a), ends(b));
+    ea.iter()
+        .flat_map(|x| eb.iter().map(move |y| dist(*x, *y)))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The test split has the validation split's bins and counts, is a function of its seed, and
+/// shares no endpoint (within 1e-6 m, source or destination, either way round) with the
+/// validation split or a training pool, even when all three are drawn from the same number.
+#[test]
+fn the_test_split_is_binned_like_validation_and_shares_no_endpoint() {
+    let city = procedural(400.0);
+    let c = Config::default();
+    let planner = Planner::new(&city, &c.env, &c.planner);
+    let cfg = small_cfg();
+    let same = PairsConfig {
+        test_seed: cfg.eval_seed,
+        ..cfg.clone()
+    };
+    for cfg in [cfg, same] {
+        let val = split_pairs(&planner, &cfg, &c.env, Split::Validation, &|_| {});
+        let test = split_pairs(&planner, &cfg, &c.env, Split::Test, &|_| {});
+        assert_eq!(val, eval_pairs(&planner, &cfg, &c.env, &|_| {}));
+        assert_eq!(test.len(), val.len());
+        assert_valid(&planner, &cfg, &test);
+        let bins = |v: &[Pair]| v.iter().map(|p| p.bin_m).collect::<Vec<_>>();
+        assert_eq!(bins(&test), bins(&val));
+        for p in &test {
+            let bin = p.bin_m.expect("bin");
+            assert!((p.shortest_m - bin).abs() <= cfg.bin_tolerance * bin + 1e-9);
+        }
+        let pool = training_pool(&planner, &cfg, &c.env, 40, cfg.test_seed, &|_| {});
+        for (other, what) in [(&val, "validation"), (&pool, "training")] {
+            let d = closest_endpoints_m(&test, other);
+            assert!(
+                d > 1e-6,
+                "a test endpoint within {d} m of a {what} endpoint"
+            );
+        }
+        // A function of the seed: the same on one thread; another seed, other pairs.
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let again = one.install(|| split_pairs(&planner, &cfg, &c.env, Split::Test, &|_| {}));
+        assert_eq!(again, test);
+        let other = PairsConfig {
+            test_seed: cfg.test_seed + 1,
+            ..cfg.clone()
+        };
+        assert_ne!(
+            split_pairs(&planner, &other, &c.env, Split::Test, &|_| {}),
+            test
+        );
+    }
+    assert_eq!(Split::from_name("test"), Some(Split::Test));
+    assert_ne!(TEST_DOMAIN, EVAL_DOMAIN);
+    assert_ne!(TEST_DOMAIN, TRAIN_DOMAIN);
+}

@@ -398,12 +398,20 @@ pub struct PairsConfig {
     pub eval_bins_m: Vec<f64>,
     /// Half-width of an evaluation bin, as a fraction of its length (0.05 = ± 5 %).
     pub bin_tolerance: f64,
-    /// Pairs per evaluation bin (K).
+    /// Pairs per held-out bin (K), in each split (validation and test).
     pub eval_per_bin: usize,
-    /// Seed of the held-out evaluation pairs.
+    /// Seed of the validation split: the held-out pairs training evaluates on and the design
+    /// was chosen on (`dupac eval --split validation`, the default).
     pub eval_seed: u64,
-    /// Where `dupac pairs` writes the evaluation set.
+    /// Where `dupac pairs` writes the validation split (JSON Lines; read when present).
     pub eval_file: PathBuf,
+    /// Seed of the test split: the same bins and count as the validation split, drawn from its
+    /// own random streams (never a validation or training pair); for the final report only
+    /// (`dupac eval --split test`). Not part of the environment fingerprint.
+    pub test_seed: u64,
+    /// Where `dupac pairs` writes the test split (JSON Lines; read when present). Not part of
+    /// the environment fingerprint.
+    pub test_file: PathBuf,
 }
 
 impl Default for PairsConfig {
@@ -417,6 +425,8 @@ impl Default for PairsConfig {
             eval_per_bin: 50,
             eval_seed: 2024,
             eval_file: "out/pairs/eval_pairs.jsonl".into(),
+            test_seed: 4049,
+            test_file: "out/pairs/test_pairs.jsonl".into(),
         }
     }
 }
@@ -560,6 +570,35 @@ impl ObservationConfig {
 }
 
 impl PairsConfig {
+    /// The section as the environment fingerprint hashes it: without the test split
+    /// (`test_seed`, `test_file`), which no training or validation episode reads, and with
+    /// `eval_file` emptied (file locations may differ between hosts) — the JSON the section had
+    /// before the test split was added, so fingerprints and guide caches stay valid.
+    pub fn fingerprint_json(&self) -> String {
+        #[derive(Serialize)]
+        struct Hashed<'a> {
+            min_m: f64,
+            max_m: f64,
+            endpoint_clearance_m: f64,
+            eval_bins_m: &'a [f64],
+            bin_tolerance: f64,
+            eval_per_bin: usize,
+            eval_seed: u64,
+            eval_file: &'a str,
+        }
+        serde_json::to_string(&Hashed {
+            min_m: self.min_m,
+            max_m: self.max_m,
+            endpoint_clearance_m: self.endpoint_clearance_m,
+            eval_bins_m: &self.eval_bins_m,
+            bin_tolerance: self.bin_tolerance,
+            eval_per_bin: self.eval_per_bin,
+            eval_seed: self.eval_seed,
+            eval_file: "",
+        })
+        .unwrap_or_default()
+    }
+
     /// Checks `[pairs]` against the flight band of `[env]`.
     pub(crate) fn validate(&self, e: &EnvConfig) -> Result<(), ConfigError> {
         let pr = self;
@@ -579,6 +618,12 @@ impl PairsConfig {
         }
         if !(pr.bin_tolerance.is_finite() && pr.bin_tolerance > 0.0 && pr.bin_tolerance < 0.5) {
             return Err(bad("pairs.bin_tolerance", "must be in (0, 0.5)"));
+        }
+        if pr.test_file == pr.eval_file {
+            return Err(bad(
+                "pairs.test_file",
+                "must differ from pairs.eval_file (the test split has its own file)",
+            ));
         }
         Ok(())
     }

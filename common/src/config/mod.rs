@@ -92,8 +92,8 @@ impl Config {
 
     /// Identifies everything that makes one process's environment steps and policy shapes
     /// differ from another's: the radio world (`world_fingerprint`: city, sites, RSRP
-    /// parameters), the radio, cache, environment, pairs and planner sections and the network
-    /// widths. Actors whose fingerprint differs from the learner's are refused; the
+    /// parameters), the radio, cache, environment, pairs (without the test split:
+    /// [`PairsConfig::fingerprint_json`]) and planner sections and the network widths. Actors whose fingerprint differs from the learner's are refused; the
     /// PPO hyperparameters, seeds and output paths do not count.
     pub fn env_fingerprint(&self, world_fingerprint: u64) -> u64 {
         let mut h = crate::fingerprint::Fnv64::new();
@@ -101,13 +101,11 @@ impl Config {
         // File locations may differ between hosts; only contents count.
         let mut cache = self.cache.clone();
         cache.path = PathBuf::new();
-        let mut pairs = self.pairs.clone();
-        pairs.eval_file = PathBuf::new();
         for part in [
             serde_json::to_string(&self.radio),
             serde_json::to_string(&cache),
             serde_json::to_string(&self.env),
-            serde_json::to_string(&pairs),
+            Ok(self.pairs.fingerprint_json()),
             serde_json::to_string(&self.planner),
             serde_json::to_string(&self.ppo.hidden),
         ] {
@@ -499,5 +497,38 @@ mod tests {
         let text = c.to_toml_string();
         let back = Config::from_toml_str(&text, "roundtrip", &[]).expect("valid");
         assert_eq!(c, back);
+    }
+
+    /// The test split (`pairs.test_seed`, `pairs.test_file`) is not in the environment
+    /// fingerprint, which hashes `[pairs]` as it did before the split existed; the validation
+    /// seed is; `--set pairs.test_seed=…` reaches the configuration.
+    #[test]
+    fn the_test_split_stays_out_of_the_fingerprint() {
+        let c = Config::default();
+        assert_eq!(
+            c.pairs.fingerprint_json(),
+            r#"{"min_m":200.0,"max_m":800.0,"endpoint_clearance_m":5.0,"eval_bins_m":[200.0,300.0,400.0,500.0,600.0,700.0,800.0],"bin_tolerance":0.05,"eval_per_bin":50,"eval_seed":2024,"eval_file":""}"#
+        );
+        let t = Config::load(
+            None,
+            &[
+                "pairs.test_seed=7".to_string(),
+                "pairs.test_file=\"elsewhere.jsonl\"".to_string(),
+            ],
+        )
+        .expect("valid");
+        assert_eq!(
+            (t.pairs.test_seed, t.pairs.test_file.to_str()),
+            (7, Some("elsewhere.jsonl"))
+        );
+        assert_eq!(t.env_fingerprint(1), c.env_fingerprint(1));
+        let v = Config::load(None, &["pairs.eval_seed=7".to_string()]).expect("valid");
+        assert_ne!(v.env_fingerprint(1), c.env_fingerprint(1));
+        let e = Config::load(
+            None,
+            &["pairs.test_file=\"out/pairs/eval_pairs.jsonl\"".to_string()],
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("pairs.test_file"), "{e}");
     }
 }

@@ -173,6 +173,7 @@ struct ScenarioPaths {
     cells: PathBuf,
     cache: PathBuf,
     pairs: PathBuf,
+    test_pairs: PathBuf,
     map: PathBuf,
 }
 
@@ -183,6 +184,7 @@ impl ScenarioPaths {
             cells: out.join("cells.csv"),
             cache: out.join("cache").join("rsrp.bin"),
             pairs: out.join("pairs").join("eval_pairs.jsonl"),
+            test_pairs: out.join("pairs").join("test_pairs.jsonl"),
             map: out.join("map"),
         };
         if out.to_str().is_none() {
@@ -231,6 +233,7 @@ fn config_toml(
     cache.insert("path".into(), path_value(&paths.cache));
     let mut pairs = Table::new();
     pairs.insert("eval_file".into(), path_value(&paths.pairs));
+    pairs.insert("test_file".into(), path_value(&paths.test_pairs));
     let b = LocalProjection::centred_on(a).box_m(a);
     let scale = b.width_m().min(b.height_m()) / default_short_side_m();
     if scale < 1.0 && scale.is_finite() {

@@ -1,16 +1,16 @@
 //! Flying the evaluation: every method over every pair in parallel, each flight recorded;
 //! a learned site choice's moves re-flown with other associations (route against association).
 
-use super::records::{RecordsFile, write_records};
+use super::records::{RecordsFile, write_records, write_split};
 use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight, refused, select};
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
 use dupac_actor::env::Env;
 use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
-use dupac_actor::pairs::Pair;
+use dupac_actor::pairs::{Pair, Split};
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::record::{FlightRecord, StepRecord};
+use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::{Association, Config, Knowledge};
 use dupac_common::geometry::Point;
@@ -59,13 +59,25 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .iter()
         .find(|c| c.env.needs_path())
         .unwrap_or(&unguided_cfg);
-    let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), &planners)?;
+    let (file, pairs) = read_eval_pairs(guide_cfg, args.pairs.as_ref(), args.split, &planners)?;
     let mut pairs = select(pairs, args.per_bin);
     if pairs.is_empty() {
         return Err(refused!("{}: no pairs", file.display()));
     }
+    std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
+    let split_line = match &args.pairs {
+        Some(f) => format!("split: file (--pairs {})", f.display()),
+        None => args.split.describe(&cfg.pairs),
+    };
+    write_split(dir, &split_line, &file)?;
     // With knowledge of the true field, each evaluation field's planners plan on it.
-    let field_planners = true_field_planners(cfg, &unguided_cfg, &flown, &world, &rsrp, coverage);
+    // The test split's pairs fly in realisations of their own (docs/env.md "Channel").
+    let fs = match (&args.pairs, args.split) {
+        (None, Split::Test) => FieldSplit::Test,
+        _ => FieldSplit::Eval,
+    };
+    let field_planners =
+        true_field_planners(cfg, &unguided_cfg, &flown, &world, &rsrp, fs, coverage);
     if let Some(fp) = &field_planners {
         for (k, planners) in fp.iter().enumerate() {
             let mut mine: Vec<Pair> = pairs
@@ -90,7 +102,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .iter()
         .map(|p| {
             let mut all = vec![f64::NAN; m];
-            true_rsrp(&world, &rsrp, p.id).rsrp_all_dbm(p.source_m, &mut all);
+            true_rsrp(&world, &rsrp, fs, p.id).rsrp_all_dbm(p.source_m, &mut all);
             argmax(&all)
         })
         .collect();
@@ -114,7 +126,6 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     } else {
         vec![None; pairs.len()]
     };
-    std::fs::create_dir_all(dir).context_with(|| format!("creating {}", dir.display()))?;
     for method in &methods {
         let mut mcfg = match &method.kind {
             Kind::Policy(_) => cfg.clone(),
@@ -126,6 +137,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             Kind::Shortest(a) | Kind::Replay(a) => *a,
             Kind::Hindsight(_) => Association::Learned,
         };
+        if let Some(t) = &method.a3 {
+            t.apply(&mut mcfg.radio.a3);
+        }
         if let Kind::Policy(p) = &method.kind {
             if mcfg.env.site_every_step && p.site_head.is_none() {
                 // Only the equivariant head scores the sites of a later step: a policy of the
@@ -165,6 +179,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                     &world,
                     &rsrp,
                     planners_of(p),
+                    fs,
                     method,
                     p,
                     sp.as_deref(),
@@ -178,7 +193,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         // best-RSRP oracle choosing the site, so the report separates route from association.
         let replays = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
-                let ctx = (cfg, &world, &rsrp, &planners);
+                let ctx = (cfg, &world, &rsrp, &planners, fs);
                 replay_associations(ctx, method, &pairs, &flights, &hindsight)?
             }
             _ => Vec::new(),
@@ -210,7 +225,13 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
 /// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
 /// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
 fn replay_associations(
-    (cfg, world, rsrp, planners): (&Config, &Arc<RadioWorld>, &SharedRsrp, &Planners),
+    (cfg, world, rsrp, planners, fs): (
+        &Config,
+        &Arc<RadioWorld>,
+        &SharedRsrp,
+        &Planners,
+        FieldSplit,
+    ),
     method: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
@@ -237,6 +258,7 @@ fn replay_associations(
                 label: label.clone(),
                 seed: method.seed,
                 kind,
+                a3: None,
             };
             let v = pairs
                 .par_iter()
@@ -247,7 +269,7 @@ fn replay_associations(
                         .iter()
                         .map(|s| Point::from(s.position_m.map(f64::from)))
                         .collect();
-                    fly_one(&rcfg, world, rsrp, planners, &replay, p, Some(&w))
+                    fly_one(&rcfg, world, rsrp, planners, fs, &replay, p, Some(&w))
                 })
                 .collect::<Result<Vec<_>, RunError>>()?;
             Ok((label, v))
@@ -261,13 +283,14 @@ fn fly_one(
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     planners: &Planners,
+    fs: FieldSplit,
     method: &Method,
     p: &Pair,
     // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
+    env.set_field_split(fs);
     let episode = crate::scenario::episode(cfg, planners, p)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
@@ -282,7 +305,7 @@ fn fly_one(
         Kind::Hindsight(h) => {
             let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
             let m = world.num_sites();
-            let truth = true_rsrp(world, rsrp, p.id);
+            let truth = true_rsrp(world, rsrp, fs, p.id);
             let mut rows = vec![f64::NAN; w.len() * m];
             for (row, pos) in rows.chunks_mut(m).zip(w) {
                 truth.rsrp_all_dbm(*pos, row);
@@ -305,8 +328,30 @@ fn fly_one(
             fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
         }
     };
+    Ok(flight_record(
+        world,
+        rsrp,
+        fs,
+        &method.label,
+        method.seed,
+        p,
+        &steps,
+    ))
+}
+
+/// The record of pair `p`'s flight `steps` (its SINR per step from every site's true RSRP in
+/// the pair's field of `fs`), as `method` (`label`, training `seed`) flew it.
+pub(crate) fn flight_record(
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    fs: FieldSplit,
+    label: &str,
+    seed: u32,
+    p: &Pair,
+    steps: &[StepInfo],
+) -> FlightRecord {
     let mut all = vec![f64::NAN; world.num_sites()];
-    let truth = true_rsrp(world, rsrp, p.id);
+    let truth = true_rsrp(world, rsrp, fs, p.id);
     let remaining_m = steps.last().map_or(p.shortest_m, |s| s.distance_to_goal_m);
     let outcome = steps
         .last()
@@ -319,9 +364,9 @@ fn fly_one(
             StepRecord::from_info(s, sinr_db(&all, usize::from(s.serving.0), NOISE_PER_RE_DBM))
         })
         .collect();
-    Ok(FlightRecord {
-        method: method.label.clone(),
-        seed: method.seed,
+    FlightRecord {
+        method: label.to_string(),
+        seed,
         pair_id: p.id,
         bin_m: p.bin_m.unwrap_or(p.shortest_m),
         shortest_m: p.shortest_m,
@@ -331,13 +376,14 @@ fn fly_one(
         destination_m: p.destination_m,
         remaining_m,
         steps,
-    })
+    }
 }
 
-/// The true RSRP pair `id` is flown in: evaluation field `id mod radio.channel.eval_fields`
-/// under the real channel ([`crate::scenario::true_source`]).
-fn true_rsrp(world: &Arc<RadioWorld>, rsrp: &SharedRsrp, id: u64) -> SharedRsrp {
-    crate::scenario::true_source(world, rsrp, FieldSplit::Eval, id)
+/// The true RSRP pair `id` is flown in: field `id mod radio.channel.eval_fields` of `fs` (the
+/// validation's or the test split's realisations) under the real channel
+/// ([`crate::scenario::true_source`]).
+fn true_rsrp(world: &Arc<RadioWorld>, rsrp: &SharedRsrp, fs: FieldSplit, id: u64) -> SharedRsrp {
+    crate::scenario::true_source(world, rsrp, fs, id)
 }
 
 /// With `radio.channel.knowledge = "true_field"` under the real channel, one set of planners per
@@ -350,6 +396,7 @@ fn true_field_planners<'w>(
     flown: &[Config],
     world: &'w Arc<RadioWorld>,
     rsrp: &SharedRsrp,
+    fs: FieldSplit,
     coverage: bool,
 ) -> Option<Vec<crate::scenario::Planners<'w>>> {
     let c = &cfg.radio.channel;
@@ -359,7 +406,7 @@ fn true_field_planners<'w>(
     Some(
         (0..u64::from(c.eval_fields))
             .map(|k| {
-                let truth = true_rsrp(world, rsrp, k);
+                let truth = true_rsrp(world, rsrp, fs, k);
                 crate::scenario::Planners::new(unguided_cfg, flown, world, &truth, coverage)
             })
             .collect(),

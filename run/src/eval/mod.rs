@@ -13,7 +13,8 @@ pub mod stats;
 pub mod stats_tables;
 
 use crate::error::{Context, RunError};
-use dupac_actor::pairs::Pair;
+use crate::tune_a3::A3Setting;
+use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::checkpoint::load_policy;
@@ -34,8 +35,13 @@ pub struct EvalPlan {
     /// λ of the coverage-aware planner (empty: 0.5, 1, 2, 4).
     pub lambdas: Vec<f64>,
     pub no_planners: bool,
-    /// Pairs file (default `pairs.eval_file`).
+    /// Pairs file (default: the file of `split`).
     pub pairs: Option<PathBuf>,
+    /// The held-out split flown without `pairs` (default validation).
+    pub split: Split,
+    /// A tuned A3 setting (`dupac tune-a3`'s `tuned_a3.toml`): the planners are flown with it
+    /// too (`shortest_a3tuned`, `coverage_l<λ>+a3tuned`).
+    pub a3_tuned: Option<A3Setting>,
     /// The first K pairs of every bin.
     pub per_bin: Option<usize>,
     /// No `LABEL+a3` / `LABEL+oracle` replays.
@@ -88,6 +94,8 @@ pub struct Method {
     pub label: String,
     pub seed: u32,
     pub kind: Kind,
+    /// The A3 parameters it is flown with instead of `radio.a3` (the `+a3tuned` rows).
+    pub a3: Option<A3Setting>,
 }
 
 /// The methods of `plan`: its policies (seeds numbered per label in order), then the planners.
@@ -113,34 +121,57 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             label: label.to_string(),
             seed: *seed,
             kind: Kind::Policy(Box::new(p)),
+            a3: None,
         });
         *seed += 1;
     }
+    if args.no_planners && args.a3_tuned.is_some() {
+        return Err(refused!(
+            "--a3-tuned flies the planners with the tuned A3: it cannot go with --no-planners"
+        ));
+    }
     if !args.no_planners {
-        out.push(Method {
-            label: "shortest_a3".into(),
-            seed: 0,
-            kind: Kind::Shortest(Association::A3),
-        });
-        out.push(Method {
-            label: "shortest_oracle".into(),
-            seed: 0,
-            kind: Kind::Shortest(Association::BestRsrp),
-        });
         let lambdas = if args.lambdas.is_empty() {
             vec![0.5, 1.0, 2.0, 4.0]
         } else {
             args.lambdas.clone()
         };
-        for l in lambdas {
-            if !(l.is_finite() && l >= 0.0) {
-                return Err(refused!("--lambda {l}: must be a finite number >= 0"));
+        if let Some(l) = lambdas.iter().find(|l| !(l.is_finite() && **l >= 0.0)) {
+            return Err(refused!("--lambda {l}: must be a finite number >= 0"));
+        }
+        let planner = |label: String, kind: Kind, a3: Option<A3Setting>| Method {
+            label,
+            seed: 0,
+            kind,
+            a3,
+        };
+        out.push(planner(
+            "shortest_a3".into(),
+            Kind::Shortest(Association::A3),
+            None,
+        ));
+        out.push(planner(
+            "shortest_oracle".into(),
+            Kind::Shortest(Association::BestRsrp),
+            None,
+        ));
+        for &l in &lambdas {
+            out.push(planner(format!("coverage_l{l}"), Kind::Coverage(l), None));
+        }
+        // The same planners' routes with the tuned A3 choosing the site.
+        if let Some(t) = args.a3_tuned {
+            out.push(planner(
+                "shortest_a3tuned".into(),
+                Kind::Shortest(Association::A3),
+                Some(t),
+            ));
+            for &l in &lambdas {
+                out.push(planner(
+                    format!("coverage_l{l}+a3tuned"),
+                    Kind::Coverage(l),
+                    Some(t),
+                ));
             }
-            out.push(Method {
-                label: format!("coverage_l{l}"),
-                seed: 0,
-                kind: Kind::Coverage(l),
-            });
         }
     }
     if out.is_empty() {

@@ -182,3 +182,21 @@ pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
         })
         .collect()
 }
+
+/// The file beside the records that names the pairs they flew (`records/split.txt`: its first
+/// line `split: NAME (…)`, then `file: PATH`), so that `--report-only` reports it too.
+pub const SPLIT_FILE: &str = "split.txt";
+
+/// Writes [`SPLIT_FILE`] into `dir` (atomically): `line` (`split: …`) and the pairs file.
+pub fn write_split(dir: &Path, line: &str, pairs_file: &Path) -> Result<(), RunError> {
+    let text = format!("{line}\nfile: {}\n", pairs_file.display());
+    crate::run_dir::write_plain(&dir.join(SPLIT_FILE), text.as_bytes())
+}
+
+/// The `split: …` line of [`SPLIT_FILE`] in `dir`; `None` when the records have none (an
+/// evaluation from before the splits were recorded) or it cannot be read.
+pub fn read_split(dir: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join(SPLIT_FILE)).ok()?;
+    let line = text.lines().next()?.trim();
+    line.starts_with("split: ").then(|| line.to_string())
+}

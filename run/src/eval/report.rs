@@ -134,25 +134,34 @@ pub fn fmt_rate(r: Rate) -> String {
 /// The report's tables into `out` (`summary.csv`, `per_seed.csv`, `paired.csv`,
 /// `fig3_fig4_bins.csv`, `failures.csv`, `report.md`, `dupac` and `base` being the labels
 /// compared with the paper's methods and with each other, `boot` the seed-aware intervals'
-/// bootstrap); returns the methods' data (association replays `LABEL+…` left out: the figures
-/// show methods) and the distance bins, for the figures.
+/// bootstrap, `split` the `split: …` line of the records, [`super::records::read_split`], `None`
+/// for records that have none); returns the methods' data (association replays `LABEL+…` left
+/// out: the figures show methods) and the distance bins, for the figures.
 pub fn write_tables(
     out: &Path,
     files: &[RecordsFile],
     dupac: &str,
     base: &str,
     boot: Bootstrap,
+    split: Option<&str>,
 ) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
     let data = gather(files);
     let bins = bins_of(&data);
     let seed_stats = SeedStats::compute(files, dupac, base, boot);
     write_per_seed(&out.join("per_seed.csv"), &seed_stats)?;
     write_paired(&out.join("paired.csv"), &seed_stats)?;
+    let split_line = split.unwrap_or("split: not recorded (records written before the split was)");
+    // The split's name (`validation`, `test`, `file` for `--pairs`) for the CSV.
+    let split_name = split_line
+        .strip_prefix("split: ")
+        .and_then(|r| r.split_whitespace().next())
+        .filter(|_| split.is_some())
+        .unwrap_or("unrecorded");
     // summary.csv
     write_atomic_with(&out.join("summary.csv"), |w| {
         writeln!(
             w,
-            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret{}",
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret{},split",
             SeedStats::summary_header()
         )?;
         for d in &data {
@@ -163,7 +172,7 @@ pub fn write_tables(
             let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}{},{split_name}",
                 d.label,
                 d.seeds,
                 d.flights.len(),
@@ -232,7 +241,15 @@ pub fn write_tables(
         .collect();
     crate::run_dir::write_plain(
         &out.join("report.md"),
-        report_md(&data, dupac, base, regret_threshold_db(files), &seed_stats).as_bytes(),
+        report_md(
+            &data,
+            dupac,
+            base,
+            regret_threshold_db(files),
+            &seed_stats,
+            split_line,
+        )
+        .as_bytes(),
     )?;
     Ok((methods, bins))
 }
@@ -311,9 +328,10 @@ fn report_md(
     base: &str,
     regret_db: f64,
     seed_stats: &SeedStats,
+    split_line: &str,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# DUPAC evaluation report\n");
+    let _ = writeln!(s, "{split_line}\n\n# DUPAC evaluation report\n");
     let _ = writeln!(
         s,
         "Distance, overhead, RSRP and class fractions are over successful flights; rates over all flights. The intervals of this table are 95 % and count every flight as independent, all seeds together (Student t for means, Wilson for rates); \"Seed-aware intervals\" below gives 95 % bootstrap intervals over training seeds and pairs, \"Paired differences\" compares methods flight by flight. SINR: serving RSRP against all other sites as full-load co-channel interferers plus thermal noise per resource element ({NOISE_PER_RE_DBM:.1} dBm).\n"

@@ -317,6 +317,7 @@ fn records_file(method: &str, seed: u32, r: &mut ChaCha8Rng) -> RecordsFile {
                         position_m: [10.0 * (i + 1) as f32, 0.0, 50.0],
                         serving,
                         serving_rsrp_dbm: rsrp,
+                        measured_serving_rsrp_dbm: rsrp,
                         best_site: serving,
                         best_rsrp_dbm: rsrp,
                         sinr_db: r.random_range(-10.0..10.0),

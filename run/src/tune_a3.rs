@@ -1,0 +1,403 @@
+//! Tuning the base method's A3 parameters on the validation split (`dupac tune-a3`,
+//! docs/results.md "A fair A3: `dupac tune-a3`"): the guide path every guided policy gets (the
+//! coverage-aware planner's path, λ = `lambda`, with the guide's clearance) of every validation
+//! pair, flown by the scripted pilot with A3 choosing the site, once per setting of a grid of
+//! a3-Offset × Hysteresis × timeToTrigger (TS 36.331 values, docs/spec/radio.md §4); per setting
+//! the excellent-RSRP time, handovers and ping-pongs per km and the time below −6 dB SINR
+//! ([`dupac_actor::metrics::flight_metrics`]); the chosen setting ([`choose`]): the most
+//! excellent time among those with no more ping-pongs per km than the reference (`radio.a3`,
+//! 3 dB / 1 dB / 160 ms by default), ties to fewer handovers per km.
+//!
+//! Deterministic: every flight is a function of the pair and the setting, the pairs are flown in
+//! parallel and gathered in order, so the same inputs give a byte-identical `a3_grid.csv`.
+
+use crate::error::{Context, RunError};
+use crate::eval::fly::flight_record;
+use crate::progress::progress_bar;
+use crate::scenario::{guide_pairs_cached, split_unguided, unguided, world_and_cache};
+use dupac_actor::env::Env;
+use dupac_actor::metrics::{FlightMetrics, flight_metrics};
+use dupac_actor::pairs::Split;
+use dupac_actor::pilot::fly_waypoints;
+use dupac_common::config::{A3Config, Association, Config};
+use dupac_common::msg::Outcome;
+use dupac_radio::channel::FieldSplit;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// TS 36.331 ReportConfigEUTRA timeToTrigger values (ms).
+pub const TTT_VALUES_MS: [f64; 16] = [
+    0.0, 40.0, 64.0, 80.0, 100.0, 128.0, 160.0, 256.0, 320.0, 480.0, 512.0, 640.0, 1024.0, 1280.0,
+    2560.0, 5120.0,
+];
+
+/// One A3 setting (TS 36.331 §5.5.4.4; all Of*/Oc* = 0): what `tuned_a3.toml` holds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct A3Setting {
+    /// a3-Offset (dB): −15…15 in 0.5 dB steps.
+    pub offset_db: f64,
+    /// Hysteresis (dB): 0…15 in 0.5 dB steps.
+    pub hysteresis_db: f64,
+    /// timeToTrigger (ms): one of [`TTT_VALUES_MS`].
+    pub time_to_trigger_ms: f64,
+}
+
+impl A3Setting {
+    /// The setting of `a3` (its L3 filter aside).
+    pub fn of(a3: &A3Config) -> A3Setting {
+        A3Setting {
+            offset_db: a3.offset_db,
+            hysteresis_db: a3.hysteresis_db,
+            time_to_trigger_ms: a3.time_to_trigger_ms,
+        }
+    }
+
+    /// Sets `a3`'s offset, hysteresis and time-to-trigger to this setting's (the L3 filter,
+    /// `radio.a3.l3_filter_k`, stays as configured).
+    pub fn apply(&self, a3: &mut A3Config) {
+        a3.offset_db = self.offset_db;
+        a3.hysteresis_db = self.hysteresis_db;
+        a3.time_to_trigger_ms = self.time_to_trigger_ms;
+    }
+
+    /// Whether TS 36.331 can signal it (docs/spec/radio.md §4); the error names the value.
+    pub fn check_legal(&self) -> Result<(), String> {
+        let half_db = |x: f64| (2.0 * x - (2.0 * x).round()).abs() < 1e-9;
+        if !(self.offset_db.is_finite()
+            && (-15.0..=15.0).contains(&self.offset_db)
+            && half_db(self.offset_db))
+        {
+            return Err(format!(
+                "a3-Offset {} dB: TS 36.331 allows −15…15 dB in 0.5 dB steps",
+                self.offset_db
+            ));
+        }
+        if !(self.hysteresis_db.is_finite()
+            && (0.0..=15.0).contains(&self.hysteresis_db)
+            && half_db(self.hysteresis_db))
+        {
+            return Err(format!(
+                "hysteresis {} dB: TS 36.331 allows 0…15 dB in 0.5 dB steps",
+                self.hysteresis_db
+            ));
+        }
+        if !TTT_VALUES_MS.contains(&self.time_to_trigger_ms) {
+            return Err(format!(
+                "timeToTrigger {} ms: TS 36.331 allows {TTT_VALUES_MS:?} ms",
+                self.time_to_trigger_ms
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The grid of settings tried: every offset × hysteresis × time-to-trigger.
+#[derive(Debug, Clone, PartialEq)]
+pub struct A3Grid {
+    pub offsets_db: Vec<f64>,
+    pub hysteresis_db: Vec<f64>,
+    pub ttt_ms: Vec<f64>,
+}
+
+impl Default for A3Grid {
+    /// Offset {0, 1, 2, 3, 4} dB × hysteresis {0, 0.5, 1, 2} dB × TTT {0, 40, 80, 160, 320} ms.
+    fn default() -> Self {
+        A3Grid {
+            offsets_db: vec![0.0, 1.0, 2.0, 3.0, 4.0],
+            hysteresis_db: vec![0.0, 0.5, 1.0, 2.0],
+            ttt_ms: vec![0.0, 40.0, 80.0, 160.0, 320.0],
+        }
+    }
+}
+
+impl A3Grid {
+    /// Every setting, offset outermost, TTT innermost, duplicates dropped; refused (naming the
+    /// flag) when a list is empty or a value is not TS 36.331's.
+    pub fn settings(&self) -> Result<Vec<A3Setting>, RunError> {
+        for (flag, v) in [
+            ("--offset-db", &self.offsets_db),
+            ("--hysteresis-db", &self.hysteresis_db),
+            ("--ttt-ms", &self.ttt_ms),
+        ] {
+            if v.is_empty() {
+                return Err(RunError::Refused(format!("{flag}: no values")));
+            }
+        }
+        let mut out: Vec<A3Setting> = Vec::new();
+        for &offset_db in &self.offsets_db {
+            for &hysteresis_db in &self.hysteresis_db {
+                for &time_to_trigger_ms in &self.ttt_ms {
+                    let s = A3Setting {
+                        offset_db,
+                        hysteresis_db,
+                        time_to_trigger_ms,
+                    };
+                    s.check_legal().map_err(|e| {
+                        RunError::Refused(format!("--offset-db/--hysteresis-db/--ttt-ms: {e}"))
+                    })?;
+                    if !out.contains(&s) {
+                        out.push(s);
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// One setting's measures over the validation flights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SettingResult {
+    pub setting: A3Setting,
+    /// Whether it is the reference (`radio.a3` of the configuration).
+    pub reference: bool,
+    pub flights: usize,
+    /// Flights that reached the goal (%).
+    pub success_pct: f64,
+    /// Time in excellent RSRP (%, the mean over flights of each flight's fraction).
+    pub excellent_pct: f64,
+    /// Handovers per km flown (all flights' handovers over all their kilometres).
+    pub handovers_per_km: f64,
+    /// Ping-pongs per km flown (the same way).
+    pub ping_pongs_per_km: f64,
+    /// Time with SINR < −6 dB (%, the mean over flights).
+    pub sinr_below_m6db_pct: f64,
+}
+
+impl SettingResult {
+    fn of(setting: A3Setting, reference: bool, m: &[FlightMetrics]) -> SettingResult {
+        let n = m.len().max(1) as f64;
+        let km: f64 = m
+            .iter()
+            .map(|f| f.distance_m / 1000.0)
+            .sum::<f64>()
+            .max(1e-9);
+        let sum = |f: &dyn Fn(&FlightMetrics) -> f64| m.iter().map(f).sum::<f64>();
+        SettingResult {
+            setting,
+            reference,
+            flights: m.len(),
+            success_pct: 100.0 * sum(&|f| f64::from(u8::from(f.outcome == Outcome::Goal))) / n,
+            excellent_pct: 100.0 * sum(&|f| f.frac_class[0]) / n,
+            handovers_per_km: sum(&|f| f64::from(f.handovers)) / km,
+            ping_pongs_per_km: sum(&|f| f64::from(f.ping_pongs)) / km,
+            sinr_below_m6db_pct: 100.0 * sum(&|f| f.frac_sinr_below_m6db) / n,
+        }
+    }
+}
+
+/// Flies the validation pairs' guide paths (λ = `lambda`, the guide's clearance
+/// `env.observation.path_guide_clearance_m`) with every setting of `grid` and with the reference
+/// (`radio.a3`, added when the grid lacks it); one result per setting, in grid order, the
+/// reference last when it was added.
+pub fn tune_a3(
+    cfg: &Config,
+    grid: &A3Grid,
+    lambda: f64,
+    quiet: bool,
+) -> Result<Vec<SettingResult>, RunError> {
+    if !(lambda.is_finite() && lambda > 0.0) {
+        return Err(RunError::Refused(format!(
+            "--lambda {lambda}: must be a finite number > 0 (the coverage-aware guide path)"
+        )));
+    }
+    let reference = A3Setting::of(&cfg.radio.a3);
+    let mut settings = grid.settings()?;
+    if !settings.contains(&reference) {
+        settings.push(reference);
+    }
+    let (world, rsrp) = world_and_cache(cfg, quiet)?;
+    // The pairs (drawn with the pairs' planner, as every command draws them) and their guide
+    // paths, as a guided policy of λ = `lambda` gets them (from the guide cache when there).
+    let flight_cfg = unguided(cfg);
+    let planner =
+        dupac_actor::planner::Planner::new(&world.city, &flight_cfg.env, &flight_cfg.planner);
+    let mut pairs = split_unguided(&flight_cfg, &planner, Split::Validation, quiet)?;
+    drop(planner);
+    let mut guide_cfg = cfg.clone();
+    guide_cfg.env.observation.path_guide = true;
+    guide_cfg.env.observation.path_guide_lambda = lambda;
+    guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs)?;
+    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
+        .ceil()
+        .max(1.0) as u32;
+    let configs: Vec<Config> = settings
+        .iter()
+        .map(|s| {
+            let mut c = flight_cfg.clone();
+            c.env.association = Association::A3;
+            s.apply(&mut c.radio.a3);
+            c
+        })
+        .collect();
+    let pb = progress_bar(pairs.len() as u64, "A3 settings × pairs", quiet);
+    // metrics[pair][setting]
+    let metrics: Vec<Vec<FlightMetrics>> = pairs
+        .par_iter()
+        .map(|p| {
+            let path = p
+                .path
+                .as_ref()
+                .ok_or_else(|| RunError::Refused(format!("pair {}: no guide path", p.id)))?;
+            let mut all = vec![f64::NAN; world.num_sites()];
+            crate::scenario::true_source(&world, &rsrp, FieldSplit::Eval, p.id)
+                .rsrp_all_dbm(p.source_m, &mut all);
+            let start = crate::eval::argmax(&all);
+            let row = configs
+                .iter()
+                .map(|c| {
+                    let mut env = Env::new(c, world.clone(), rsrp.clone())?;
+                    env.set_field_split(FieldSplit::Eval);
+                    let flight =
+                        fly_waypoints(&mut env, p.id, p.episode(false), path.points_m(), |e| {
+                            e.serving()
+                        })?;
+                    let r =
+                        flight_record(&world, &rsrp, FieldSplit::Eval, "a3", 0, p, &flight.steps);
+                    Ok(flight_metrics(
+                        &r,
+                        start,
+                        window,
+                        cfg.env.site_regret_threshold_db,
+                    ))
+                })
+                .collect::<Result<Vec<_>, RunError>>();
+            pb.inc(1);
+            row
+        })
+        .collect::<Result<_, RunError>>()?;
+    pb.finish_and_clear();
+    Ok(settings
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let m: Vec<FlightMetrics> = metrics.iter().map(|row| row[k]).collect();
+            SettingResult::of(*s, *s == reference, &m)
+        })
+        .collect())
+}
+
+/// The chosen setting: the most excellent time among the settings with no more ping-pongs per
+/// km than the reference's; ties (within 1e−9) to fewer handovers per km, then to the first in
+/// grid order. The reference itself qualifies, so the choice is never worse than it on either
+/// measure of the rule.
+pub fn choose(results: &[SettingResult]) -> Result<&SettingResult, RunError> {
+    let reference = results
+        .iter()
+        .find(|r| r.reference)
+        .ok_or_else(|| RunError::Refused("no reference setting among the results".into()))?;
+    let mut best = reference;
+    for r in results {
+        if r.ping_pongs_per_km > reference.ping_pongs_per_km + 1e-9 {
+            continue;
+        }
+        let better = r.excellent_pct > best.excellent_pct + 1e-9
+            || ((r.excellent_pct - best.excellent_pct).abs() <= 1e-9
+                && r.handovers_per_km < best.handovers_per_km - 1e-9);
+        if better {
+            best = r;
+        }
+    }
+    Ok(best)
+}
+
+/// `a3_grid.csv`: one row per setting, in grid order; `chosen` marks [`choose`]'s.
+pub fn grid_csv(results: &[SettingResult], chosen: &SettingResult) -> String {
+    let mut s = String::from(
+        "offset_db,hysteresis_db,time_to_trigger_ms,flights,success_pct,excellent_pct,handovers_per_km,ping_pongs_per_km,sinr_below_m6db_pct,reference,chosen\n",
+    );
+    for r in results {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}",
+            r.setting.offset_db,
+            r.setting.hysteresis_db,
+            r.setting.time_to_trigger_ms,
+            r.flights,
+            r.success_pct,
+            r.excellent_pct,
+            r.handovers_per_km,
+            r.ping_pongs_per_km,
+            r.sinr_below_m6db_pct,
+            u8::from(r.reference),
+            u8::from(r.setting == chosen.setting),
+        );
+    }
+    s
+}
+
+/// `tuned_a3.toml`: `[radio.a3]` with the chosen setting's three keys, a configuration file of
+/// its own (`--config tuned_a3.toml`), with a comment that says where it came from (the pairs
+/// file, the guide path's λ, the chosen and the reference setting's measures).
+pub fn tuned_toml(
+    chosen: &SettingResult,
+    reference: &SettingResult,
+    pairs_file: &Path,
+    lambda: f64,
+) -> String {
+    let c = chosen.setting;
+    format!(
+        "# A3 tuned by `dupac tune-a3` on the validation split ({}), {} flights of the\n\
+         # λ = {lambda} guide path: excellent {:.2} %, {:.3} handovers/km, {:.3} ping-pongs/km\n\
+         # (reference {} dB / {} dB / {} ms: {:.2} %, {:.3}, {:.3}).\n\
+         # Use: `dupac train --association a3 --config THIS_FILE`, or with a configuration of your\n\
+         # own: --set radio.a3.offset_db={} --set radio.a3.hysteresis_db={} --set radio.a3.time_to_trigger_ms={}\n\
+         [radio.a3]\n\
+         offset_db = {:?}\n\
+         hysteresis_db = {:?}\n\
+         time_to_trigger_ms = {:?}\n",
+        pairs_file.display(),
+        chosen.flights,
+        chosen.excellent_pct,
+        chosen.handovers_per_km,
+        chosen.ping_pongs_per_km,
+        reference.setting.offset_db,
+        reference.setting.hysteresis_db,
+        reference.setting.time_to_trigger_ms,
+        reference.excellent_pct,
+        reference.handovers_per_km,
+        reference.ping_pongs_per_km,
+        c.offset_db,
+        c.hysteresis_db,
+        c.time_to_trigger_ms,
+        c.offset_db,
+        c.hysteresis_db,
+        c.time_to_trigger_ms,
+    )
+}
+
+/// Reads a `tuned_a3.toml` (`dupac eval --a3-tuned FILE`): `[radio.a3]` with exactly
+/// `offset_db`, `hysteresis_db` and `time_to_trigger_ms`, TS 36.331 values; every error names
+/// the file.
+pub fn read_tuned(path: &Path) -> Result<A3Setting, RunError> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct File {
+        radio: Radio,
+    }
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Radio {
+        a3: A3Setting,
+    }
+    let bad = |m: String| RunError::Refused(format!("--a3-tuned {}: {m}", path.display()));
+    let meta = std::fs::metadata(path).context_with(|| format!("--a3-tuned {}", path.display()))?;
+    if meta.len() > 64 * 1024 {
+        return Err(bad("over 64 KiB: not a tuned_a3.toml".into()));
+    }
+    let text =
+        std::fs::read_to_string(path).context_with(|| format!("--a3-tuned {}", path.display()))?;
+    let f: File = toml::from_str(&text).map_err(|e| {
+        bad(format!(
+            "expected [radio.a3] with offset_db, hysteresis_db and time_to_trigger_ms only: {e}"
+        ))
+    })?;
+    f.radio.a3.check_legal().map_err(bad)?;
+    Ok(f.radio.a3)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,178 @@
+//! The held-out splits on the small procedural world: `dupac pairs` writes validation and
+//! test (same bins and counts, other pairs, a function of the seed), `dupac eval --split test`
+//! flies the test split (drawn when missing, the same pairs `dupac pairs` writes) and says so in
+//! `report.md`, `summary.csv` and `records/split.txt`; `--split` with `--pairs` and `--out`
+//! without `--split` are refused.
+
+use crate::support::{dupac_output, small_world_args};
+use std::path::Path;
+
+/// The small world with two bins of 4 short pairs per split, the files in `dir`.
+fn args(dir: &Path) -> Vec<String> {
+    let mut a = small_world_args(dir);
+    for kv in [
+        "pairs.eval_bins_m=[50, 60]".to_string(),
+        "pairs.eval_per_bin=4".into(),
+        "pairs.bin_tolerance=0.1".into(),
+        format!("pairs.eval_file=\"{}\"", dir.join("val.jsonl").display()),
+        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
+    ] {
+        a.push("--set".into());
+        a.push(kv);
+    }
+    a
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+fn cmd(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// (bin, source, destination) of every line of a pairs file.
+fn pairs_of(path: &Path) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
+    std::fs::read_to_string(path)
+        .expect("pairs file")
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).expect("json");
+            let pt = |k: &str| -> Vec<f64> {
+                v[k].as_array()
+                    .expect("point")
+                    .iter()
+                    .map(|x| x.as_f64().expect("number"))
+                    .collect()
+            };
+            (
+                v["bin_m"].as_f64().expect("bin"),
+                pt("source_m"),
+                pt("destination_m"),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn pairs_writes_both_splits_binned_alike_and_disjoint() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let a = args(dir.path());
+    let out = dupac_output(&a, &cmd(&["pairs", "-q"]));
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("split: validation (pairs.eval_seed = 2024)")
+            && stdout.contains("split: test (pairs.test_seed = 4049)"),
+        "{stdout}"
+    );
+    let (val, test) = (
+        pairs_of(&dir.path().join("val.jsonl")),
+        pairs_of(&dir.path().join("test.jsonl")),
+    );
+    assert_eq!(val.len(), 8);
+    let bins = |v: &[(f64, Vec<f64>, Vec<f64>)]| v.iter().map(|p| p.0).collect::<Vec<_>>();
+    assert_eq!(bins(&val), bins(&test), "same bins, same counts");
+    // No endpoint shared (within 1e-6 m) between the splits, either way round.
+    let d = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+    for t in &test {
+        for v in &val {
+            for (x, y) in [(&t.1, &v.1), (&t.1, &v.2), (&t.2, &v.1), (&t.2, &v.2)] {
+                assert!(d(x, y).sqrt() > 1e-6, "shared endpoint {x:?}");
+            }
+        }
+    }
+    // The same seed gives the same file; --out without --split is refused, naming both flags.
+    let again = dir.path().join("again.jsonl");
+    ok(&dupac_output(
+        &a,
+        &cmd(&[
+            "pairs",
+            "-q",
+            "--split",
+            "test",
+            "--out",
+            again.to_str().expect("utf-8"),
+        ]),
+    ));
+    assert_eq!(
+        std::fs::read(&again).expect("again"),
+        std::fs::read(dir.path().join("test.jsonl")).expect("test")
+    );
+    let bad = dupac_output(&a, &cmd(&["pairs", "-q", "--out", "x.jsonl"]));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--out") && err.contains("--split"),
+        "{err}"
+    );
+}
+
+#[test]
+fn eval_flies_the_test_split_and_says_so() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut a = args(dir.path());
+    a.extend(cmd(&["--set", "pairs.test_seed=77"]));
+    let ev = dir.path().join("eval");
+    let ev_s = ev.display().to_string();
+    ok(&dupac_output(
+        &a,
+        &cmd(&[
+            "eval", "-q", "--split", "test", "--lambda", "1", "--out", &ev_s,
+        ]),
+    ));
+    let report = std::fs::read_to_string(ev.join("report.md")).expect("report.md");
+    assert_eq!(
+        report.lines().next(),
+        Some("split: test (pairs.test_seed = 77)")
+    );
+    let split = std::fs::read_to_string(ev.join("records/split.txt")).expect("split.txt");
+    assert!(split.contains("test.jsonl"), "{split}");
+    let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
+    assert!(summary.lines().next().expect("header").ends_with(",split"));
+    assert!(
+        summary.lines().skip(1).all(|l| l.ends_with(",test")),
+        "{summary}"
+    );
+    // The test file was drawn (it was missing): the pairs `dupac pairs --split test` writes.
+    let by_pairs = dir.path().join("by_pairs.jsonl");
+    ok(&dupac_output(
+        &a,
+        &cmd(&[
+            "pairs",
+            "-q",
+            "--split",
+            "test",
+            "--out",
+            by_pairs.to_str().expect("utf-8"),
+        ]),
+    ));
+    assert_eq!(
+        std::fs::read(&by_pairs).expect("by pairs"),
+        std::fs::read(dir.path().join("test.jsonl")).expect("drawn by eval")
+    );
+    assert!(
+        !dir.path().join("val.jsonl").exists(),
+        "validation untouched"
+    );
+    // --report-only reads the split back from the records.
+    ok(&dupac_output(
+        &a,
+        &cmd(&["eval", "-q", "--report-only", "--out", &ev_s]),
+    ));
+    assert_eq!(
+        std::fs::read_to_string(ev.join("report.md")).expect("report.md"),
+        report
+    );
+    // --split and --pairs together: refused, naming both.
+    let both = dupac_output(
+        &a,
+        &cmd(&[
+            "eval", "-q", "--split", "test", "--pairs", "x.jsonl", "--out", &ev_s,
+        ]),
+    );
+    let err = String::from_utf8_lossy(&both.stderr);
+    assert!(
+        !both.status.success() && err.contains("--split") && err.contains("--pairs"),
+        "{err}"
+    );
+}

@@ -1,0 +1,161 @@
+//! `dupac tune-a3` on the small procedural world: the grid of every setting, a chosen setting
+//! with no more ping-pongs per km and no less excellent time than the reference (3 dB / 1 dB /
+//! 160 ms), a byte-identical grid when run again, TS 36.331 values enforced, and `dupac eval
+//! --a3-tuned` flying the planners with the tuned A3 as extra rows.
+
+use crate::support::{dupac_output, small_world_args};
+use std::path::Path;
+
+/// The small world with two bins of 4 short validation pairs, the files in `dir`.
+fn args(dir: &Path) -> Vec<String> {
+    let mut a = small_world_args(dir);
+    for kv in [
+        "pairs.eval_bins_m=[50, 60]".to_string(),
+        "pairs.eval_per_bin=4".into(),
+        "pairs.bin_tolerance=0.1".into(),
+        format!("pairs.eval_file=\"{}\"", dir.join("val.jsonl").display()),
+        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
+    ] {
+        a.push("--set".into());
+        a.push(kv);
+    }
+    a
+}
+
+fn cmd(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The CSV's rows as name → value maps.
+fn rows(csv: &str) -> Vec<std::collections::BTreeMap<String, String>> {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .map(|h| h.to_string())
+                .zip(l.split(',').map(str::to_string))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn tune_a3_writes_the_grid_and_a_setting_no_worse_than_the_reference() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let a = args(dir.path());
+    let out = dir.path().join("tune");
+    let out_s = out.display().to_string();
+    ok(&dupac_output(&a, &cmd(&["tune-a3", "-q", "--out", &out_s])));
+    let csv = std::fs::read_to_string(out.join("a3_grid.csv")).expect("a3_grid.csv");
+    let r = rows(&csv);
+    assert_eq!(r.len(), 5 * 4 * 5, "{csv}");
+    let num = |row: &std::collections::BTreeMap<String, String>, k: &str| -> f64 {
+        row[k].parse().expect("number")
+    };
+    for row in &r {
+        assert_eq!(row["flights"], "8", "{csv}");
+    }
+    let reference: Vec<_> = r.iter().filter(|x| x["reference"] == "1").collect();
+    let chosen: Vec<_> = r.iter().filter(|x| x["chosen"] == "1").collect();
+    assert_eq!((reference.len(), chosen.len()), (1, 1), "{csv}");
+    let (re, ch) = (reference[0], chosen[0]);
+    assert_eq!(
+        (
+            re["offset_db"].as_str(),
+            re["hysteresis_db"].as_str(),
+            re["time_to_trigger_ms"].as_str()
+        ),
+        ("3", "1", "160")
+    );
+    assert!(num(ch, "ping_pongs_per_km") <= num(re, "ping_pongs_per_km") + 1e-6);
+    assert!(num(ch, "excellent_pct") >= num(re, "excellent_pct") - 1e-6);
+    // The tuned file holds the chosen setting (and is a configuration file: `dupac config`).
+    let tuned = out.join("tuned_a3.toml");
+    let cfg_out = dupac_output(
+        &cmd(&["--config", tuned.to_str().expect("utf-8")]),
+        &cmd(&["config"]),
+    );
+    ok(&cfg_out);
+    let printed = String::from_utf8_lossy(&cfg_out.stdout);
+    assert!(
+        printed.contains(&format!("offset_db = {:?}", num(ch, "offset_db"))),
+        "{printed}"
+    );
+    // Deterministic: the same inputs, the same bytes.
+    let again = dir.path().join("again");
+    ok(&dupac_output(
+        &a,
+        &cmd(&["tune-a3", "-q", "--out", &again.display().to_string()]),
+    ));
+    assert_eq!(
+        std::fs::read(again.join("a3_grid.csv")).expect("again"),
+        csv.as_bytes()
+    );
+    // A value TS 36.331 cannot signal: refused before any work, naming it.
+    let bad = dupac_output(
+        &a,
+        &cmd(&["tune-a3", "-q", "--ttt-ms", "50", "--out", &out_s]),
+    );
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--ttt-ms") && err.contains("timeToTrigger 50"),
+        "{err}"
+    );
+    // eval --a3-tuned: the planners flown with the tuned A3 too.
+    let ev = dir.path().join("eval");
+    let ev_s = ev.display().to_string();
+    let tuned_s = tuned.display().to_string();
+    ok(&dupac_output(
+        &a,
+        &cmd(&[
+            "eval",
+            "-q",
+            "--lambda",
+            "1",
+            "--a3-tuned",
+            &tuned_s,
+            "--out",
+            &ev_s,
+        ]),
+    ));
+    let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
+    let methods: Vec<&str> = summary
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(
+        methods,
+        [
+            "coverage_l1",
+            "coverage_l1+a3tuned",
+            "shortest_a3",
+            "shortest_a3tuned",
+            "shortest_oracle"
+        ],
+        "{summary}"
+    );
+    let refused = dupac_output(
+        &a,
+        &cmd(&[
+            "eval",
+            "-q",
+            "--no-planners",
+            "--a3-tuned",
+            &tuned_s,
+            "--out",
+            &ev_s,
+        ]),
+    );
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && err.contains("--a3-tuned"),
+        "{err}"
+    );
+}
