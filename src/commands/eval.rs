@@ -45,6 +45,10 @@ pub struct EvalArgs {
     /// too, as `shortest_a3tuned` and `coverage_l<λ>+a3tuned`.
     #[arg(long, value_name = "FILE")]
     pub a3_tuned: Option<PathBuf>,
+    /// The policies of this label are flown with the `--a3-tuned` setting (a base method
+    /// trained with it; repeatable).
+    #[arg(long, value_name = "LABEL")]
+    pub tuned_label: Vec<String>,
     /// Pairs per distance bin: the first K of each bin (default: all).
     #[arg(long, value_name = "K")]
     pub per_bin: Option<usize>,
@@ -101,6 +105,7 @@ impl EvalArgs {
             pairs: self.pairs.clone(),
             split: self.split(),
             a3_tuned,
+            tuned_labels: self.tuned_label.clone(),
             per_bin: self.per_bin,
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),

@@ -41,7 +41,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     let (world, rsrp) = world_and_cache(cfg, quiet)?;
     // Coverage classes for the coverage-aware planner; the guide planners of the policies'
     // flown configurations (a policy is flown guided as it was trained).
-    let coverage = methods.iter().any(|m| matches!(m.kind, Kind::Coverage(_)));
+    let coverage = methods.iter().any(|m| matches!(m.kind, Kind::Coverage(..)));
     let flown: Vec<Config> = methods
         .iter()
         .filter_map(|m| match &m.kind {
@@ -133,7 +133,8 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         };
         mcfg.env.association = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
-            Kind::Policy(_) | Kind::Coverage(_) => Association::A3,
+            Kind::Policy(_) => Association::A3,
+            Kind::Coverage(_, a) => *a,
             Kind::Shortest(a) | Kind::Replay(a) => *a,
             Kind::Hindsight(_) => Association::Learned,
         };
@@ -320,7 +321,7 @@ fn fly_one(
             })?
             .steps
         }
-        Kind::Coverage(l) => {
+        Kind::Coverage(l, _) => {
             let path = planners
                 .pairs
                 .coverage_aware(p.source_m, p.destination_m, *l)

@@ -42,6 +42,9 @@ pub struct EvalPlan {
     /// A tuned A3 setting (`dupac tune-a3`'s `tuned_a3.toml`): the planners are flown with it
     /// too (`shortest_a3tuned`, `coverage_l<λ>+a3tuned`).
     pub a3_tuned: Option<A3Setting>,
+    /// Labels whose policies are flown with `a3_tuned` (a base method trained with the tuned
+    /// A3: a policy records its observation, not its A3 setting).
+    pub tuned_labels: Vec<String>,
     /// The first K pairs of every bin.
     pub per_bin: Option<usize>,
     /// No `LABEL+a3` / `LABEL+oracle` replays.
@@ -86,7 +89,8 @@ pub enum Kind {
     Replay(Association),
     /// A recorded flight's positions re-flown with the hindsight association.
     Hindsight(Hindsight),
-    Coverage(f64),
+    /// The coverage-aware planner's path (λ) flown with this association.
+    Coverage(f64, Association),
 }
 
 /// One method and training seed to fly.
@@ -117,13 +121,25 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
         }
         let p = load_policy(Path::new(file)).context_with(|| format!("--policy {spec}"))?;
         let seed = seeds.entry(label.to_string()).or_insert(0);
+        let a3 = match (args.tuned_labels.iter().any(|t| t == label), args.a3_tuned) {
+            (false, _) => None,
+            (true, Some(t)) => Some(t),
+            (true, None) => {
+                return Err(refused!(
+                    "--tuned-label {label}: flies its policies with the --a3-tuned setting; give --a3-tuned FILE"
+                ));
+            }
+        };
         out.push(Method {
             label: label.to_string(),
             seed: *seed,
             kind: Kind::Policy(Box::new(p)),
-            a3: None,
+            a3,
         });
         *seed += 1;
+    }
+    if let Some(t) = args.tuned_labels.iter().find(|t| !seeds.contains_key(*t)) {
+        return Err(refused!("--tuned-label {t}: no --policy has this label"));
     }
     if args.no_planners && args.a3_tuned.is_some() {
         return Err(refused!(
@@ -156,7 +172,16 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             None,
         ));
         for &l in &lambdas {
-            out.push(planner(format!("coverage_l{l}"), Kind::Coverage(l), None));
+            out.push(planner(
+                format!("coverage_l{l}"),
+                Kind::Coverage(l, Association::A3),
+                None,
+            ));
+            out.push(planner(
+                format!("coverage_l{l}+oracle"),
+                Kind::Coverage(l, Association::BestRsrp),
+                None,
+            ));
         }
         // The same planners' routes with the tuned A3 choosing the site.
         if let Some(t) = args.a3_tuned {
@@ -168,7 +193,7 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             for &l in &lambdas {
                 out.push(planner(
                     format!("coverage_l{l}+a3tuned"),
-                    Kind::Coverage(l),
+                    Kind::Coverage(l, Association::A3),
                     Some(t),
                 ));
             }
