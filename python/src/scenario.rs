@@ -367,6 +367,7 @@ impl Scenario {
             compute_slice(
                 &sh.world,
                 Server::Best,
+                None,
                 sh.world.city.area_m,
                 altitude_m,
                 resolution_m,

@@ -24,6 +24,7 @@ pub struct CoverageSlice {
     pub los: Vec<bool>,
 }
 
+use crate::shadow::ShadowField;
 use crate::world::RadioWorld;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -50,11 +51,13 @@ pub enum Server {
 }
 
 /// Computes the slice at `altitude_m` over the flight area `area_m` with square
-/// cells of `resolution_m`, rows in parallel (rayon). `progress(rows_done)` is called once per
+/// cells of `resolution_m`, rows in parallel (rayon), with the shadow fading of `shadow` when
+/// given (the real channel, docs/env.md "Channel"). `progress(rows_done)` is called once per
 /// finished row.
 pub fn compute_slice(
     world: &RadioWorld,
     server: Server,
+    shadow: Option<&ShadowField>,
     area_m: Bounds2,
     altitude_m: f64,
     resolution_m: f64,
@@ -87,9 +90,24 @@ pub fn compute_slice(
                     if world.city.is_inside_building(p) {
                         (f32::NAN, None, false)
                     } else {
-                        let (id, rsrp, los) = match server {
-                            Server::Best => world.best_server(p),
-                            Server::Site(id) => (id, world.rsrp_dbm(id, p), world.los(id, p)),
+                        let (id, rsrp, los) = match (server, shadow) {
+                            (Server::Best, None) => world.best_server(p),
+                            (Server::Site(id), None) => {
+                                (id, world.rsrp_dbm(id, p), world.los(id, p))
+                            }
+                            (server, Some(f)) => {
+                                let m = world.num_sites();
+                                let (mut r, mut l) = (vec![0.0; m], vec![false; m]);
+                                world.rsrp_all_shadowed(p, f, &mut r, &mut l);
+                                let k = match server {
+                                    Server::Best => r
+                                        .iter()
+                                        .enumerate()
+                                        .fold(0, |b, (i, v)| if *v > r[b] { i } else { b }),
+                                    Server::Site(id) => id.index(),
+                                };
+                                (SiteId(k as u16), r[k], l[k])
+                            }
                         };
                         (rsrp as f32, Some(id), los)
                     }

@@ -150,6 +150,29 @@ impl RadioWorld {
         best
     }
 
+    /// Every site's RSRP at `uav_m` (dBm, exact) less its shadow fading in `field` (dB), and each
+    /// link's line of sight, into `rsrp_dbm` and `los`.
+    pub fn rsrp_all_shadowed(
+        &self,
+        uav_m: Point,
+        field: &crate::shadow::ShadowField,
+        rsrp_dbm: &mut [f64],
+        los: &mut [bool],
+    ) {
+        let m = self.sites.len();
+        let mut los_frac = vec![0.0; m];
+        for i in 0..m {
+            los[i] = self.los(SiteId(i as u16), uav_m);
+            los_frac[i] = f64::from(u8::from(los[i]));
+            rsrp_dbm[i] = self.link.rsrp_dbm(&self.transmitter(i), uav_m, los[i]);
+        }
+        let mut sf = vec![0.0; m];
+        field.shadow_db(uav_m, &los_frac, &mut sf);
+        for (r, s) in rsrp_dbm.iter_mut().zip(&sf) {
+            *r -= s;
+        }
+    }
+
     /// Identifies city, sites and radio parameters: a cache built for another world is stale.
     pub fn fingerprint(&self) -> u64 {
         let mut h = dupac_common::fingerprint::Fnv64::new();

@@ -106,6 +106,7 @@ fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     let slice = compute_slice(
         &w,
         Server::Best,
+        None,
         Bounds2::new(-500.0, -500.0, 500.0, 500.0),
         30.0,
         10.0,
@@ -129,6 +130,7 @@ fn coverage_slice_masks_buildings_and_is_worse_in_the_shadow() {
     let one = compute_slice(
         &w,
         Server::Site(SiteId(0)),
+        None,
         Bounds2::new(-500.0, -500.0, 500.0, 500.0),
         30.0,
         10.0,

@@ -161,6 +161,7 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
             &super::map::MapArgs {
                 out: Some(args.out.join("fig2b")),
                 site: None,
+                field: 0,
             },
         )?;
     }

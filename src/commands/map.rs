@@ -4,6 +4,7 @@ use crate::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};
 use anyhow::{Context, Result};
 use clap::Args;
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::coverage::{Server, SliceSummary, compute_slice, summarise, write_slice_csv};
 use dupac_radio::world::RadioWorld;
 use std::fmt::Write as _;
@@ -19,6 +20,10 @@ pub struct MapArgs {
     /// Map one site's RSRP instead of the best server (its shadows and antenna-null rings).
     #[arg(long, value_name = "ID")]
     pub site: Option<u16>,
+    /// Under `radio.channel.model = "real"`: the shadow-fading realisation shown (validation
+    /// field K mod `radio.channel.eval_fields`, as evaluation flies pair K in).
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub field: u64,
 }
 
 pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
@@ -53,6 +58,15 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         Server::Best => "best-server RSRP".to_string(),
         Server::Site(id) => format!("RSRP of site {}", id.0),
     };
+    // Under the real channel the map shows one realisation: validation field `--field`.
+    let shadow = world
+        .channel
+        .as_ref()
+        .map(|c| c.field(FieldSplit::Eval, args.field));
+    let what = match &shadow {
+        Some(_) => format!("{what}, shadowed (validation field {})", args.field),
+        None => what,
+    };
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
     write_atomic_with(&out.join("sites.csv"), |w| {
@@ -70,6 +84,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         let slice = compute_slice(
             &world,
             server,
+            shadow.as_deref(),
             world.city.area_m,
             alt,
             cfg.map.resolution_m,
