@@ -29,6 +29,9 @@ struct LinkRequest {
     tilt_deg: Option<f64>,
     fc_ghz: Option<f64>,
     tx_power_dbm: Option<f64>,
+    /// A standard-normal deviate of the link's shadow fading: the answer adds `shadow_db` = σ_SF·z
+    /// and the shadowed RSRP (docs/env.md "Channel").
+    sf_z: Option<f64>,
 }
 
 /// Processes JSON Lines from `input`; returns the number of failed lines.
@@ -197,7 +200,8 @@ fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String,
         tx_power_dbm,
     };
     let budget = model.evaluate(&tx, req.uav_xyz, los);
-    let v = serde_json::json!({
+    let sigma_sf_db = crate::shadow::sigma_sf_db(req.scenario, los, req.uav_xyz[2]);
+    let mut v = serde_json::json!({
         "d3d_m": budget.d3d_m,
         "d2d_m": budget.d2d_m,
         "theta_deg": budget.theta_deg,
@@ -207,7 +211,21 @@ fn link_one(cfg: &Config, line: &str, city: &mut Option<City>) -> Result<String,
         "rsrp_dbm": budget.rsrp_dbm,
         "class": budget.class,
         "los": budget.los,
+        "sigma_sf_db": sigma_sf_db,
+        "sf_decorrelation_m": crate::shadow::decorrelation_m(req.scenario, los),
     });
+    if let Some(z) = req.sf_z {
+        if !(z.is_finite() && z.abs() <= 10.0) {
+            return Err(format!(
+                "field `sf_z`: {z} must be a standard-normal deviate in [-10, 10]"
+            ));
+        }
+        let shadow_db = sigma_sf_db * z;
+        let rsrp = budget.rsrp_dbm - shadow_db;
+        v["shadow_db"] = serde_json::json!(shadow_db);
+        v["rsrp_shadowed_dbm"] = serde_json::json!(rsrp);
+        v["class_shadowed"] = serde_json::json!(model.thresholds.classify(rsrp));
+    }
     Ok(v.to_string())
 }
 

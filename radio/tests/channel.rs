@@ -214,3 +214,36 @@ fn the_layer3_filter_matches_a_hand_computed_sequence() {
     assert_eq!(e, draw(1));
     assert_ne!(e, draw(2));
 }
+
+#[test]
+fn the_link_calculator_gives_the_links_shadow_fading() {
+    let cfg = dupac_common::config::Config::default();
+    let line = |z: &str| {
+        format!(
+            "{{\"bs_xyz\":[0,0,25],\"uav_xyz\":[200,0,50],\"scenario\":\"uma\",\"los\":true{z}}}\n"
+        )
+    };
+    let input = format!(
+        "{}{}{}",
+        line(""),
+        line(",\"sf_z\":1.5"),
+        line(",\"sf_z\":1e9")
+    );
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let failed = dupac_radio::link_calc::link_stream(&cfg, input.as_bytes(), &mut out, &mut err)
+        .expect("stream");
+    assert_eq!(failed, 1, "{}", String::from_utf8_lossy(&err));
+    assert!(String::from_utf8_lossy(&err).starts_with("line 3: field `sf_z`"));
+    let rows: Vec<serde_json::Value> = String::from_utf8(out)
+        .expect("utf8")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json"))
+        .collect();
+    let sigma = sigma_sf_db(Scenario::Uma, true, 50.0);
+    assert_eq!(rows[0]["sigma_sf_db"].as_f64(), Some(sigma));
+    assert_eq!(rows[0]["sf_decorrelation_m"].as_f64(), Some(37.0));
+    assert!(rows[0].get("shadow_db").is_none());
+    let rsrp = rows[1]["rsrp_dbm"].as_f64().expect("rsrp");
+    let shadowed = rows[1]["rsrp_shadowed_dbm"].as_f64().expect("shadowed");
+    assert!((rsrp - shadowed - 1.5 * sigma).abs() < 1e-9);
+}
