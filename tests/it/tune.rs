@@ -135,6 +135,7 @@ fn tune_a3_writes_the_grid_and_a_setting_no_worse_than_the_reference() {
         [
             "coverage_l1",
             "coverage_l1+a3tuned",
+            "coverage_l1+oracle",
             "shortest_a3",
             "shortest_a3tuned",
             "shortest_oracle"
