@@ -45,6 +45,7 @@ def small_world(d: Path) -> list[str]:
         "pairs.eval_per_bin=4",
         "pairs.bin_tolerance=0.1",
         f'pairs.eval_file="{d / "eval.jsonl"}"',
+        f'pairs.test_file="{d / "test.jsonl"}"',
         "train.num_envs=4",
         "train.num_steps=64",
         "train.pool_size=50",

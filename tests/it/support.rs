@@ -82,6 +82,8 @@ pub fn small_train_args(dir: &Path) -> Vec<String> {
         "pairs.eval_per_bin=4".into(),
         "pairs.bin_tolerance=0.1".into(),
         format!("pairs.eval_file=\"{}\"", dir.join("eval.jsonl").display()),
+        // `dupac pairs` writes the test split too: never into the repository's out/.
+        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
         "train.num_envs=4".into(),
         "train.num_steps=64".into(),
         "train.pool_size=50".into(),
@@ -218,6 +220,7 @@ eval_bins_m = [50, 60]
 eval_per_bin = 4
 bin_tolerance = 0.1
 eval_file = "{dir}/eval.jsonl"
+test_file = "{dir}/test.jsonl"
 [train]
 num_envs = 4
 num_steps = 64
