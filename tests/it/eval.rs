@@ -224,7 +224,12 @@ fn eval_writes_per_seed_rows_and_paired_differences() {
         .collect();
     assert_eq!(
         against,
-        ["coverage_l1", "coverage_l1+oracle", "shortest_a3", "shortest_oracle"],
+        [
+            "coverage_l1",
+            "coverage_l1+oracle",
+            "shortest_a3",
+            "shortest_oracle"
+        ],
         "{paired}"
     );
     // 2 seed indices × 8 pairs, every flight matched with the planner's.
