@@ -4,24 +4,8 @@
 //! `report.md`, `summary.csv` and `records/split.txt`; `--split` with `--pairs` and `--out`
 //! without `--split` are refused.
 
-use crate::support::{dupac_output, small_world_args};
+use crate::support::{dupac_output, split_world_args as args};
 use std::path::Path;
-
-/// The small world with two bins of 4 short pairs per split, the files in `dir`.
-fn args(dir: &Path) -> Vec<String> {
-    let mut a = small_world_args(dir);
-    for kv in [
-        "pairs.eval_bins_m=[50, 60]".to_string(),
-        "pairs.eval_per_bin=4".into(),
-        "pairs.bin_tolerance=0.1".into(),
-        format!("pairs.eval_file=\"{}\"", dir.join("val.jsonl").display()),
-        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
-    ] {
-        a.push("--set".into());
-        a.push(kv);
-    }
-    a
-}
 
 fn ok(o: &std::process::Output) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

@@ -36,6 +36,23 @@ pub fn prerequisite(what: &str, met: bool) -> bool {
     false
 }
 
+/// [`small_world_args`] with two bins (50, 60 m) of 4 short pairs per split, the validation and
+/// test files in `dir` (`val.jsonl`, `test.jsonl`).
+pub fn split_world_args(dir: &Path) -> Vec<String> {
+    let mut a = small_world_args(dir);
+    for kv in [
+        "pairs.eval_bins_m=[50, 60]".to_string(),
+        "pairs.eval_per_bin=4".into(),
+        "pairs.bin_tolerance=0.1".into(),
+        format!("pairs.eval_file=\"{}\"", dir.join("val.jsonl").display()),
+        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
+    ] {
+        a.push("--set".into());
+        a.push(kv);
+    }
+    a
+}
+
 /// A small procedural scenario with a coarse cache (`--set` arguments), so the planner commands
 /// run in seconds; the cache lives in `dir`.
 pub fn small_world_args(dir: &Path) -> Vec<String> {

@@ -3,24 +3,7 @@
 //! 160 ms), a byte-identical grid when run again, TS 36.331 values enforced, and `dupac eval
 //! --a3-tuned` flying the planners with the tuned A3 as extra rows.
 
-use crate::support::{dupac_output, small_world_args};
-use std::path::Path;
-
-/// The small world with two bins of 4 short validation pairs, the files in `dir`.
-fn args(dir: &Path) -> Vec<String> {
-    let mut a = small_world_args(dir);
-    for kv in [
-        "pairs.eval_bins_m=[50, 60]".to_string(),
-        "pairs.eval_per_bin=4".into(),
-        "pairs.bin_tolerance=0.1".into(),
-        format!("pairs.eval_file=\"{}\"", dir.join("val.jsonl").display()),
-        format!("pairs.test_file=\"{}\"", dir.join("test.jsonl").display()),
-    ] {
-        a.push("--set".into());
-        a.push(kv);
-    }
-    a
-}
+use crate::support::{dupac_output, split_world_args as args};
 
 fn cmd(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
