@@ -67,6 +67,7 @@ eval_bins_m = [50, 60]
 eval_per_bin = 50
 bin_tolerance = 0.1
 eval_file = "$WORK/eval.jsonl"
+test_file = "$WORK/test.jsonl"
 [train]
 num_envs = 4
 num_steps = 64
