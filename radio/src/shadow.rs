@@ -294,6 +294,15 @@ impl ShadowField {
             *o = l * sigma_sf_db(sc, true, h) * zl + (1.0 - l) * sigma_sf_db(sc, false, h) * zn;
         }
     }
+
+    /// Applies the shadow fading at `p_m` to every site's RSRP (dBm) in `rsrp_dbm`, given each
+    /// link's line of sight `los` ([`ShadowField::shadow_db`]); `scratch_db` holds the M values.
+    pub fn apply(&self, p_m: Point, los: &[f64], rsrp_dbm: &mut [f64], scratch_db: &mut [f64]) {
+        self.shadow_db(p_m, los, scratch_db);
+        for (r, s) in rsrp_dbm.iter_mut().zip(scratch_db.iter()) {
+            *r -= s;
+        }
+    }
 }
 
 /// An RSRP source with a shadow-fading realisation on top: the true RSRP of an episode's field,
@@ -319,10 +328,7 @@ impl RsrpSource for ShadowedSource {
             RsrpSource::los_all(self.world.as_ref(), p_m, &mut los);
         }
         let mut sf = vec![0.0; m];
-        self.field.shadow_db(p_m, &los, &mut sf);
-        for (o, s) in out.iter_mut().zip(&sf) {
-            *o -= s;
-        }
+        self.field.apply(p_m, &los, out, &mut sf);
     }
 
     fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {

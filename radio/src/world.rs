@@ -167,10 +167,7 @@ impl RadioWorld {
             rsrp_dbm[i] = self.link.rsrp_dbm(&self.transmitter(i), uav_m, los[i]);
         }
         let mut sf = vec![0.0; m];
-        field.shadow_db(uav_m, &los_frac, &mut sf);
-        for (r, s) in rsrp_dbm.iter_mut().zip(&sf) {
-            *r -= s;
-        }
+        field.apply(uav_m, &los_frac, rsrp_dbm, &mut sf);
     }
 
     /// Identifies city, sites and radio parameters: a cache built for another world is stale.

@@ -119,10 +119,12 @@ impl Env {
             if !self.rsrp.los_all(p_m, &mut self.los_scratch) {
                 RsrpSource::los_all(self.world.as_ref(), p_m, &mut self.los_scratch);
             }
-            field.shadow_db(p_m, &self.los_scratch, &mut self.shadow_scratch_db);
-            for (r, s) in self.rsrp_dbm.iter_mut().zip(&self.shadow_scratch_db) {
-                *r -= s;
-            }
+            field.apply(
+                p_m,
+                &self.los_scratch,
+                &mut self.rsrp_dbm,
+                &mut self.shadow_scratch_db,
+            );
         }
         match self.measurer.as_mut() {
             Some(m) => m.measure(&self.rsrp_dbm, &mut self.measured_dbm),
