@@ -228,7 +228,7 @@ pub fn wilson95(k: usize, n: usize) -> Rate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::metrics::{count_handovers, flight_metrics};
+    use crate::metrics::{MetricRules, count_handovers, flight_metrics};
     use crate::record::{FlightRecord, StepRecord};
     use dupac_common::geometry::Point;
     use dupac_common::msg::Outcome;
@@ -355,6 +355,7 @@ mod tests {
             source_m: Point::new(0.0, 0.0, 50.0),
             destination_m: Point::new(5.0, 0.0, 50.0),
             remaining_m: 0.5,
+            start_serving: 3,
             steps: vec![
                 step(1.0, 3, -70.0, Excellent, 10.0),
                 step(2.0, 4, -85.0, Mediocre, -7.0),
@@ -375,7 +376,7 @@ mod tests {
         f.steps[1].best_rsrp_dbm = -72.0;
         f.steps[1].best_class = RsrpClass::Excellent;
         f.steps[3].best_rsrp_dbm = -103.0;
-        let m = flight_metrics(&f, 3, 100, 3.0);
+        let m = flight_metrics(&f, &rules(100, 0.0));
         assert!((m.mean_site_regret_db - 15.0 / 5.0).abs() < 1e-9);
         assert!((m.frac_site_regret_high - 0.2).abs() < 1e-9);
         assert!((m.frac_class_regret - 0.2).abs() < 1e-9);
@@ -388,6 +389,39 @@ mod tests {
         // 3 → 4 → 3 (back within 1 step: ping-pong) → 5.
         assert_eq!((m.handovers, m.ping_pongs), (3, 1));
         assert!((m.handovers_per_km - 500.0).abs() < 1e-9);
+    }
+
+    fn rules(ping_pong_window_steps: u32, interruption_steps: f64) -> MetricRules {
+        MetricRules {
+            ping_pong_window_steps,
+            site_regret_threshold_db: 3.0,
+            interruption_steps,
+        }
+    }
+
+    #[test]
+    fn handover_interruptions_are_taken_from_the_excellent_time() {
+        // Classes E M E P E, handovers at steps 2 (3 → 4), 3 (4 → 3) and 5 (3 → 5).
+        let f = flight();
+        // No interruption: the net excellent time is the excellent time.
+        let m = flight_metrics(&f, &rules(100, 0.0));
+        assert_eq!((m.frac_interrupted, m.frac_excellent_net), (0.0, 0.6));
+        // Half a step each: steps 2, 3 and 5 lose half; of them 3 and 5 are excellent.
+        let m = flight_metrics(&f, &rules(100, 0.5));
+        assert!((m.frac_interrupted - 1.5 / 5.0).abs() < 1e-12);
+        assert!((m.frac_excellent_net - 2.0 / 5.0).abs() < 1e-12);
+        // 1.5 steps: step 2's interruption is cut short by step 3's handover, which starts a new
+        // one (all of step 3, half of step 4); step 5's is cut at the flight's end: 1 + 1 + 0.5
+        // + 1 = 3.5 steps interrupted; of the excellent steps 1, 3 and 5 only step 1 is kept.
+        let m = flight_metrics(&f, &rules(100, 1.5));
+        assert!((m.frac_interrupted - 3.5 / 5.0).abs() < 1e-12, "{m:?}");
+        assert!((m.frac_excellent_net - 1.0 / 5.0).abs() < 1e-12, "{m:?}");
+        // The start site counts: from site 4, step 1 (site 3) is a handover too.
+        let mut g = flight();
+        g.start_serving = 4;
+        let m = flight_metrics(&g, &rules(100, 0.5));
+        assert_eq!(m.handovers, 4);
+        assert!((m.frac_excellent_net - 1.5 / 5.0).abs() < 1e-12);
     }
 
     #[test]

@@ -175,26 +175,65 @@ pub struct FlightMetrics {
     pub frac_site_regret_high: f64,
     /// Fraction of flight time with class regret: the best site excellent, the serving one not.
     pub frac_class_regret: f64,
+    /// Fraction of flight time the link is interrupted by handovers: each handover interrupts
+    /// it for `radio.handover_interruption_ms` from the step it happens at (cut at the flight's
+    /// end; a handover during an interruption starts a new one).
+    pub frac_interrupted: f64,
+    /// Fraction of flight time in excellent RSRP and not interrupted by a handover: the
+    /// excellent time a user of the link has.
+    pub frac_excellent_net: f64,
 }
 
-/// The metrics of `r`; `start_serving` is the serving site before the first step,
-/// `ping_pong_window_steps` the env's window in steps and `site_regret_threshold_db` the regret
-/// that counts as high (`env.site_regret_threshold_db`).
-pub fn flight_metrics(
-    r: &FlightRecord,
-    start_serving: u16,
-    ping_pong_window_steps: u32,
-    site_regret_threshold_db: f64,
-) -> FlightMetrics {
+/// What the metrics of a recorded flight need from the configuration: kept in evaluation's
+/// records files, so a report is computed from them alone.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct MetricRules {
+    /// `env.ping_pong_window_s` in steps.
+    pub ping_pong_window_steps: u32,
+    /// Site regret that counts as high (dB; `env.site_regret_threshold_db`).
+    pub site_regret_threshold_db: f64,
+    /// The link's interruption per handover, in steps (`radio.handover_interruption_ms` / Δt).
+    pub interruption_steps: f64,
+}
+
+impl MetricRules {
+    /// The rules of `cfg`.
+    pub fn from_config(cfg: &dupac_common::config::Config) -> MetricRules {
+        let dt_s = cfg.env.dt_s();
+        MetricRules {
+            ping_pong_window_steps: (cfg.env.ping_pong_window_s / dt_s).ceil().max(1.0) as u32,
+            site_regret_threshold_db: cfg.env.site_regret_threshold_db,
+            interruption_steps: cfg.radio.handover_interruption_ms / 1000.0 / dt_s,
+        }
+    }
+}
+
+/// The metrics of `r` under `rules`. Handovers are counted from `r.start_serving`, the site the
+/// environment served before the first step.
+pub fn flight_metrics(r: &FlightRecord, rules: &MetricRules) -> FlightMetrics {
+    let start_serving = r.start_serving;
+    let (ping_pong_window_steps, site_regret_threshold_db) =
+        (rules.ping_pong_window_steps, rules.site_regret_threshold_db);
     let n = r.steps.len().max(1) as f64;
     let mut distance_m = 0.0;
     let mut prev = r.source_m;
     let mut frac_class = [0.0; 3];
     let (mut rsrp, mut sinr, mut low_sinr) = (0.0, 0.0, 0.0);
     let (mut regret, mut regret_high, mut class_regret) = (0.0, 0.0, 0.0);
+    // Link time lost to handover interruptions (steps), and the excellent time outside them.
+    let (mut interrupted, mut excellent_net, mut interruption_left) = (0.0, 0.0, 0.0f64);
     let mut serving = Vec::with_capacity(r.steps.len() + 1);
     serving.push(start_serving);
     for s in &r.steps {
+        if s.serving != *serving.last().unwrap_or(&start_serving) {
+            interruption_left = rules.interruption_steps;
+        }
+        let lost = interruption_left.min(1.0);
+        interruption_left -= lost;
+        interrupted += lost;
+        if s.class == RsrpClass::Excellent {
+            excellent_net += 1.0 - lost;
+        }
         let p = Point::from(s.position_m.map(f64::from));
         distance_m += dupac_common::geometry::distance_m(p, prev);
         prev = p;
@@ -235,6 +274,8 @@ pub fn flight_metrics(
         mean_site_regret_db: regret / n,
         frac_site_regret_high: regret_high / n,
         frac_class_regret: class_regret / n,
+        frac_interrupted: interrupted / n,
+        frac_excellent_net: excellent_net / n,
     }
 }
 

@@ -126,5 +126,8 @@ pub struct FlightRecord {
     pub destination_m: Point,
     /// Distance left to the destination at the end (m; ≤ the goal radius on success).
     pub remaining_m: f64,
+    /// The serving site before the first step: the one the environment chose at the source (the
+    /// strongest that the UAV measured); handovers are counted from it.
+    pub start_serving: u16,
     pub steps: Vec<StepRecord>,
 }

@@ -20,7 +20,8 @@ use std::collections::BTreeMap;
 /// 8: the source of the sites' line of sight (`env.observation.site_los`).
 /// 9: that observation without `site_trend`.
 /// 10: stats and control messages in JSON ([`crate::jsonmsg`]), not in this binary codec.
-pub const SCHEMA_VERSION: u32 = 10;
+/// 11: the handover weight in that observation (`env.observation.handover_weight`).
+pub const SCHEMA_VERSION: u32 = 11;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -22,11 +22,15 @@ use crate::model::ActorCritic;
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
 /// The one format of checkpoint files this build reads and writes: the policy records its
 /// observation ([`PolicyWeights::observation`]: the path guide's keys and clearance, the source
-/// of the sites' line of sight). A file of another format is refused ([`CheckpointError::Format`]).
-const CHECKPOINT_VERSION: u32 = 7;
+/// of the sites' line of sight, the handover weight). A file of another format is refused
+/// ([`CheckpointError::Format`]).
+const CHECKPOINT_VERSION: u32 = 8;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
 /// The one format of policy files this build reads and writes (as [`CHECKPOINT_VERSION`]).
-const POLICY_VERSION: u32 = 7;
+const POLICY_VERSION: u32 = 8;
+/// The last commit that reads and writes format 7: its binary flies the policies trained on the
+/// Midtown without its southern strip (docs/archive.md).
+const FORMAT7_COMMIT: &str = "68cf06d";
 /// The commit whose `examples/upgrade_policies.rs` rewrites policy files of formats 2 to 6 in
 /// format 7.
 const UPGRADE_COMMIT: &str = "3b1d9d7";
@@ -191,6 +195,10 @@ fn other_format(e: CodecError, kind: &'static str) -> CheckpointError {
             what_to_do: if got >= want {
                 "it was written by a newer DUPAC: read it with that one, or retrain it (dupac train)"
                     .into()
+            } else if got == 7 {
+                format!(
+                    "retrain it (dupac train), or fly or resume it with the DUPAC of commit {FORMAT7_COMMIT}, the last that reads format 7 (docs/archive.md)"
+                )
             } else if kind == "policy" {
                 format!(
                     "retrain it (dupac train), or convert it (formats 2 to 6) with the DUPAC of commit {UPGRADE_COMMIT}: cargo run --release --example upgrade_policies -- FILE"
@@ -290,8 +298,13 @@ mod tests {
             );
             e
         };
-        // Older policies (formats 6 and 2).
         let path = dir.path().join("policy.bin");
+        // A format-7 policy: the commit that still reads it.
+        let bytes = codec::encode(POLICY_MAGIC, 7, &p, "policy").expect("encode");
+        std::fs::write(&path, bytes).expect("write");
+        let e = refused(&path, "policy", 7);
+        assert!(e.contains(FORMAT7_COMMIT), "{e}");
+        // Older policies (formats 6 and 2).
         for old in [6, 2] {
             let bytes = codec::encode(POLICY_MAGIC, old, &p, "policy").expect("encode");
             std::fs::write(&path, bytes).expect("write");

@@ -48,8 +48,13 @@ struct Core {
 
 impl Core {
     fn new(shared: Arc<Shared>, split: Split, seed: u64) -> PyResult<Core> {
-        let env = RustEnv::new(&shared.cfg, shared.world.clone(), shared.rsrp.clone())
+        let mut env = RustEnv::new(&shared.cfg, shared.world.clone(), shared.rsrp.clone())
             .map_err(env_error)?;
+        // The held-out pairs fly in the validation's shadow-fading realisations, as `dupac fly`
+        // and `dupac eval` fly them.
+        if split == Split::Eval {
+            env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
+        }
         let pairs = shared.pairs(split)?;
         if pairs.is_empty() {
             return Err(runtime_error("the scenario has no pairs to fly"));
@@ -94,6 +99,12 @@ impl Core {
         let reset_seed = self.rng.random::<u64>();
         let p = &self.pairs[k];
         self.pair_id = p.id;
+        // A held-out pair's episode is seeded by its id (its field and measurement errors), as
+        // evaluation seeds it.
+        let reset_seed = match self.split {
+            Split::Train => reset_seed,
+            Split::Eval => p.id,
+        };
         self.env
             .reset(reset_seed, p.episode(reversed.unwrap_or(drawn_reversed)))
             .map_err(env_error)?;

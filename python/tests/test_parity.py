@@ -58,3 +58,19 @@ def test_dupac_fly_matches_the_binary(trained, small_set, dupac_bin, tmp_path, a
             assert f"{steps['position_m'][i, axis]:.3f}" == r[k]
         assert int(r["serving"]) == steps["serving"][i]
         assert f"{steps['reward'][i]:.5f}" == r["reward"]
+
+
+def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, small_set):
+    """Under the real channel a held-out pair flies in its validation realisation with its own
+    measurement errors, in the Gymnasium env as in `dupac.fly` (and `dupac fly`, `dupac eval`):
+    a training field would give other RSRP and another flight."""
+    path = trained["a3"]
+    real = small_set + ["radio.channel.model=real"]
+    sc = dupac.Scenario(set=real, policy=str(path))
+    policy = dupac.Policy(str(path))
+    for pair in (0, 3):
+        py, info = _fly_in_python(sc, policy, pair)
+        summary, rust = dupac.fly(sc, policy, pair=pair)
+        assert summary["length"] == len(py["step"])
+        for k in rust:
+            assert np.array_equal(py[k], rust[k]), (pair, k)

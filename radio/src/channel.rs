@@ -1,6 +1,7 @@
 //! The real channel (`radio.channel.model = "real"`, docs/env.md "Channel"): the shadow-fading
 //! realisations a world's episodes fly in ([`Channel`]), and what the UAV measures of the RSRP
-//! ([`Measurer`]: a per-step measurement error and the layer-3 filter of TS 36.331 §5.5.3.2).
+//! ([`Measurer`]: a measurement error per measurement period and the layer-3 filter of TS 36.331
+//! §5.5.3.2).
 
 use crate::pathloss::Scenario;
 use crate::shadow::{FieldGrid, ShadowField};
@@ -28,6 +29,17 @@ pub enum FieldSplit {
     Train,
     Eval,
     Test,
+}
+
+impl FieldSplit {
+    /// The split's domain tag ([`TRAIN_DOMAIN`], [`EVAL_DOMAIN`], [`TEST_DOMAIN`]).
+    pub fn domain(self) -> u64 {
+        match self {
+            FieldSplit::Train => TRAIN_DOMAIN,
+            FieldSplit::Eval => EVAL_DOMAIN,
+            FieldSplit::Test => TEST_DOMAIN,
+        }
+    }
 }
 
 /// The shadow-fading realisations of a world, each drawn when first used and then shared.
@@ -73,11 +85,12 @@ impl Channel {
 
     /// Realisation `index` (modulo the split's count) of `split`.
     pub fn field(&self, split: FieldSplit, index: u64) -> Arc<ShadowField> {
-        let (slots, domain) = match split {
-            FieldSplit::Train => (&self.train, TRAIN_DOMAIN),
-            FieldSplit::Eval => (&self.eval, EVAL_DOMAIN),
-            FieldSplit::Test => (&self.test, TEST_DOMAIN),
+        let slots = match split {
+            FieldSplit::Train => &self.train,
+            FieldSplit::Eval => &self.eval,
+            FieldSplit::Test => &self.test,
         };
+        let domain = split.domain();
         let i = (index % slots.len() as u64) as u32;
         slots[i as usize]
             .get_or_init(|| {
@@ -88,6 +101,7 @@ impl Channel {
                     self.cfg.field_seed,
                     domain,
                     i,
+                    self.cfg.inter_site_correlation,
                 );
                 tracing::debug!(
                     ?split,
@@ -123,58 +137,95 @@ pub fn l3_coefficient(k: u32, dt_s: f64) -> f64 {
     1.0 - (1.0 - a).powf(dt_s / 0.2)
 }
 
-/// What the UAV measures of every site's RSRP each step: the true value plus an independent
-/// N(0, σ²) error (dB), layer-3 filtered in dB (TS 36.331 §5.5.3.2: F_n = (1 − a)·F_{n−1} +
-/// a·M_n, F_0 = M_1).
+/// What the UAV measures of every site's RSRP: once per measurement period (TS 36.133 §8.1.2.2:
+/// 200 ms for intra-frequency RSRP), the mean of the true RSRP over the period's steps (dB) plus
+/// an N(0, σ²) error independent per site and period, layer-3 filtered in dB once per period
+/// (TS 36.331 §5.5.3.2: F_n = (1 − a)·F_{n−1} + a·M_n, F_1 = M_1) and held until the next
+/// period ends. The first measurement is made at the episode's first position, so the UAV has
+/// one from the start. With σ per period and k = 4 the filtered error has σ·√(a/(2 − a)):
+/// 1.15 dB for σ = 2 dB (a = 1/2).
 #[derive(Debug, Clone)]
 pub struct Measurer {
     sigma_db: f64,
     a: f64,
+    /// Steps per measurement period (≥ 1).
+    period_steps: u32,
     rng: ChaCha8Rng,
     filtered_dbm: Vec<f64>,
+    /// Sum of the true RSRP over the current period's steps (dBm).
+    sum_dbm: Vec<f64>,
+    /// Steps in the current period so far.
+    in_period: u32,
     started: bool,
 }
 
 impl Measurer {
-    /// A measurer of `n_sites` sites with error σ `sigma_db` (dB) and filter coefficient
-    /// `filter_k` at a step period of `dt_s` (s).
-    pub fn new(n_sites: usize, sigma_db: f64, filter_k: u32, dt_s: f64) -> Measurer {
+    /// A measurer of `n_sites` sites with error σ `sigma_db` (dB per measurement), filter
+    /// coefficient `filter_k`, a step period of `dt_s` (s) and a measurement period of
+    /// `period_s` (s; rounded to whole steps, at least one). The filter's coefficient is
+    /// TS 36.331's a = 1/2^(k/4) per 200 ms, adapted to the rounded period ([`l3_coefficient`]).
+    pub fn new(n_sites: usize, sigma_db: f64, filter_k: u32, dt_s: f64, period_s: f64) -> Measurer {
+        let period_steps = (period_s / dt_s).round().clamp(1.0, 1e6) as u32;
         Measurer {
             sigma_db,
-            a: l3_coefficient(filter_k, dt_s),
+            a: l3_coefficient(filter_k, f64::from(period_steps) * dt_s),
+            period_steps,
             rng: ChaCha8Rng::seed_from_u64(0),
             filtered_dbm: vec![f64::NEG_INFINITY; n_sites],
+            sum_dbm: vec![0.0; n_sites],
+            in_period: 0,
             started: false,
         }
     }
 
-    /// The per-step filter coefficient.
+    /// The filter coefficient per measurement period.
     pub fn coefficient(&self) -> f64 {
         self.a
     }
 
-    /// Starts an episode: the errors of an episode reset with `seed` are a stream of their own.
-    pub fn reset(&mut self, seed: u64) {
+    /// Steps per measurement period.
+    pub fn period_steps(&self) -> u32 {
+        self.period_steps
+    }
+
+    /// Starts an episode: the errors of an episode of `split` reset with `seed` are a stream of
+    /// their own (validation pair k and test pair k do not share one).
+    pub fn reset(&mut self, split: FieldSplit, seed: u64) {
         let mut key = [0u8; 32];
         key[..8].copy_from_slice(&seed.to_le_bytes());
         key[8..16].copy_from_slice(&MEASUREMENT_DOMAIN.to_le_bytes());
+        key[16..24].copy_from_slice(&split.domain().to_le_bytes());
         self.rng = ChaCha8Rng::from_seed(key);
+        self.sum_dbm.fill(0.0);
+        self.in_period = 0;
         self.started = false;
     }
 
-    /// One step: measures `true_dbm` (dBm) into `out` (dBm, filtered). A site that cannot be
-    /// measured (−∞) restarts its filter.
+    /// One step: adds `true_dbm` (dBm) to the period's mean and writes what the UAV holds into
+    /// `out` (dBm, filtered): a new measurement at the first step and at the end of every
+    /// period, the last one between. A site that cannot be measured (−∞) restarts its filter.
     pub fn measure(&mut self, true_dbm: &[f64], out: &mut [f64]) {
-        for ((t, f), o) in true_dbm.iter().zip(&mut self.filtered_dbm).zip(out) {
+        for (s, t) in self.sum_dbm.iter_mut().zip(true_dbm) {
+            *s += t;
+        }
+        self.in_period += 1;
+        if self.started && self.in_period < self.period_steps {
+            out.copy_from_slice(&self.filtered_dbm);
+            return;
+        }
+        let n = f64::from(self.in_period);
+        for ((s, f), o) in self.sum_dbm.iter_mut().zip(&mut self.filtered_dbm).zip(out) {
             let e: f64 = StandardNormal.sample(&mut self.rng);
-            let m = t + self.sigma_db * e;
+            let m = *s / n + self.sigma_db * e;
             *f = if self.started && f.is_finite() && m.is_finite() {
                 (1.0 - self.a) * *f + self.a * m
             } else {
                 m
             };
             *o = *f;
+            *s = 0.0;
         }
+        self.in_period = 0;
         self.started = true;
     }
 }

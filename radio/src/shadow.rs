@@ -3,13 +3,17 @@
 //! distance (TR 38.901 Table 7.5-6) and one realisation of it over the flight area
 //! ([`ShadowField`]): per site, a LoS and an NLoS unit-variance Gaussian field over the
 //! horizontal plane with the exponential autocorrelation exp(−d/d_corr), drawn exactly on a grid
-//! by circulant embedding and bilinear between grid points.
+//! by circulant embedding and interpolated between grid points bilinearly, then rescaled to unit
+//! variance (a bilinear mix of correlated unit values has a variance below 1: down to 0.67 in the
+//! middle of a 5 m cell at UMi's 10 m decorrelation; the rescaling keeps σ exact everywhere).
 //!
 //! The shadow fading of a link is σ(LoS, h)·Z with Z the site's field of the link's LoS state
 //! (TR 38.901 §7.5 draws LoS and NLoS large-scale parameters apart); it adds to the path loss,
-//! so RSRP drops by it. Fields of different sites are independent (TR 38.901 §7.5: co-sited
-//! sectors share one, distinct sites do not). The field does not vary with height: neither TR
-//! gives a vertical decorrelation distance for aerial UEs; σ does (Table B-3).
+//! so RSRP drops by it. Fields of different sites are independent by default (TR 38.901 §7.5:
+//! co-sited sectors share one, distinct sites do not); `radio.channel.inter_site_correlation` ρ
+//! mixes a field shared by the sites of one scenario and LoS state into each:
+//! Z = √ρ·Z_shared + √(1 − ρ)·Z_own. The field does not vary with height: neither TR gives a
+//! vertical decorrelation distance for aerial UEs; σ does (Table B-3).
 
 use crate::cache::RsrpSource;
 use crate::pathloss::Scenario;
@@ -209,6 +213,19 @@ fn stream(seed: u64, domain: u64, index: u32, group: u64) -> ChaCha8Rng {
     rng
 }
 
+/// The variance of Σ w_i·Z_i for the bilinear weights `w` of [`FieldGrid::corners`] (corner
+/// order (ix, iy), (ix+1, iy), (ix, iy+1), (ix+1, iy+1)) of a unit field whose correlation is
+/// `rho_side` between neighbours along an axis and `rho_diagonal` across the cell.
+fn bilinear_variance(w: [f64; 4], rho_side: f64, rho_diagonal: f64) -> f64 {
+    let [a, b, c, d] = w;
+    a * a
+        + b * b
+        + c * c
+        + d * d
+        + 2.0 * rho_side * (a * b + c * d + a * c + b * d)
+        + 2.0 * rho_diagonal * (a * d + b * c)
+}
+
 /// One realisation of every site's shadow fading over the flight area.
 #[derive(Debug, Clone)]
 pub struct ShadowField {
@@ -220,13 +237,16 @@ pub struct ShadowField {
 }
 
 impl ShadowField {
-    /// Realisation `index` of stream `(seed, domain)` for sites of `scenarios` on `grid`.
+    /// Realisation `index` of stream `(seed, domain)` for sites of `scenarios` on `grid`, with
+    /// correlation `inter_site_rho` ∈ [0, 1) between sites of one scenario (0: independent; the
+    /// sites' own fields are the same for every ρ, the shared one is drawn after them).
     pub fn generate(
         grid: FieldGrid,
         scenarios: &[Scenario],
         seed: u64,
         domain: u64,
         index: u32,
+        inter_site_rho: f64,
     ) -> ShadowField {
         let m = scenarios.len();
         let mut z = vec![0f32; grid.points() * 2 * m];
@@ -254,6 +274,16 @@ impl ShadowField {
                     }
                 }
             }
+            if inter_site_rho > 0.0 {
+                let [shared, _] = emb.draw_pair(&grid, &mut rng);
+                let (c, o) = (inter_site_rho.sqrt(), (1.0 - inter_site_rho).sqrt());
+                for (p, v) in shared.into_iter().enumerate() {
+                    for &slot in &slots {
+                        let at = p * 2 * m + slot;
+                        z[at] = (c * f64::from(v) + o * f64::from(z[at])) as f32;
+                    }
+                }
+            }
         }
         ShadowField {
             grid,
@@ -278,10 +308,25 @@ impl ShadowField {
 
     /// Every site's shadow fading (dB, ≥ 0 is a loss) at `p_m`, into `out[0..M]`, given each
     /// site's line of sight there (`los[i]` ∈ [0, 1]: 1 LoS, 0 NLoS, between where the RSRP
-    /// source interpolates it): σ_LoS·Z_LoS·los + σ_NLoS·Z_NLoS·(1 − los), bilinear in Z.
+    /// source interpolates it): σ_LoS·Z_LoS·los + σ_NLoS·Z_NLoS·(1 − los), Z bilinear and
+    /// rescaled to unit variance (module doc).
     pub fn shadow_db(&self, p_m: Point, los: &[f64], out: &mut [f64]) {
         let m = self.scenarios.len();
         let corners = self.grid.corners(p_m[0], p_m[1]);
+        let w = corners.map(|(_, w)| w);
+        // 1/σ of the bilinear mix per (scenario, LoS state): exp(−d/d_corr) at the cell's side
+        // and diagonal.
+        let h_step = self.grid.step_m;
+        let rescale = |sc: Scenario, los: bool| {
+            let d = decorrelation_m(sc, los);
+            let v = bilinear_variance(
+                w,
+                (-h_step / d).exp(),
+                (-h_step * std::f64::consts::SQRT_2 / d).exp(),
+            );
+            1.0 / v.max(1e-12).sqrt()
+        };
+        let k = [Scenario::Uma, Scenario::Umi].map(|sc| [rescale(sc, true), rescale(sc, false)]);
         let h = p_m[2];
         for (s, o) in out.iter_mut().enumerate().take(m) {
             let (mut zl, mut zn) = (0.0f64, 0.0f64);
@@ -291,7 +336,9 @@ impl ShadowField {
             }
             let l = los[s].clamp(0.0, 1.0);
             let sc = self.scenarios[s];
-            *o = l * sigma_sf_db(sc, true, h) * zl + (1.0 - l) * sigma_sf_db(sc, false, h) * zn;
+            let [kl, kn] = k[usize::from(sc == Scenario::Umi)];
+            *o = l * sigma_sf_db(sc, true, h) * kl * zl
+                + (1.0 - l) * sigma_sf_db(sc, false, h) * kn * zn;
         }
     }
 

@@ -175,9 +175,11 @@ impl RadioWorld {
         let mut h = dupac_common::fingerprint::Fnv64::new();
         h.write_u64(self.city.fingerprint());
         h.write_str(&serde_json::to_string(&self.sites).unwrap_or_default());
-        // Only what changes RSRP: the A3 rule and the class thresholds do not.
+        // Only what changes RSRP: the A3 rule, the class thresholds and the handover
+        // interruption do not.
         let mut rsrp_params = self.radio.clone();
         rsrp_params.a3 = Default::default();
+        rsrp_params.handover_interruption_ms = 0.0;
         rsrp_params.rsrp_excellent_dbm = 0.0;
         rsrp_params.rsrp_poor_dbm = 0.0;
         // The channel's fading is applied on top of the cache, never stored in it: its section is

@@ -50,7 +50,7 @@ fn the_field_has_unit_variance_and_the_exponential_autocorrelation() {
             let (mut var, mut rho) = (0.0, 0.0);
             let mut n = 0.0;
             for r in 0..3 {
-                let f = ShadowField::generate(grid(), &scen, 7, 1, r);
+                let f = ShadowField::generate(grid(), &scen, 7, 1, r, 0.0);
                 for s in 0..8 {
                     let (_, v, c) = stats(&f, s, los, lag);
                     var += v;
@@ -76,7 +76,7 @@ fn the_field_has_unit_variance_and_the_exponential_autocorrelation() {
 #[test]
 fn shadow_fading_has_the_tables_sigma_at_grid_points() {
     let scen = vec![Scenario::Uma, Scenario::Umi];
-    let f = ShadowField::generate(grid(), &scen, 3, 1, 0);
+    let f = ShadowField::generate(grid(), &scen, 3, 1, 0, 0.0);
     let g = *f.grid();
     for (los, h) in [(true, 50.0), (false, 50.0), (true, 10.0), (false, 10.0)] {
         let mut sum2 = [0.0f64; 2];
@@ -116,11 +116,11 @@ fn shadow_fading_has_the_tables_sigma_at_grid_points() {
 fn one_seed_one_field_and_the_splits_differ() {
     let scen = vec![Scenario::Uma; 3];
     let g = FieldGrid::covering(Bounds2::new(0.0, 0.0, 300.0, 200.0), 5.0);
-    let a = ShadowField::generate(g, &scen, 11, 1, 2);
-    let b = ShadowField::generate(g, &scen, 11, 1, 2);
-    let other_seed = ShadowField::generate(g, &scen, 12, 1, 2);
-    let other_index = ShadowField::generate(g, &scen, 11, 1, 3);
-    let other_domain = ShadowField::generate(g, &scen, 11, 2, 2);
+    let a = ShadowField::generate(g, &scen, 11, 1, 2, 0.0);
+    let b = ShadowField::generate(g, &scen, 11, 1, 2, 0.0);
+    let other_seed = ShadowField::generate(g, &scen, 12, 1, 2, 0.0);
+    let other_index = ShadowField::generate(g, &scen, 11, 1, 3, 0.0);
+    let other_domain = ShadowField::generate(g, &scen, 11, 2, 2, 0.0);
     let values = |f: &ShadowField| -> Vec<f32> {
         (0..3)
             .flat_map(|s| [true, false].map(|l| f.unit_at_grid(s, l, 17, 9)))
@@ -173,12 +173,12 @@ fn the_layer3_filter_matches_a_hand_computed_sequence() {
     // k = 4 at the 200 ms period of TS 36.331: a = 1/2 exactly.
     assert!((l3_coefficient(4, 0.2) - 0.5).abs() < 1e-15);
     assert_eq!(l3_coefficient(0, 0.05), 1.0);
-    // At a 50 ms step the time constant is kept: (1 − a_step)^4 = 1 − a.
+    // At a 50 ms period the time constant is kept: (1 − a_step)^4 = 1 − a.
     let a = l3_coefficient(4, 0.05);
     assert!(((1.0 - a).powi(4) - 0.5).abs() < 1e-12);
     // No error: F1 = M1, then F = M/2 + F/2.
-    let mut m = Measurer::new(2, 0.0, 4, 0.2);
-    m.reset(5);
+    let mut m = Measurer::new(2, 0.0, 4, 0.2, 0.2);
+    m.reset(FieldSplit::Eval, 5);
     let seq = [
         [-80.0, -100.0],
         [-90.0, -100.0],
@@ -198,8 +198,8 @@ fn the_layer3_filter_matches_a_hand_computed_sequence() {
     }
     // With error σ: the unfiltered measurement's error has that σ, and one seed one sequence.
     let draw = |seed: u64| {
-        let mut m = Measurer::new(1, 2.0, 0, 0.05);
-        m.reset(seed);
+        let mut m = Measurer::new(1, 2.0, 0, 0.05, 0.05);
+        m.reset(FieldSplit::Eval, seed);
         (0..20_000)
             .map(|_| {
                 let mut o = [0.0];
@@ -246,4 +246,138 @@ fn the_link_calculator_gives_the_links_shadow_fading() {
     let rsrp = rows[1]["rsrp_dbm"].as_f64().expect("rsrp");
     let shadowed = rows[1]["rsrp_shadowed_dbm"].as_f64().expect("shadowed");
     assert!((rsrp - shadowed - 1.5 * sigma).abs() < 1e-9);
+}
+
+/// Of the measurement error after the filter over a long flight at a constant true RSRP: the
+/// sample σ and the lag-1 (one step) autocorrelation.
+fn filtered_error(m: &mut Measurer, steps: usize) -> (f64, f64) {
+    let e: Vec<f64> = (0..steps)
+        .map(|_| {
+            let mut o = [0.0];
+            m.measure(&[-80.0], &mut o);
+            o[0] + 80.0
+        })
+        .collect();
+    let sd = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+    let c1 = e.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / (e.len() - 1) as f64;
+    (sd, c1 / (sd * sd))
+}
+
+#[test]
+fn one_measurement_per_period_gives_ts_36133s_accuracy_after_the_filter() {
+    // 48 ms steps, 200 ms period → 4 steps; k = 4 → a = 1/2 per period (exactly, at 192 ms:
+    // l3_coefficient(4, 0.192)). Filtered σ = 2·√(a/(2 − a)) ≈ 1.15 dB.
+    let mut m = Measurer::new(1, 2.0, 4, 0.048, 0.2);
+    assert_eq!(m.period_steps(), 4);
+    m.reset(FieldSplit::Train, 3);
+    let a = m.coefficient();
+    let (sd, rho1) = filtered_error(&mut m, 400_000);
+    let want = 2.0 * (a / (2.0 - a)).sqrt();
+    assert!((sd - want).abs() < 0.03, "filtered σ {sd}, want {want}");
+    assert!(
+        sd > 1.0,
+        "filtered σ {sd}: the error is drawn per period, not per step"
+    );
+    // Held between measurements: 3 of 4 step pairs repeat the value.
+    assert!(rho1 > 0.85, "lag-1 correlation {rho1}");
+    // A fresh error every step (a one-step period) filters to about half that σ.
+    let mut per_step = Measurer::new(1, 2.0, 4, 0.048, 0.048);
+    per_step.reset(FieldSplit::Train, 3);
+    let (sd_step, _) = filtered_error(&mut per_step, 400_000);
+    assert!(sd_step < 0.7, "per-step σ {sd_step}");
+}
+
+#[test]
+fn a_period_measures_the_mean_of_its_steps_and_holds_it() {
+    // No error, no filter (k = 0): the first step measures at once, then each 4-step period's
+    // mean is delivered at its last step and held.
+    let mut m = Measurer::new(1, 0.0, 0, 0.05, 0.2);
+    m.reset(FieldSplit::Eval, 1);
+    let input = [
+        -70.0, -80.0, -82.0, -84.0, -86.0, -90.0, -90.0, -90.0, -90.0,
+    ];
+    let want = [
+        -70.0, -70.0, -70.0, -70.0, -83.0, -83.0, -83.0, -83.0, -90.0,
+    ];
+    for (x, w) in input.iter().zip(want) {
+        let mut o = [0.0];
+        m.measure(&[*x], &mut o);
+        assert_eq!(o[0], w);
+    }
+}
+
+#[test]
+fn the_measurement_noise_of_a_pair_differs_between_splits() {
+    let run = |split: FieldSplit| {
+        let mut m = Measurer::new(1, 2.0, 0, 0.05, 0.05);
+        m.reset(split, 7);
+        (0..50)
+            .map(|_| {
+                let mut o = [0.0];
+                m.measure(&[-80.0], &mut o);
+                o[0]
+            })
+            .collect::<Vec<f64>>()
+    };
+    assert_eq!(run(FieldSplit::Test), run(FieldSplit::Test));
+    assert_ne!(run(FieldSplit::Eval), run(FieldSplit::Test));
+    assert_ne!(run(FieldSplit::Eval), run(FieldSplit::Train));
+}
+
+#[test]
+fn interpolation_keeps_sigma_between_grid_points() {
+    // UMi NLoS (13 m) and LoS (10 m) on a 5 m grid: at the middle of every cell a plain bilinear
+    // mix has σ ≈ 0.85 and 0.82 of the table's; the rescaled field has the table's σ.
+    let scen = vec![Scenario::Umi; 4];
+    let g = FieldGrid::covering(Bounds2::new(0.0, 0.0, 600.0, 600.0), 5.0);
+    for los in [true, false] {
+        let (mut sum2, mut n) = (0.0, 0.0);
+        for r in 0..4 {
+            let f = ShadowField::generate(g, &scen, 5, 1, r, 0.0);
+            for iy in (0..g.ny - 1).step_by(3) {
+                for ix in (0..g.nx - 1).step_by(3) {
+                    let p = Point::new(
+                        g.x0_m + (ix as f64 + 0.5) * g.step_m,
+                        g.y0_m + (iy as f64 + 0.5) * g.step_m,
+                        50.0,
+                    );
+                    let mut out = [0.0; 4];
+                    f.shadow_db(p, &[f64::from(u8::from(los)); 4], &mut out);
+                    sum2 += out.iter().map(|x| x * x).sum::<f64>();
+                    n += 4.0;
+                }
+            }
+        }
+        let got = (sum2 / n).sqrt();
+        let want = sigma_sf_db(Scenario::Umi, los, 50.0);
+        assert!(
+            (got / want - 1.0).abs() < 0.05,
+            "UMi los {los}: σ mid-cell {got:.3} dB, want {want:.3} dB"
+        );
+    }
+}
+
+#[test]
+fn inter_site_correlation_mixes_a_shared_field_into_each_site() {
+    let scen = vec![Scenario::Uma; 6];
+    let g = FieldGrid::covering(Bounds2::new(0.0, 0.0, 1200.0, 1200.0), 5.0);
+    let corr = |rho: f64| {
+        let f = ShadowField::generate(g, &scen, 9, 1, 0, rho);
+        let (mut c, mut v0, mut v1) = (0.0, 0.0, 0.0);
+        for iy in 0..g.ny {
+            for ix in 0..g.nx {
+                let a = f64::from(f.unit_at_grid(0, false, ix, iy));
+                let b = f64::from(f.unit_at_grid(3, false, ix, iy));
+                c += a * b;
+                v0 += a * a;
+                v1 += b * b;
+            }
+        }
+        (c / (v0 * v1).sqrt(), v0 / (g.nx * g.ny) as f64)
+    };
+    let (r0, _) = corr(0.0);
+    let (r5, var5) = corr(0.5);
+    assert!(r0.abs() < 0.1, "independent sites: correlation {r0}");
+    assert!((r5 - 0.5).abs() < 0.12, "ρ = 0.5: correlation {r5}");
+    assert!((var5 - 1.0).abs() < 0.1, "ρ = 0.5: variance {var5}");
 }

@@ -221,9 +221,7 @@ pub fn tune_a3(
     guide_cfg.env.observation.path_guide = true;
     guide_cfg.env.observation.path_guide_lambda = lambda;
     guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs)?;
-    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
-        .ceil()
-        .max(1.0) as u32;
+    let rules = dupac_actor::metrics::MetricRules::from_config(cfg);
     let configs: Vec<Config> = settings
         .iter()
         .map(|s| {
@@ -242,10 +240,6 @@ pub fn tune_a3(
                 .path
                 .as_ref()
                 .ok_or_else(|| RunError::Refused(format!("pair {}: no guide path", p.id)))?;
-            let mut all = vec![f64::NAN; world.num_sites()];
-            crate::scenario::true_source(&world, &rsrp, FieldSplit::Eval, p.id)
-                .rsrp_all_dbm(p.source_m, &mut all);
-            let start = crate::eval::argmax(&all);
             let row = configs
                 .iter()
                 .map(|c| {
@@ -255,14 +249,16 @@ pub fn tune_a3(
                         fly_waypoints(&mut env, p.id, p.episode(false), path.points_m(), |e| {
                             e.serving()
                         })?;
-                    let r =
-                        flight_record(&world, &rsrp, FieldSplit::Eval, "a3", 0, p, &flight.steps);
-                    Ok(flight_metrics(
-                        &r,
-                        start,
-                        window,
-                        cfg.env.site_regret_threshold_db,
-                    ))
+                    let r = flight_record(
+                        &world,
+                        &rsrp,
+                        FieldSplit::Eval,
+                        "a3",
+                        0,
+                        p,
+                        (env.start_serving(), &flight.steps),
+                    );
+                    Ok(flight_metrics(&r, &rules))
                 })
                 .collect::<Result<Vec<_>, RunError>>();
             pb.inc(1);

@@ -40,6 +40,9 @@ use dupac_radio::shadow::ShadowField;
 use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
+/// Stream index of a training episode's handover weight draw ("howeight").
+const HANDOVER_WEIGHT_DOMAIN: u64 = 0x7468_6769_6577_6f68;
+
 /// Errors of `reset` and `step`: bad input never panics and never silently runs a wrong episode.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EnvError {
@@ -134,6 +137,11 @@ pub struct Env {
     sensor_dirs: [Vector; 26],
     /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
     route_penalty: [f64; 2],
+    /// `env.reward.handover_reward` and `ping_pong_reward` as configured (at weight 1); the
+    /// episode's are these times its handover weight.
+    handover_costs: [f64; 2],
+    /// The episode's handover weight w (`env.reward.handover_weight`, or drawn in training).
+    handover_weight: f64,
     // Episode state.
     episode: Option<Episode>,
     position_m: Point,
@@ -141,6 +149,8 @@ pub struct Env {
     /// observation).
     velocity_per_max_step: Vector,
     serving: SiteId,
+    /// The site that served before the episode's first step.
+    start_serving: SiteId,
     associator: Associator,
     /// Every site's true RSRP at the UAV (dBm): the deterministic value less the episode's
     /// shadow fading. Rewards and metrics score it.
@@ -215,10 +225,13 @@ impl Env {
             slots,
             sensor_dirs,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
+            handover_costs: [env.reward.handover_reward, env.reward.ping_pong_reward],
+            handover_weight: env.reward.handover_weight,
             episode: None,
             position_m: Point::origin(),
             velocity_per_max_step: Vector::zeros(),
             serving: SiteId(0),
+            start_serving: SiteId(0),
             associator: Associator::Learned,
             rsrp_dbm: vec![f64::NEG_INFINITY; m],
             measured_dbm: vec![f64::NEG_INFINITY; m],
@@ -226,7 +239,13 @@ impl Env {
             field_split: FieldSplit::Train,
             measurer: cfg.radio.channel.measured().then(|| {
                 let c = &cfg.radio.channel;
-                Measurer::new(m, c.measurement_sigma_db, c.l3_filter_k, dt)
+                Measurer::new(
+                    m,
+                    c.measurement_sigma_db,
+                    c.l3_filter_k,
+                    dt,
+                    c.measurement_period_ms / 1000.0,
+                )
             }),
             los_scratch: vec![0.0; m],
             shadow_scratch_db: vec![0.0; m],
@@ -287,6 +306,12 @@ impl Env {
 
     pub fn serving(&self) -> SiteId {
         self.serving
+    }
+
+    /// The site that served before the episode's first step: the strongest the UAV measured at
+    /// the source (its handovers are counted from it).
+    pub fn start_serving(&self) -> SiteId {
+        self.start_serving
     }
 
     /// True RSRP of every site at the current position (dBm; with the episode's shadow fading
@@ -381,6 +406,7 @@ impl Env {
             None => {}
         }
         self.seed = seed;
+        self.set_handover_weight(seed);
         self.position_m = episode.source_m;
         self.velocity_per_max_step = Vector::zeros();
         self.step = 0;
@@ -405,14 +431,37 @@ impl Env {
             .as_ref()
             .map(|c| c.episode_field(self.field_split, seed));
         if let Some(m) = self.measurer.as_mut() {
-            m.reset(seed);
+            m.reset(self.field_split, seed);
         }
         self.measure(self.position_m);
         let (assoc, first) = Associator::start(self.cfg.association, self.a3, &self.measured_dbm);
         self.associator = assoc;
         self.serving = first;
+        self.start_serving = first;
         self.write_observation();
         Ok(&self.obs)
+    }
+
+    /// The episode's handover weight w: drawn uniformly from [0, `env.reward.handover_weight_max`]
+    /// by the episode's seed in training (a stream of its own), `env.reward.handover_weight`
+    /// otherwise; the episode's handover and ping-pong rewards are the configured ones times w.
+    fn set_handover_weight(&mut self, seed: u64) {
+        let r = &self.cfg.reward;
+        self.handover_weight =
+            if r.handover_weight_max > 0.0 && self.field_split == FieldSplit::Train {
+                let u = dupac_common::seed::stream_seed(seed, HANDOVER_WEIGHT_DOMAIN, 0) >> 11;
+                r.handover_weight_max * (u as f64 / (1u64 << 53) as f64)
+            } else {
+                r.handover_weight
+            };
+        let [h, p] = self.handover_costs;
+        self.cfg.reward.handover_reward = h * self.handover_weight;
+        self.cfg.reward.ping_pong_reward = p * self.handover_weight;
+    }
+
+    /// The current episode's handover weight w (`env.reward.handover_weight`).
+    pub fn handover_weight(&self) -> f64 {
+        self.handover_weight
     }
 
     /// Arc length (m) within which the UAV's place on the planned path is sought each step

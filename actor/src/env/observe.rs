@@ -18,6 +18,7 @@ pub(super) struct Slots {
     goal_distance: Option<Range<usize>>,
     goal_direction: Option<Range<usize>>,
     path_guide: Option<Range<usize>>,
+    handover_weight: Option<Range<usize>>,
     obstacle_distance: Range<usize>,
     obstacle_direction: Range<usize>,
     sensor_fan: Option<Range<usize>>,
@@ -38,6 +39,7 @@ impl Slots {
             goal_distance: layout.range(field::GOAL_DISTANCE),
             goal_direction: layout.range(field::GOAL_DIRECTION),
             path_guide: layout.range(field::PATH_GUIDE),
+            handover_weight: layout.range(field::HANDOVER_WEIGHT),
             obstacle_distance: req(field::OBSTACLE_DISTANCE),
             obstacle_direction: req(field::OBSTACLE_DIRECTION),
             sensor_fan: layout.range(field::SENSOR_FAN),
@@ -149,6 +151,9 @@ impl Env {
                 obs[r.start + k] = if n > 1e-9 { (to[k] / n) as f32 } else { 0.0 };
             }
             obs[r.start + 3] = (self.path_to_go_m / o.goal_scale_m) as f32;
+        }
+        if let Some(r) = &s.handover_weight {
+            obs[r.start] = self.handover_weight.ln_1p() as f32;
         }
         obs[s.obstacle_distance.start] = c_t;
         for k in 0..3 {

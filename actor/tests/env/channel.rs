@@ -2,7 +2,7 @@
 //! observes and A3 compares the measured one, both are recorded, and the metrics score the true.
 
 use super::*;
-use dupac_actor::metrics::flight_metrics;
+use dupac_actor::metrics::{MetricRules, flight_metrics};
 use dupac_actor::record::{FlightRecord, StepRecord};
 use dupac_common::config::ChannelModel;
 use dupac_radio::channel::FieldSplit;
@@ -109,9 +109,18 @@ fn metrics_score_the_true_rsrp_and_records_keep_both() {
         source_m: Point::new(0.0, -60.0, 50.0),
         destination_m: Point::new(0.0, 60.0, 50.0),
         remaining_m: 80.0,
+        start_serving: e.start_serving().0,
         steps: records.clone(),
     };
-    let m = flight_metrics(&flight, 0, 20, 3.0);
+    let rules = MetricRules {
+        ping_pong_window_steps: 20,
+        site_regret_threshold_db: 3.0,
+        interruption_steps: 1.0,
+    };
+    let m = flight_metrics(&flight, &rules);
+    // Counted from the site the environment started with, the recount is the environment's.
+    let flagged = steps.iter().filter(|s| s.handover).count() as u32;
+    assert_eq!(m.handovers, flagged);
     let true_mean = records
         .iter()
         .map(|r| f64::from(r.serving_rsrp_dbm))

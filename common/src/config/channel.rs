@@ -45,12 +45,27 @@ pub struct ChannelConfig {
     /// Shadow-fading realisations evaluation uses (pair `id` flies in field `id mod
     /// eval_fields`), never seen in training; the test split has as many of its own.
     pub eval_fields: u32,
-    /// Standard deviation of one step's RSRP measurement error (dB), independent per site and
-    /// step: TS 36.133 §9.1.2 intra-frequency relative RSRP accuracy ±2 dB, taken as σ. 0: exact.
+    /// Standard deviation of one measurement's RSRP error (dB), independent per site and
+    /// measurement period: TS 36.133 §9.1.2 intra-frequency relative RSRP accuracy ±2 dB, which
+    /// applies to a measurement over the period below, taken as σ. 0: exact.
     pub measurement_sigma_db: f64,
+    /// Measurement period (ms): the UAV's physical layer delivers one RSRP measurement per site
+    /// this often (the mean over the period plus the error above), and the layer-3 filter runs
+    /// once per measurement. TS 36.133 §8.1.2.2: 200 ms for intra-frequency RSRP in
+    /// RRC_CONNECTED without DRX. Rounded to whole steps (4 of 48 ms). One step's worth gives a
+    /// fresh, independent error every step (σ after the k = 4 filter then ≈ 0.6 dB, not 1.2).
+    pub measurement_period_ms: f64,
     /// Layer-3 filter coefficient k of TS 36.331 §5.5.3.2 (`filterCoefficient`, default fc4):
-    /// F = (1 − a)·F + a·M with a = 1/2^(k/4) per 200 ms, adapted to the step period. 0: no filter.
+    /// F = (1 − a)·F + a·M with a = 1/2^(k/4) per 200 ms (adapted to the measurement period).
+    /// 0: no filter.
     pub l3_filter_k: u32,
+    /// Correlation ρ of the shadow fading between two sites (same line-of-sight state): each
+    /// site's field is √ρ·(a field shared by all sites) + √(1 − ρ)·(its own). 0 (default):
+    /// independent sites, as TR 36.777 / TR 38.901 leave inter-site correlation unspecified for
+    /// this model; TR 36.873 Table 8.3-1 (3D-UMa/UMi) and ITU-R M.2135 use 0.5 between sites.
+    /// Independent fields give any strongest-site chooser a selection-diversity gain that
+    /// correlated ones shrink (docs/env.md "Channel").
+    pub inter_site_correlation: f64,
     /// What the planners and the UAV know of the channel.
     pub knowledge: Knowledge,
 }
@@ -64,7 +79,9 @@ impl Default for ChannelConfig {
             train_fields: 8,
             eval_fields: 8,
             measurement_sigma_db: 2.0,
+            measurement_period_ms: 200.0,
             l3_filter_k: 4,
+            inter_site_correlation: 0.0,
             knowledge: Knowledge::Operator,
         }
     }
@@ -99,6 +116,20 @@ impl ChannelConfig {
             0.0,
             20.0,
             "dB",
+        )?;
+        within(
+            "radio.channel.measurement_period_ms",
+            c.measurement_period_ms,
+            1.0,
+            10_000.0,
+            "ms",
+        )?;
+        within(
+            "radio.channel.inter_site_correlation",
+            c.inter_site_correlation,
+            0.0,
+            0.99,
+            "",
         )?;
         // TS 36.331 FilterCoefficient: fc0 … fc19.
         at_most("radio.channel.l3_filter_k", u64::from(c.l3_filter_k), 19)?;

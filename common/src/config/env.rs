@@ -117,6 +117,17 @@ pub struct RewardConfig {
     /// switch the switch back that undoes it (docs/training.md "Site learning"). Needs
     /// `env.observation.site_ping_pong` with the learned association.
     pub ping_pong_reward: f64,
+    /// w, the handover weight: `handover_reward` and `ping_pong_reward` are multiplied by it
+    /// (1, the default: as written). Training draws it per episode when `handover_weight_max` >
+    /// 0; evaluation, flights and training's held-out evaluation use this value. With a policy
+    /// conditioned on it (`env.observation.handover_weight`) it is the operator's trade-off of
+    /// excellent time against handovers at flight time, without retraining (docs/env.md
+    /// "Handover weight").
+    pub handover_weight: f64,
+    /// Training draws each episode's handover weight w uniformly from [0, this] (0, the default:
+    /// every episode has `handover_weight`). Needs `env.observation.handover_weight`: a policy
+    /// must see the cost it is charged.
+    pub handover_weight_max: f64,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
     /// costs SINR against the stronger interferer; this term prefers the stronger site
@@ -163,6 +174,8 @@ impl Default for RewardConfig {
             out_of_bounds_reward: -1000.0,
             handover_reward: -2.0,
             ping_pong_reward: -8.0,
+            handover_weight: 1.0,
+            handover_weight_max: 0.0,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
             progress: Progress::Path,
@@ -249,6 +262,11 @@ pub struct ObservationConfig {
     /// Default 5 m: paths that pass buildings at 1.5 m taught the policy to squeeze past them
     /// and doubled the collisions (docs/env.md "Path guide").
     pub path_guide_clearance_m: f64,
+    /// Observe the episode's handover weight w (`env.reward.handover_weight`, drawn per episode
+    /// in training with `env.reward.handover_weight_max`) as ln(1 + w), one value after the path
+    /// guide: one policy then covers the trade-off of excellent time against handovers, set at
+    /// flight time (a departure; docs/env.md "Handover weight"). Off by default.
+    pub handover_weight: bool,
     /// Where each site's line-of-sight site feature comes from: `ray` = a ray cast from every
     /// site at every step (150 per decision with the site chosen every step: over half of an
     /// actor's time), `cache` = the RSRP cache's grid line of sight, interpolated like the RSRP
@@ -287,6 +305,7 @@ impl Default for ObservationConfig {
             path_lookahead_m: 10.0,
             path_guide_lambda: 1.0,
             path_guide_clearance_m: 5.0,
+            handover_weight: false,
             site_los: SiteLos::Cache,
         }
     }
@@ -507,6 +526,19 @@ impl EnvConfig {
             return Err(bad(
                 "env.reward.ping_pong_reward",
                 format!("must be in [-1000, 0], got {}", rw.ping_pong_reward),
+            ));
+        }
+        for (k, v) in [
+            ("env.reward.handover_weight", rw.handover_weight),
+            ("env.reward.handover_weight_max", rw.handover_weight_max),
+        ] {
+            within(k, v, 0.0, 100.0, "")?;
+        }
+        if rw.handover_weight_max > 0.0 && !e.observation.handover_weight {
+            return Err(bad(
+                "env.reward.handover_weight_max",
+                "draws each episode's handover weight: set env.observation.handover_weight = true \
+                 too, so the policy sees the cost it is charged (or this to 0)",
             ));
         }
         e.observation.validate()?;

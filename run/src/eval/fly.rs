@@ -2,12 +2,13 @@
 //! a learned site choice's moves re-flown with other associations (route against association).
 
 use super::records::{RecordsFile, write_records, write_split};
-use super::{EvalPlan, Hindsight, Kind, Method, argmax, methods, parse_hindsight, refused, select};
+use super::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
 use dupac_actor::env::Env;
 use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
+use dupac_actor::metrics::MetricRules;
 use dupac_actor::pairs::{Pair, Split};
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
@@ -25,9 +26,8 @@ use std::sync::Arc;
 /// Flies every method of `args` and writes its records (and its replays') into `dir`.
 pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result<(), RunError> {
     let methods = methods(args)?;
-    let window = (cfg.env.ping_pong_window_s / cfg.env.dt_s())
-        .ceil()
-        .max(1.0) as u32;
+    let rules = MetricRules::from_config(cfg);
+    let window = rules.ping_pong_window_steps;
     if args.no_replay && !args.hindsight.is_empty() {
         return Err(refused!(
             "--hindsight re-flies a policy's moves: it cannot go with --no-replay"
@@ -97,15 +97,6 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         Some(fp) => &fp[(p.id % fp.len() as u64) as usize],
         None => &planners,
     };
-    let m = world.num_sites();
-    let start_serving: Vec<u16> = pairs
-        .iter()
-        .map(|p| {
-            let mut all = vec![f64::NAN; m];
-            true_rsrp(&world, &rsrp, fs, p.id).rsrp_all_dbm(p.source_m, &mut all);
-            argmax(&all)
-        })
-        .collect();
     // The shortest paths once, shared by the A3 and oracle flights.
     let need_shortest = methods.iter().any(|m| matches!(m.kind, Kind::Shortest(_)));
     let shortest: Vec<Option<Vec<Point>>> = if need_shortest {
@@ -203,9 +194,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             let rec = RecordsFile {
                 method: label,
                 seed: method.seed,
-                ping_pong_window_steps: window,
-                site_regret_threshold_db: cfg.env.site_regret_threshold_db,
-                start_serving: start_serving.clone(),
+                rules,
                 flights,
             };
             write_records(dir, &rec)?;
@@ -311,10 +300,10 @@ fn fly_one(
             for (row, pos) in rows.chunks_mut(m).zip(w) {
                 truth.rsrp_all_dbm(*pos, row);
             }
-            let mut start = vec![f64::NAN; m];
-            truth.rsrp_all_dbm(p.source_m, &mut start);
-            let sites =
-                hindsight_association(&rows, m, argmax(&start), h.cost_db, h.min_stay_steps);
+            // From the site the environment starts with (what the UAV measured at the source).
+            env.reset(p.id, episode.clone())?;
+            let start = env.start_serving().0;
+            let sites = hindsight_association(&rows, m, start, h.cost_db, h.min_stay_steps);
             let mut next = sites.into_iter().map(SiteId);
             replay_positions(&mut env, p.id, episode, w, |e| {
                 next.next().unwrap_or_else(|| e.serving())
@@ -336,12 +325,13 @@ fn fly_one(
         &method.label,
         method.seed,
         p,
-        &steps,
+        (env.start_serving(), &steps),
     ))
 }
 
-/// The record of pair `p`'s flight `steps` (its SINR per step from every site's true RSRP in
-/// the pair's field of `fs`), as `method` (`label`, training `seed`) flew it.
+/// The record of pair `p`'s flight `steps` from the site `start_serving` served before its
+/// first step (its SINR per step from every site's true RSRP in the pair's field of `fs`), as
+/// `method` (`label`, training `seed`) flew it.
 pub(crate) fn flight_record(
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
@@ -349,7 +339,7 @@ pub(crate) fn flight_record(
     label: &str,
     seed: u32,
     p: &Pair,
-    steps: &[StepInfo],
+    (start_serving, steps): (SiteId, &[StepInfo]),
 ) -> FlightRecord {
     let mut all = vec![f64::NAN; world.num_sites()];
     let truth = true_rsrp(world, rsrp, fs, p.id);
@@ -376,6 +366,7 @@ pub(crate) fn flight_record(
         source_m: p.source_m,
         destination_m: p.destination_m,
         remaining_m,
+        start_serving: start_serving.0,
         steps,
     }
 }

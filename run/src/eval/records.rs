@@ -4,24 +4,22 @@
 
 use super::refused;
 use crate::error::{Context, RunError};
+use dupac_actor::metrics::MetricRules;
 use dupac_actor::record::FlightRecord;
 use dupac_common::codec;
 use std::path::{Path, PathBuf};
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
 pub const RECORDS_MAGIC: &[u8; 8] = b"DUPACEVR";
-pub const RECORDS_VERSION: u32 = 4;
+pub const RECORDS_VERSION: u32 = 5;
 
 /// The records of one method and seed, with what the metrics need from the configuration.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
 pub struct RecordsFile {
     pub method: String,
     pub seed: u32,
-    pub ping_pong_window_steps: u32,
-    /// `env.site_regret_threshold_db` of the run (dB).
-    pub site_regret_threshold_db: f64,
-    /// Serving site before the first step, per flight (same order as `flights`).
-    pub start_serving: Vec<u16>,
+    /// What the metrics need from the run's configuration.
+    pub rules: MetricRules,
     pub flights: Vec<FlightRecord>,
 }
 
@@ -97,10 +95,7 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
     for (i, fl) in rec.flights.iter().enumerate() {
         let (idx, pair) = (i.to_string(), fl.pair_id.to_string());
         let outcome = fl.outcome.name();
-        let start = rec
-            .start_serving
-            .get(i)
-            .map_or(String::new(), |x| x.to_string());
+        let start = fl.start_serving.to_string();
         f.write_record([
             rec.method.as_str(),
             &seed,
@@ -170,12 +165,13 @@ pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
                 codec::MAX_BLOB_BYTES,
                 &p.display().to_string(),
             )?;
-            if r.start_serving.len() != r.flights.len() {
+            let k = &r.rules;
+            if !(k.interruption_steps.is_finite() && k.interruption_steps >= 0.0)
+                || !k.site_regret_threshold_db.is_finite()
+            {
                 return Err(refused!(
-                    "{}: {} start sites for {} flights",
-                    p.display(),
-                    r.start_serving.len(),
-                    r.flights.len()
+                    "{}: metric rules {k:?}: not finite or negative",
+                    p.display()
                 ));
             }
             Ok(r)

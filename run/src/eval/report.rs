@@ -79,11 +79,8 @@ pub fn gather<'a>(files: impl IntoIterator<Item = &'a RecordsFile>) -> Vec<Metho
             flights: Vec::new(),
         });
         d.seeds += 1;
-        for (r, &s0) in f.flights.iter().zip(&f.start_serving) {
-            d.flights.push((
-                r.bin_m,
-                flight_metrics(r, s0, f.ping_pong_window_steps, f.site_regret_threshold_db),
-            ));
+        for r in &f.flights {
+            d.flights.push((r.bin_m, flight_metrics(r, &f.rules)));
         }
     }
     // Policies first (as given), planners after.
@@ -319,7 +316,9 @@ fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<(), RunError> {
 /// The site-regret threshold of the records (the first file's; every file of one evaluation
 /// has the same).
 fn regret_threshold_db(files: &[RecordsFile]) -> f64 {
-    files.first().map_or(3.0, |f| f.site_regret_threshold_db)
+    files
+        .first()
+        .map_or(3.0, |f| f.rules.site_regret_threshold_db)
 }
 
 fn report_md(

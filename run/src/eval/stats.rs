@@ -192,11 +192,7 @@ pub fn grids(files: &[RecordsFile]) -> Vec<Grid> {
         let flights = f
             .flights
             .iter()
-            .zip(&f.start_serving)
-            .map(|(r, &s0)| {
-                let m = flight_metrics(r, s0, f.ping_pong_window_steps, f.site_regret_threshold_db);
-                (r.pair_id, m)
-            })
+            .map(|r| (r.pair_id, flight_metrics(r, &f.rules)))
             .collect();
         by.entry(f.method.as_str())
             .or_default()
