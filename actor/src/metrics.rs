@@ -150,7 +150,7 @@ pub fn count_handovers(serving: &[u16], window_steps: u32) -> (u32, u32) {
 }
 
 /// Metrics of one flight (spec/env.md "Metrics").
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct FlightMetrics {
     pub outcome: Outcome,
     /// Flight distance L: the sum of step lengths (m).

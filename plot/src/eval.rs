@@ -7,10 +7,11 @@ use super::plan::{FlightTrace, render_world_plan};
 use super::{CLASS_COLOURS, FONT, series_colour};
 use crate::error::{Context, Result};
 use dupac_actor::eval::MeanCi;
-use dupac_actor::metrics::FlightMetrics;
+use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
+use dupac_run::eval::front::{FrontFile, FrontMeasures, FrontRow, front_rows};
 use dupac_run::eval::records::RecordsFile;
 use dupac_run::eval::report::MethodData;
 use plotters::prelude::*;
@@ -368,4 +369,115 @@ pub fn draw_examples(
         render_world_plan(world, radio, &traces, &title, &png)?;
     }
     Ok(())
+}
+
+/// `fronts.png`: time in excellent RSRP against handovers per km. Each learned-site policy and
+/// each planner with A3 as a point, and A3's front on the same flights (every `dupac tune-a3`
+/// setting re-flying them, `front.csv`) as a line through its upper envelope with the other
+/// settings as small dots; ping-pongs per km labelled beside each policy's point and on the
+/// envelope.
+pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> Result<()> {
+    let rows = front_rows(fronts);
+    let mut methods: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+    methods.dedup();
+    // Each method's own point (its recorded flights with its own association).
+    let own: Vec<(String, FrontMeasures)> = methods
+        .iter()
+        .filter_map(|l| {
+            let m: Vec<FlightMetrics> = files
+                .iter()
+                .filter(|f| f.method == *l)
+                .flat_map(|f| f.flights.iter().map(|r| flight_metrics(r, &f.rules)))
+                .collect();
+            (!m.is_empty()).then(|| (l.to_string(), FrontMeasures::of(m.iter())))
+        })
+        .collect();
+    let xs = rows
+        .iter()
+        .map(|r| r.measures.handovers_per_km)
+        .chain(own.iter().map(|(_, m)| m.handovers_per_km))
+        .filter(|x| x.is_finite());
+    let x_hi = xs.fold(1.0, f64::max) * 1.08;
+    let ys = rows
+        .iter()
+        .map(|r| r.measures.excellent_pct)
+        .chain(own.iter().map(|(_, m)| m.excellent_pct))
+        .filter(|y| y.is_finite());
+    let y_lo = (ys.fold(100.0, f64::min) - 2.0).max(0.0);
+    crate::write_png_atomic(&out.join("fronts.png"), |tmp| {
+        let root = BitMapBackend::new(tmp, (1100, 800)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "Excellent RSRP against handovers: A3's front on the same flights",
+                (FONT, 20),
+            )
+            .margin(16)
+            .x_label_area_size(50)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_hi, y_lo..100.0)?;
+        chart
+            .configure_mesh()
+            .x_desc("handovers per km")
+            .y_desc("flight time in excellent RSRP (%, successful flights)")
+            .label_style((FONT, 14))
+            .draw()?;
+        for (k, method) in methods.iter().enumerate() {
+            let c = series_colour(k);
+            let mine: Vec<&FrontRow> = rows.iter().filter(|r| r.method == *method).collect();
+            chart.draw_series(mine.iter().map(|r| {
+                Circle::new(
+                    (r.measures.handovers_per_km, r.measures.excellent_pct),
+                    2,
+                    c.mix(0.35).filled(),
+                )
+            }))?;
+            let mut env: Vec<&&FrontRow> = mine.iter().filter(|r| r.on_front).collect();
+            env.sort_by(|a, b| {
+                a.measures
+                    .handovers_per_km
+                    .total_cmp(&b.measures.handovers_per_km)
+            });
+            chart
+                .draw_series(LineSeries::new(
+                    env.iter()
+                        .map(|r| (r.measures.handovers_per_km, r.measures.excellent_pct)),
+                    c.stroke_width(2),
+                ))?
+                .label(format!("A3's front on {method}'s flights"))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
+            chart.draw_series(env.iter().map(|r| {
+                Text::new(
+                    format!("{:.2}", r.measures.ping_pongs_per_km),
+                    (r.measures.handovers_per_km, r.measures.excellent_pct),
+                    (FONT, 11).into_font().color(&c.mix(0.8)),
+                )
+            }))?;
+            if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
+                chart
+                    .draw_series(std::iter::once(TriangleMarker::new(
+                        (m.handovers_per_km, m.excellent_pct),
+                        9,
+                        c.filled(),
+                    )))?
+                    .label(format!(
+                        "{method} itself ({:.2} ping-pongs/km)",
+                        m.ping_pongs_per_km
+                    ))
+                    .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .label_font((FONT, 13))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    })
+    .with_context(|| "writing fronts.png".to_string())
 }

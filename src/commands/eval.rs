@@ -11,9 +11,10 @@ use crate::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dupac_actor::pairs::Split;
-use dupac_plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_pareto};
+use dupac_plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_fronts, draw_pareto};
 use dupac_run::eval::EvalPlan;
 use dupac_run::eval::fly::fly_all;
+use dupac_run::eval::front::read_fronts;
 use dupac_run::eval::records::{read_records, read_split};
 use dupac_run::eval::report::write_tables;
 use dupac_run::eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
@@ -79,6 +80,13 @@ pub struct EvalArgs {
     /// on DUPAC's moves").
     #[arg(long = "hindsight", value_name = "C[:mts]")]
     pub hindsight: Vec<String>,
+    /// A3's front on the same flights: re-fly every learned-site policy's moves and every
+    /// planner's A3 path with each setting of the `dupac tune-a3` grid (5 offsets × 4
+    /// hysteresis × 5 time-to-trigger values) into `OUT/records/front/`; the report adds
+    /// `front.csv`, `fronts.png` and each policy against A3 at its own handover rate
+    /// (`LABEL+a3_matched`, `matched.md`). About 100 re-flights per flight.
+    #[arg(long)]
+    pub a3_front: bool,
     /// Resamples of the report's bootstrap over training seeds and pairs (its seed-aware
     /// intervals and paired differences; drawn from a fixed seed, so the report is the same on
     /// every run).
@@ -109,6 +117,7 @@ impl EvalArgs {
             per_bin: self.per_bin,
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),
+            a3_front: self.a3_front,
         })
     }
 }
@@ -142,14 +151,18 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
     }
     dupac_plot::ensure_font()?;
     let split = read_split(&records_dir);
+    let fronts = read_fronts(&records_dir)?;
     let (methods, bins) = write_tables(
         &args.out,
         &files,
-        &args.dupac_label,
-        &args.base_label,
+        &fronts,
+        (&args.dupac_label, &args.base_label),
         boot,
         split.as_deref(),
     )?;
+    if !fronts.is_empty() {
+        draw_fronts(&args.out, &files, &fronts)?;
+    }
     draw_fig3(&args.out, &methods, &bins)?;
     draw_fig4(&args.out, &methods, &bins)?;
     draw_pareto(&args.out, &methods)?;

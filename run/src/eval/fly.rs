@@ -1,14 +1,16 @@
 //! Flying the evaluation: every method over every pair in parallel, each flight recorded;
 //! a learned site choice's moves re-flown with other associations (route against association).
 
+use super::front::{FrontFile, FrontPoint, write_front};
 use super::records::{RecordsFile, write_records, write_split};
 use super::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
+use crate::tune_a3::A3Grid;
 use dupac_actor::env::Env;
 use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
-use dupac_actor::metrics::MetricRules;
+use dupac_actor::metrics::{MetricRules, flight_metrics};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
 use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
@@ -190,6 +192,28 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             }
             _ => Vec::new(),
         };
+        let front_of = match &method.kind {
+            Kind::Policy(p) if p.n_sites > 0 => Some(true),
+            Kind::Shortest(Association::A3) | Kind::Coverage(_, Association::A3)
+                if method.a3.is_none() =>
+            {
+                Some(false)
+            }
+            _ => None,
+        };
+        if let (true, Some(learned_site)) = (args.a3_front, front_of) {
+            let ctx = (cfg, &world, &rsrp, &planners, fs);
+            let points = a3_front(ctx, method, &pairs, &flights, &rules, quiet)?;
+            write_front(
+                dir,
+                &FrontFile {
+                    method: method.label.clone(),
+                    seed: method.seed,
+                    learned_site,
+                    points,
+                },
+            )?;
+        }
         for (label, flights) in std::iter::once((method.label.clone(), flights)).chain(replays) {
             let rec = RecordsFile {
                 method: label,
@@ -265,6 +289,64 @@ fn replay_associations(
             Ok((label, v))
         })
         .collect()
+}
+
+/// The positions of every flight of `method` re-flown with A3 at each setting of the `dupac
+/// tune-a3` grid ([`A3Grid`]): each setting's per-flight metrics ([`super::front`]).
+fn a3_front(
+    (cfg, world, rsrp, planners, fs): (
+        &Config,
+        &Arc<RadioWorld>,
+        &SharedRsrp,
+        &Planners,
+        FieldSplit,
+    ),
+    method: &Method,
+    pairs: &[Pair],
+    flights: &[FlightRecord],
+    rules: &MetricRules,
+    quiet: bool,
+) -> Result<Vec<FrontPoint>, RunError> {
+    let settings = A3Grid::default().settings()?;
+    let replay = Method {
+        label: format!("{}+a3_front", method.label),
+        seed: method.seed,
+        kind: Kind::Replay(Association::A3),
+        a3: None,
+    };
+    let pb = progress_bar(
+        settings.len() as u64,
+        &format!("{} seed {}: A3 front", method.label, method.seed),
+        quiet,
+    );
+    let points = settings
+        .iter()
+        .map(|setting| {
+            let mut rcfg = crate::scenario::unguided(cfg);
+            rcfg.env.association = Association::A3;
+            setting.apply(&mut rcfg.radio.a3);
+            let v = pairs
+                .par_iter()
+                .zip(flights)
+                .map(|(p, f)| {
+                    let w: Vec<Point> = f
+                        .steps
+                        .iter()
+                        .map(|s| Point::from(s.position_m.map(f64::from)))
+                        .collect();
+                    let r = fly_one(&rcfg, world, rsrp, planners, fs, &replay, p, Some(&w))?;
+                    Ok((p.id, flight_metrics(&r, rules)))
+                })
+                .collect::<Result<Vec<_>, RunError>>()?;
+            pb.inc(1);
+            Ok(FrontPoint {
+                setting: *setting,
+                flights: v,
+            })
+        })
+        .collect::<Result<Vec<_>, RunError>>();
+    pb.finish_and_clear();
+    points
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -7,6 +7,7 @@
 //! are the binary's (`dupac eval`).
 
 pub mod fly;
+pub mod front;
 pub mod records;
 pub mod report;
 pub mod stats;
@@ -51,6 +52,9 @@ pub struct EvalPlan {
     pub no_replay: bool,
     /// `C` or `C:mts` hindsight associations.
     pub hindsight: Vec<String>,
+    /// Re-fly every learned-site policy's moves and every planner's A3 path with each setting of
+    /// the `dupac tune-a3` grid ([`front`]).
+    pub a3_front: bool,
 }
 
 /// A `--hindsight` value: handover cost (dB·steps) and the minimum stay (steps).

@@ -5,6 +5,7 @@
 //! The seed-aware statistics (bootstrap intervals over seeds and pairs, `per_seed.csv`,
 //! `paired.csv`) are [`super::stats_tables`]'.
 
+use super::front::{self, FrontFile};
 use super::records::RecordsFile;
 use super::stats::Bootstrap;
 use super::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
@@ -134,17 +135,37 @@ pub fn fmt_rate(r: Rate) -> String {
 /// bootstrap, `split` the `split: …` line of the records, [`super::records::read_split`], `None`
 /// for records that have none); returns the methods' data (association replays `LABEL+…` left
 /// out: the figures show methods) and the distance bins, for the figures.
+/// With A3 fronts (`fronts`, [`super::front`]): `front.csv`, and each learned-site policy
+/// compared with A3 at its own handover rate (`LABEL+a3_matched` in `paired.csv` and the
+/// report).
 pub fn write_tables(
     out: &Path,
     files: &[RecordsFile],
-    dupac: &str,
-    base: &str,
+    fronts: &[FrontFile],
+    (dupac, base): (&str, &str),
     boot: Bootstrap,
     split: Option<&str>,
 ) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
     let data = gather(files);
     let bins = bins_of(&data);
-    let seed_stats = SeedStats::compute(files, dupac, base, boot);
+    let mut seed_stats = SeedStats::compute(files, dupac, base, boot);
+    let matched = front::matched(files, fronts);
+    if !fronts.is_empty() {
+        front::write_front_csv(&out.join("front.csv"), &front::front_rows(fronts))?;
+        let grids = super::stats::grids(files);
+        for m in &matched {
+            let Some(g) = grids.iter().find(|g| g.label == m.label) else {
+                continue;
+            };
+            seed_stats.intervals.insert(
+                m.grid.label.clone(),
+                super::stats::method_intervals(&m.grid, &boot),
+            );
+            seed_stats
+                .comparisons
+                .extend(super::stats::paired(g, &m.grid, &boot));
+        }
+    }
     write_per_seed(&out.join("per_seed.csv"), &seed_stats)?;
     write_paired(&out.join("paired.csv"), &seed_stats)?;
     let split_line = split.unwrap_or("split: not recorded (records written before the split was)");
@@ -158,7 +179,7 @@ pub fn write_tables(
     write_atomic_with(&out.join("summary.csv"), |w| {
         writeln!(
             w,
-            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret{},split",
+            "method,seeds,flights,success,success_lo,success_hi,collision,out_of_bounds,timeout,overhead_mean,overhead_ci,mean_rsrp_dbm,mean_rsrp_ci,pct_excellent,pct_excellent_ci,handovers_per_km,ping_pongs_per_km,mean_sinr_db,pct_sinr_below_m6db,site_regret_db,pct_site_regret_high,pct_class_regret,pct_excellent_net,pct_interrupted{},split",
             SeedStats::summary_header()
         )?;
         for d in &data {
@@ -169,7 +190,7 @@ pub fn write_tables(
             let (ho_km, pp_km) = d.per_km();
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}{},{split_name}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}{},{split_name}",
                 d.label,
                 d.seeds,
                 d.flights.len(),
@@ -192,6 +213,8 @@ pub fn write_tables(
                 d.all_ci(|m| m.mean_site_regret_db).mean,
                 100.0 * d.all_ci(|m| m.frac_site_regret_high).mean,
                 100.0 * d.all_ci(|m| m.frac_class_regret).mean,
+                100.0 * d.ci(None, |m| m.frac_excellent_net).mean,
+                100.0 * d.all_ci(|m| m.frac_interrupted).mean,
                 seed_stats.summary_columns(&d.label),
             )?;
         }
@@ -248,6 +271,28 @@ pub fn write_tables(
         )
         .as_bytes(),
     )?;
+    if !matched.is_empty() {
+        let mut md = String::from(
+            "# A3 at each learned policy's handover rate\n\nEach learned-site policy's own moves re-flown with every setting of the `dupac tune-a3` grid (`front.csv`); the two settings of that front bracketing the policy's handovers per km, mixed flight by flight (a fixed hash of seed and pair) so that the mix has the policy's rate: `LABEL+a3_matched`, compared with the policy in `paired.csv` and report.md's paired differences.\n\n| policy | lower setting (offset / hysteresis / TTT) | upper setting | share of the upper |\n|---|---|---|---:|\n",
+        );
+        for m in &matched {
+            let f = |s: &crate::tune_a3::A3Setting| {
+                format!(
+                    "{} dB / {} dB / {} ms",
+                    s.offset_db, s.hysteresis_db, s.time_to_trigger_ms
+                )
+            };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.3} |",
+                m.label,
+                f(&m.lower),
+                f(&m.upper),
+                m.alpha
+            );
+        }
+        crate::run_dir::write_plain(&out.join("matched.md"), md.as_bytes())?;
+    }
     Ok((methods, bins))
 }
 
@@ -337,17 +382,17 @@ fn report_md(
     );
     let _ = writeln!(
         s,
-        "| method | seeds | flights | success | collision | timeout | overhead (%) | mean RSRP (dBm) | excellent (%) | handovers/km | ping-pongs/km | mean SINR (dB) | SINR < −6 dB (%) | site regret (dB) | regret > {regret_db} dB (%) | class regret (%) |"
+        "| method | seeds | flights | success | collision | timeout | overhead (%) | mean RSRP (dBm) | excellent (%) | excellent net of interruptions (%) | interrupted (%) | handovers/km | ping-pongs/km | mean SINR (dB) | SINR < −6 dB (%) | site regret (dB) | regret > {regret_db} dB (%) | class regret (%) |"
     );
     let _ = writeln!(
         s,
-        "|---|---:|---:|---|---:|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---:|---:|---|---:|---:|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for d in data {
         let (ho_km, pp_km) = d.per_km();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
             d.label,
             d.seeds,
             d.flights.len(),
@@ -357,6 +402,8 @@ fn report_md(
             fmt_ci(d.ci(None, |m| m.overhead), 100.0, 1),
             fmt_ci(d.ci(None, |m| m.mean_rsrp_dbm), 1.0, 1),
             fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
+            fmt_ci(d.ci(None, |m| m.frac_excellent_net), 100.0, 1),
+            100.0 * d.all_ci(|m| m.frac_interrupted).mean,
             ho_km,
             pp_km,
             d.all_ci(|m| m.mean_sinr_db).mean,
@@ -468,7 +515,7 @@ fn route_or_association(s: &mut String, data: &[MethodData]) {
     );
     let _ = writeln!(
         s,
-        "| policy | site by | excellent (%) | mean RSRP (dBm) | SINR < −6 dB (%) | handovers/km | ping-pongs/km | site regret (dB) |\n|---|---|---|---|---:|---:|---:|---:|"
+        "| policy | site by | excellent (%) | excellent net (%) | mean RSRP (dBm) | SINR < −6 dB (%) | handovers/km | ping-pongs/km | site regret (dB) |\n|---|---|---|---|---|---:|---:|---:|---:|"
     );
     for p in policies {
         for (by, label) in [
@@ -482,9 +529,10 @@ fn route_or_association(s: &mut String, data: &[MethodData]) {
             let (ho_km, pp_km) = d.per_km();
             let _ = writeln!(
                 s,
-                "| {} | {by} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
+                "| {} | {by} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
                 p.label,
                 fmt_ci(d.ci(None, |m| m.frac_class[0]), 100.0, 1),
+                fmt_ci(d.ci(None, |m| m.frac_excellent_net), 100.0, 1),
                 fmt_ci(d.all_ci(|m| m.mean_rsrp_dbm), 1.0, 1),
                 100.0 * d.all_ci(|m| m.frac_sinr_below_m6db).mean,
                 ho_km,

@@ -70,6 +70,8 @@ pub enum Headline {
     Overhead,
     /// Mean time in excellent RSRP of successful flights (%).
     Excellent,
+    /// The same, net of the link's handover interruptions (`radio.handover_interruption_ms`).
+    ExcellentNet,
     /// Mean serving RSRP of successful flights (dBm).
     MeanRsrp,
     /// Mean time with SINR < −6 dB over all flights (%).
@@ -81,10 +83,11 @@ pub enum Headline {
 }
 
 /// Every headline, in the tables' order.
-pub const HEADLINES: [Headline; 7] = [
+pub const HEADLINES: [Headline; 8] = [
     Headline::Success,
     Headline::Overhead,
     Headline::Excellent,
+    Headline::ExcellentNet,
     Headline::MeanRsrp,
     Headline::SinrLow,
     Headline::HandoversPerKm,
@@ -99,6 +102,7 @@ impl Headline {
             Headline::Success => "success",
             Headline::Overhead => "overhead",
             Headline::Excellent => "pct_excellent",
+            Headline::ExcellentNet => "pct_excellent_net",
             Headline::MeanRsrp => "mean_rsrp_dbm",
             Headline::SinrLow => "pct_sinr_below_m6db",
             Headline::HandoversPerKm => "handovers_per_km",
@@ -110,7 +114,7 @@ impl Headline {
     pub fn successes_only(self) -> bool {
         matches!(
             self,
-            Headline::Overhead | Headline::Excellent | Headline::MeanRsrp
+            Headline::Overhead | Headline::Excellent | Headline::ExcellentNet | Headline::MeanRsrp
         )
     }
 
@@ -125,6 +129,7 @@ impl Headline {
             Headline::Success => (f64::from(u8::from(goal)), 1.0),
             Headline::Overhead => (m.overhead, 1.0),
             Headline::Excellent => (100.0 * m.frac_class[0], 1.0),
+            Headline::ExcellentNet => (100.0 * m.frac_excellent_net, 1.0),
             Headline::MeanRsrp => (m.mean_rsrp_dbm, 1.0),
             Headline::SinrLow => (100.0 * m.frac_sinr_below_m6db, 1.0),
             Headline::HandoversPerKm => (f64::from(m.handovers), m.distance_m / 1000.0),

@@ -169,6 +169,12 @@ fn shown(h: Headline) -> (f64, usize, &'static str, &'static str) {
         Headline::Success => (100.0, 1, "success (%)", "success (points)"),
         Headline::Overhead => (100.0, 1, "overhead (%)", "overhead (points)"),
         Headline::Excellent => (1.0, 1, "excellent (%)", "excellent (points)"),
+        Headline::ExcellentNet => (
+            1.0,
+            1,
+            "excellent net of interruptions (%)",
+            "excellent net (points)",
+        ),
         Headline::MeanRsrp => (1.0, 1, "mean RSRP (dBm)", "mean RSRP (dB)"),
         Headline::SinrLow => (1.0, 2, "SINR < −6 dB (%)", "SINR < −6 dB (points)"),
         Headline::HandoversPerKm => (1.0, 2, "handovers/km", "handovers/km"),

@@ -26,6 +26,8 @@ fn fm(ok: bool, overhead: f64, rsrp: f64) -> FlightMetrics {
         mean_site_regret_db: 0.1,
         frac_site_regret_high: 0.0,
         frac_class_regret: 0.0,
+        frac_interrupted: 0.0,
+        frac_excellent_net: 0.9,
     }
 }
 
@@ -345,6 +347,7 @@ fn records_file(method: &str, seed: u32, r: &mut ChaCha8Rng) -> RecordsFile {
                 source_m: Point::new(0.0, 0.0, 50.0),
                 destination_m: Point::new(10.0 * n as f64, 0.0, 50.0),
                 remaining_m: 1.0,
+                start_serving: 0,
                 steps,
             }
         })
@@ -352,9 +355,11 @@ fn records_file(method: &str, seed: u32, r: &mut ChaCha8Rng) -> RecordsFile {
     RecordsFile {
         method: method.into(),
         seed,
-        ping_pong_window_steps: 5,
-        site_regret_threshold_db: 3.0,
-        start_serving: vec![0; flights.len()],
+        rules: dupac_actor::metrics::MetricRules {
+            ping_pong_window_steps: 5,
+            site_regret_threshold_db: 3.0,
+            interruption_steps: 1.0,
+        },
         flights,
     }
 }
@@ -426,10 +431,8 @@ fn the_tables_are_a_function_of_the_records_whatever_their_order() {
     let mut shuffled = evaluation();
     shuffled.reverse();
     for (i, f) in shuffled.iter_mut().enumerate() {
-        let mut both: Vec<_> = f.flights.drain(..).zip(f.start_serving.drain(..)).collect();
-        both.rotate_left(i + 5);
-        both.swap(0, 3);
-        (f.flights, f.start_serving) = both.into_iter().unzip();
+        f.flights.rotate_left(i + 5);
+        f.flights.swap(0, 3);
     }
     let (paired_again, per_seed_again) = tables(&shuffled);
     assert_eq!(paired_again, paired_csv);
