@@ -135,7 +135,8 @@ fn manhattan_report() {
             .map(|i| i.id.as_str())
             .unwrap_or("");
         println!(
-            "{edge:>12} | {what:<28} | {:>4} | present nodes' lat {lat_min:.7} … {lat_max:.7} (southernmost: {south})",
+            "{edge:>12} | {what:<28} | {:>4} | present nodes' lat {lat_min:.7} … {lat_max:.7} \
+             (southernmost: {south})",
             list.len()
         );
     }
