@@ -21,6 +21,14 @@ pub enum RadioError {
         id: String,
         message: String,
     },
+    /// A raw OpenStreetMap file (PBF, XML, Overpass JSON) that cannot be read; `at` is the
+    /// line and column, the element (`way/12`) or the PBF blob.
+    #[error("{path}: {at}: {message}")]
+    OsmFile {
+        path: PathBuf,
+        at: String,
+        message: String,
+    },
     #[error("{path}: no usable buildings inside the scenario area")]
     NoBuildings { path: PathBuf },
     #[error("{path}:{line}: {message}")]

@@ -15,16 +15,16 @@ use std::time::Instant;
 
 #[derive(Subcommand, Debug)]
 pub enum ScenarioCommand {
-    /// Import raw OSM buildings (GeoJSON) and OpenCelliD cells (CSV) inside a lon/lat box into a
-    /// scenario directory: `buildings.geojson`, `cells.csv` and `config.toml` (use it with
-    /// `--config`). The rules (heights from tags, parts, selection, sites) are in docs/scenario.md.
+    /// Import raw OSM buildings (PBF, XML, Overpass JSON, GeoJSON) and OpenCelliD cells (CSV) in a
+    /// lon/lat box into a scenario directory: `buildings.geojson`, `cells.csv`, `config.toml` (use
+    /// it with `--config`). The rules (heights, parts, selection, sites): docs/scenario.md.
     Import(ImportArgs),
 }
 
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Import")]
 pub struct ImportArgs {
-    /// Raw OSM buildings: GeoJSON from Overpass Turbo, osmtogeojson or `osmium export`.
+    /// Raw OSM buildings: `.osm.pbf`, `.osm` XML, Overpass JSON or GeoJSON (told by content).
     #[arg(long, value_name = "FILE")]
     pub buildings: PathBuf,
     /// OpenCelliD cells: CSV in its columns (radio,mcc,net,area,cell,unit,lon,lat,range,…), with
@@ -158,10 +158,12 @@ pub fn run(global: &GlobalArgs, cmd: &ScenarioCommand) -> Result<ExitCode> {
     let (w, south, e, n) = (x.lon_min_deg, x.lat_min_deg, x.lon_max_deg, x.lat_max_deg);
     println!("selection box {w:.6},{south:.6},{e:.6},{n:.6}");
     println!(
-        "buildings: {} features read; kept {} outlines ({} with parts), {} parts, {} parts \
-         without an outline; skipped {} not buildings, {} underground, {} not areas, {} \
-         degenerate, {} outside; {} polygons dropped, {} tag values ignored, {} bottoms dropped",
+        "buildings: {} features read ({} OSM buildings incomplete, no area); kept {} outlines \
+         ({} with parts), {} parts, {} parts without an outline; skipped {} not buildings, {} \
+         underground, {} not areas, {} degenerate, {} outside; {} polygons dropped, {} tag \
+         values ignored, {} bottoms dropped",
         b.features,
+        b.incomplete,
         b.outlines,
         b.outlines_with_parts,
         b.parts,

@@ -3,5 +3,6 @@
 
 pub mod opencellid;
 pub mod osm;
+pub mod osm_raw;
 pub mod scenario;
 pub mod tags;

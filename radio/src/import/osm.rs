@@ -1,5 +1,6 @@
 //! Raw OpenStreetMap buildings (GeoJSON, as Overpass Turbo, `osmtogeojson` or `osmium export`
-//! write them) → the building features [`crate::city::osm`] loads (`kind`, `height_m`,
+//! write them, or OSM PBF, OSM XML and Overpass JSON assembled into the same features by
+//! [`super::osm_raw`]) → the building features [`crate::city::osm`] loads (`kind`, `height_m`,
 //! `min_height_m`, `has_parts`, …), by the rules of `docs/scenario.md`:
 //!
 //! - a feature tagged `building` (not `no`) is an outline, one tagged `building:part` a part;
@@ -14,6 +15,7 @@
 //!   `nearby_m`, else `default_height_m`; the bottom: `min_height` or `building:min_level`,
 //!   dropped (0) when not below the roof.
 
+use super::osm_raw::{self, Source, area::Incomplete};
 use super::tags::{HeightRules, HeightSource, TagError, Tags, quantile};
 use crate::city::{Building, osm::polygon_to_building};
 use crate::error::RadioError;
@@ -67,6 +69,9 @@ pub struct BuildingCounts {
     pub min_height_dropped: usize,
     /// Features written per `height_source`.
     pub height_sources: BTreeMap<String, usize>,
+    /// OSM formats: building ways and relations that are no area (a node or member way not in
+    /// the file, rings that do not close); 0 for GeoJSON.
+    pub incomplete: usize,
 }
 
 /// The imported buildings: the GeoJSON text to write and the counts.
@@ -74,6 +79,11 @@ pub struct BuildingCounts {
 pub struct ImportedBuildings {
     pub geojson: String,
     pub counts: BuildingCounts,
+    /// The file's format (`GeoJSON`, `OSM PBF`, `OSM XML`, `Overpass JSON`).
+    pub format: &'static str,
+    /// OSM formats: the building elements that are no area, with the extent of the nodes the
+    /// file holds of them (by id, ways first).
+    pub incomplete: Vec<Incomplete>,
 }
 
 /// The warnings of one import: the first [`MAX_WARNINGS`] are logged.
@@ -116,24 +126,38 @@ struct Raw {
     kept_parts: usize,
 }
 
-/// Reads `path` and imports it ([`import_buildings_text`]).
+/// Reads `path` in whichever format its content is ([`osm_raw::read`]: GeoJSON, OSM PBF, OSM
+/// XML, Overpass JSON) and imports it ([`import_collection`]).
 pub fn import_buildings(
     path: &Path,
     select: &LonLatBox,
     rules: &OsmRules,
 ) -> Result<ImportedBuildings, RadioError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RadioError::io(path, e))?;
-    import_buildings_text(&text, path, select, rules)
+    match osm_raw::read(path)? {
+        Source::GeoJson(text) => import_buildings_text(&text, path, select, rules),
+        Source::Osm(osm) => {
+            let mut out = import_collection(&osm.collection, path, select, rules)?;
+            out.counts.incomplete = osm.incomplete.len();
+            out.format = osm.format.name();
+            out.incomplete = osm.incomplete;
+            Ok(out)
+        }
+    }
 }
 
-/// Imports the raw buildings of `text` whose centroid is in `select`; `path` names the source
-/// in errors and in the output's metadata.
+/// Imports the raw GeoJSON buildings of `text` whose centroid is in `select`; `path` names the
+/// source in errors and in the output's metadata.
 pub fn import_buildings_text(
     text: &str,
     path: &Path,
     select: &LonLatBox,
     rules: &OsmRules,
 ) -> Result<ImportedBuildings, RadioError> {
+    import_collection(&parse_collection(text, path)?, path, select, rules)
+}
+
+/// The GeoJSON `FeatureCollection` of `text`; Overpass JSON is told apart in the message.
+fn parse_collection(text: &str, path: &Path) -> Result<FeatureCollection, RadioError> {
     let geo_err = |message: String| RadioError::GeoJson {
         path: path.to_path_buf(),
         message,
@@ -144,14 +168,25 @@ pub fn import_buildings_text(
     let collection: FeatureCollection = text.parse().map_err(|e: geojson::Error| {
         if text.contains("\"elements\"") && !text.contains("\"features\"") {
             geo_err(
-                "this is Overpass JSON, not GeoJSON: export GeoJSON from Overpass Turbo or \
-                 convert with osmtogeojson"
+                "this is Overpass JSON, not GeoJSON: `import_buildings` reads it from its \
+                 file (it tells the formats apart)"
                     .into(),
             )
         } else {
             geo_err(e.to_string())
         }
     })?;
+    Ok(collection)
+}
+
+/// Imports the building features of `collection` whose centroid is in `select`; `path` names
+/// the source in errors and in the output's metadata.
+pub fn import_collection(
+    collection: &FeatureCollection,
+    path: &Path,
+    select: &LonLatBox,
+    rules: &OsmRules,
+) -> Result<ImportedBuildings, RadioError> {
     let projection = LocalProjection::centred_on(select);
     let select_m = projection.box_m(select);
     // A part's outline has its centroid in the box and spans at most MAX_RING_SPAN_M.
@@ -329,7 +364,12 @@ pub fn import_buildings_text(
         "{{\"type\":\"FeatureCollection\",\"name\":\"buildings\",\"metadata\":{metadata},\"features\":[\n{}\n]}}\n",
         lines.join(",\n")
     );
-    Ok(ImportedBuildings { geojson, counts })
+    Ok(ImportedBuildings {
+        geojson,
+        counts,
+        format: "GeoJSON",
+        incomplete: Vec::new(),
+    })
 }
 
 /// The feature's OSM id as `osm:<type>/<id>`: `@id` (osmtogeojson), `type` + `id` (older

@@ -20,7 +20,7 @@ pub const MAX_SELECT_SPAN_M: f64 = 50_000.0;
 /// What to import, and where.
 #[derive(Debug, Clone)]
 pub struct ImportPlan {
-    /// Raw OSM buildings (GeoJSON).
+    /// Raw OSM buildings: OSM PBF, OSM XML, Overpass JSON or GeoJSON (told by content).
     pub buildings: PathBuf,
     /// OpenCelliD cells (CSV, or `.csv.gz`).
     pub cells: PathBuf,
