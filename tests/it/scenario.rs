@@ -411,3 +411,55 @@ fn bad_raw_input_is_named() {
         "nothing half-made"
     );
 }
+
+/// data/README.md "Reproduce": Midtown's committed buildings and cells are what `dupac scenario
+/// import` writes from the source extract and cell rows in `data/source/`, byte for byte, with
+/// the flight area of the default configuration.
+#[test]
+fn midtown_is_what_the_import_writes_from_the_source() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("midtown");
+    let out_arg = out.display().to_string();
+    let a = dupac_common::config::ScenarioConfig::default().area;
+    let area = format!(
+        "{},{},{},{}",
+        a.lon_min_deg, a.lat_min_deg, a.lon_max_deg, a.lat_max_deg
+    );
+    ok(&run_in(
+        repo,
+        &[
+            "scenario",
+            "import",
+            "--buildings",
+            "data/source/manhattan.osm.pbf",
+            "--cells",
+            "data/source/midtown_cells_opencellid.csv",
+            "--box",
+            &area,
+            "--select",
+            "-73.99737,40.74330,-73.97263,40.76780",
+            "--level-height-m",
+            "3.5",
+            "--source",
+            "radiocells-2017",
+            "--name",
+            "midtown",
+            "--out",
+            &out_arg,
+        ],
+    ));
+    for (written, committed) in [
+        ("buildings.geojson", "data/nyc_midtown_buildings.geojson"),
+        ("cells.csv", "data/nyc_midtown_cells.csv"),
+    ] {
+        let w = std::fs::read(out.join(written)).expect("read the import");
+        let c = std::fs::read(repo.join(committed)).expect("read the committed file");
+        assert!(
+            w == c,
+            "{committed} is not what the import writes ({} against {} bytes)",
+            w.len(),
+            c.len()
+        );
+    }
+}

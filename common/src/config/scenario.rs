@@ -80,7 +80,10 @@ pub struct ScenarioConfig {
     pub buildings_file: PathBuf,
     /// How OSM building outlines that have 3D parts are extruded.
     pub detail: BuildingDetail,
-    /// The flight area (spec/env.md "World"); its centre is the frame origin.
+    /// The flight area (spec/env.md "World"); its centre is the frame origin. Midtown's:
+    /// lon −73.9935…−73.9765, lat 40.7460…40.7580. Its north edge lies 64 m south of where the
+    /// buildings the OSM extract cut at lat 40.759 reach (40.75858 within the area's
+    /// longitudes), so every building in the area is whole (data/README.md "North edge").
     pub area: LonLatBox,
     /// LTE cell-site estimates (CSV with `lat,lon,...,enb_id`), used when `sites_file` is unset;
     /// relative to the working directory. The default path, when no file is there, reads the
@@ -113,7 +116,7 @@ impl Default for ScenarioConfig {
                 lon_min_deg: -73.9935,
                 lon_max_deg: -73.9765,
                 lat_min_deg: 40.7460,
-                lat_max_deg: 40.7590,
+                lat_max_deg: 40.7580,
             },
             cells_file: MIDTOWN_CELLS_FILE.into(),
             sites_file: None,

@@ -18,7 +18,6 @@ use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Magic and version of a front file.
