@@ -157,7 +157,13 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
         &files,
         &fronts,
         (&args.dupac_label, &args.base_label),
-        boot,
+        (
+            boot,
+            cfg.radio
+                .channel
+                .shadowing()
+                .then_some(cfg.radio.channel.eval_fields),
+        ),
         split.as_deref(),
     )?;
     if !fronts.is_empty() {

@@ -352,3 +352,72 @@ fn a_site_every_step_decision_needs_the_key_and_the_learned_association() {
         );
     }
 }
+
+/// The handover weight w (docs/env.md "Handover weight"): the handover and ping-pong costs are
+/// the configured ones times w; training draws w per episode from [0, handover_weight_max],
+/// evaluation uses handover_weight; the observation carries ln(1 + w), so a policy conditioned
+/// on it can tell the cost it is charged.
+#[test]
+fn the_handover_weight_scales_the_costs_and_is_observed() {
+    use dupac_radio::channel::FieldSplit;
+    let make = |weight: f64, max: f64, split: FieldSplit| {
+        let mut cfg = unguided();
+        cfg.env.association = Association::Learned;
+        paper_reward(&mut cfg);
+        cfg.env.reward.handover_reward = -2.0;
+        cfg.env.observation.handover_weight = true;
+        cfg.env.reward.handover_weight = weight;
+        cfg.env.reward.handover_weight_max = max;
+        cfg.validate().expect("valid");
+        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        e.set_field_split(split);
+        e
+    };
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0));
+    let observed = |e: &Env| {
+        let r = e.layout().range(field::HANDOVER_WEIGHT).expect("field");
+        e.observation()[r.start]
+    };
+    // A handover to site 1 (mediocre, −95): Eq. (8) 10 − 0.95, plus w · (−2).
+    for w in [0.0, 1.0, 3.0] {
+        let mut e = make(w, 0.0, FieldSplit::Eval);
+        e.reset(1, episode.clone()).expect("reset");
+        assert_eq!(e.handover_weight(), w);
+        assert!((observed(&e) - (w as f32).ln_1p()).abs() < 1e-6);
+        let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
+        assert!((r - (10.0 - 0.95 - 2.0 * w)).abs() < 1e-9, "w {w}: {r}");
+    }
+    // Training draws it per episode, uniformly in [0, 6], the same for one seed; evaluation
+    // keeps the configured weight whatever the maximum.
+    let mut e = make(1.0, 6.0, FieldSplit::Train);
+    let draws: Vec<f64> = (0..400u64)
+        .map(|seed| {
+            e.reset(seed, episode.clone()).expect("reset");
+            assert!((observed(&e) - (e.handover_weight() as f32).ln_1p()).abs() < 1e-6);
+            e.handover_weight()
+        })
+        .collect();
+    assert!(draws.iter().all(|w| (0.0..=6.0).contains(w)));
+    let mean = draws.iter().sum::<f64>() / draws.len() as f64;
+    assert!((mean - 3.0).abs() < 0.3, "mean draw {mean}");
+    assert!(draws.iter().any(|w| *w < 1.0) && draws.iter().any(|w| *w > 5.0));
+    e.reset(7, episode.clone()).expect("reset");
+    let again = e.handover_weight();
+    e.reset(7, episode.clone()).expect("reset");
+    assert_eq!(e.handover_weight(), again);
+    let mut e = make(1.0, 6.0, FieldSplit::Eval);
+    for seed in 0..20 {
+        e.reset(seed, episode.clone()).expect("reset");
+        assert_eq!(e.handover_weight(), 1.0);
+    }
+    // A draw needs the observation.
+    let mut cfg = unguided();
+    cfg.env.reward.handover_weight_max = 6.0;
+    let err = cfg
+        .validate()
+        .expect_err("a drawn weight the policy cannot see");
+    assert!(
+        err.to_string().contains("env.observation.handover_weight"),
+        "{err}"
+    );
+}

@@ -137,13 +137,14 @@ pub fn fmt_rate(r: Rate) -> String {
 /// out: the figures show methods) and the distance bins, for the figures.
 /// With A3 fronts (`fronts`, [`super::front`]): `front.csv`, and each learned-site policy
 /// compared with A3 at its own handover rate (`LABEL+a3_matched` in `paired.csv` and the
-/// report).
+/// report). With `eval_fields` F (the real channel: pair `id` flies in field `id mod F`),
+/// `paired_by_field.csv`: every paired difference within each field.
 pub fn write_tables(
     out: &Path,
     files: &[RecordsFile],
     fronts: &[FrontFile],
     (dupac, base): (&str, &str),
-    boot: Bootstrap,
+    (boot, eval_fields): (Bootstrap, Option<u32>),
     split: Option<&str>,
 ) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
     let data = gather(files);
@@ -168,6 +169,9 @@ pub fn write_tables(
     }
     write_per_seed(&out.join("per_seed.csv"), &seed_stats)?;
     write_paired(&out.join("paired.csv"), &seed_stats)?;
+    if let Some(f) = eval_fields.filter(|f| *f > 1) {
+        write_paired_by_field(&out.join("paired_by_field.csv"), files, &seed_stats, f)?;
+    }
     let split_line = split.unwrap_or("split: not recorded (records written before the split was)");
     // The split's name (`validation`, `test`, `file` for `--pairs`) for the CSV.
     let split_name = split_line
@@ -294,6 +298,49 @@ pub fn write_tables(
         crate::run_dir::write_plain(&out.join("matched.md"), md.as_bytes())?;
     }
     Ok((methods, bins))
+}
+
+/// `paired_by_field.csv`: each of `st`'s comparisons within each of the `fields` evaluation
+/// fields (pair `id` flies in field `id mod fields`), with its seed-aware interval over the
+/// field's pairs: how much of a difference one shadow-fading realisation carries.
+fn write_paired_by_field(
+    path: &Path,
+    files: &[RecordsFile],
+    st: &SeedStats,
+    fields: u32,
+) -> Result<(), RunError> {
+    let grids = super::stats::grids(files);
+    let grid = |l: &str| grids.iter().find(|g| g.label == l);
+    let f = u64::from(fields);
+    let rows: Vec<(String, String, u64, super::stats::Comparison)> = st
+        .comparisons
+        .iter()
+        .filter_map(|c| Some((grid(&c.a)?, grid(&c.b)?)))
+        .flat_map(|(a, b)| {
+            (0..f).filter_map(move |k| {
+                let keep = |id: u64| id % f == k;
+                let c = super::stats::paired(&a.restrict(keep), &b.restrict(keep), &st.boot)?;
+                Some((a.label.clone(), b.label.clone(), k, c))
+            })
+        })
+        .collect();
+    Ok(write_atomic_with(path, |w| {
+        writeln!(w, "method_a,method_b,field,metric,n,mean_diff,lo,hi")?;
+        for (a, b, k, c) in &rows {
+            for d in &c.diffs {
+                writeln!(
+                    w,
+                    "{a},{b},{k},{},{},{},{},{}",
+                    d.headline.name(),
+                    d.n,
+                    d.diff.value,
+                    d.diff.lo,
+                    d.diff.hi
+                )?;
+            }
+        }
+        Ok(())
+    })?)
 }
 
 /// `failures.csv`: one row per flight that did not reach its goal, to see where and how policies

@@ -188,6 +188,23 @@ impl Grid {
     pub fn flights(&self, s: usize, p: usize) -> &[FlightMetrics] {
         &self.cells[s][p]
     }
+
+    /// The grid of the pairs `keep` accepts (by pair id), with the same seeds.
+    pub fn restrict(&self, keep: impl Fn(u64) -> bool) -> Grid {
+        let kept: Vec<usize> = (0..self.pair_ids.len())
+            .filter(|&p| keep(self.pair_ids[p]))
+            .collect();
+        Grid {
+            label: self.label.clone(),
+            seeds: self.seeds.clone(),
+            pair_ids: kept.iter().map(|&p| self.pair_ids[p]).collect(),
+            cells: self
+                .cells
+                .iter()
+                .map(|c| kept.iter().map(|&p| c[p].clone()).collect())
+                .collect(),
+        }
+    }
 }
 
 /// Every method's grid from the records, in label order.
