@@ -24,10 +24,14 @@
 //! `planner.clearance_m` ≥ the UAV radius), so the environment's swept-sphere collision test can
 //! never fire along it.
 
+mod audit;
+mod bound;
 mod free_space;
 mod search;
 mod smooth;
 
+pub use audit::{AuditError, AuditRow, AuditSummary, audit};
+pub use bound::LowerBound;
 pub use free_space::{FreeSpace, SMOOTHING_MARGIN_M};
 
 use dupac_common::config::{EnvConfig, PlannerConfig};
