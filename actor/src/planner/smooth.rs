@@ -28,6 +28,12 @@ use dupac_common::geometry::Point;
 const COST_EPS: f64 = 1e-9;
 /// Relaxation stops when a pass shortens the path by less than this (m).
 const RELAX_STOP_M: f64 = 1e-2;
+/// [`polish`] stops when a pass shortens the path by less than this (m).
+const POLISH_STOP_M: f64 = 1e-4;
+/// Smallest waypoint move tried by [`polish`] (m).
+const POLISH_MIN_MOVE_M: f64 = 1e-3;
+/// At most this many [`polish`] passes.
+const POLISH_MAX_PASSES: usize = 200;
 /// A corner is cut only when that shortens the path by at least this (m).
 const CUT_MIN_GAIN_M: f64 = 1e-3;
 /// Smallest waypoint move tried (m): step fractions halve from 1/2 down to this.
@@ -129,8 +135,44 @@ fn join(a: (f64, u8), b: (f64, u8)) -> (f64, u8) {
 /// the result's segments are all clear and its cost is not higher.
 pub(crate) fn smooth(fs: &FreeSpace, field: &CostField, pts: Vec<Point>) -> Vec<Point> {
     let pulled = pull(fs, field, pts);
-    relax(fs, field, pulled)
+    relax(fs, field, pulled, RELAX)
 }
+
+/// Pulls a smoothed path tighter: string pulling again over its waypoints, then the waypoint
+/// relaxation with moves down to [`POLISH_MIN_MOVE_M`] until a pass gains less than
+/// [`POLISH_STOP_M`]. The first relaxation stops at 1 cm per pass and 0.1 m moves, which leaves
+/// the path up to a few centimetres from taut; two paths of the same homotopy polished this way
+/// agree to about a millimetre, so the shortest of several candidates is decided by their routes,
+/// not by where their relaxation happened to stop. Same guarantees as [`smooth`].
+pub(crate) fn polish(fs: &FreeSpace, field: &CostField, pts: Vec<Point>) -> Vec<Point> {
+    let pulled = pull(fs, field, pts);
+    relax(fs, field, pulled, POLISH)
+}
+
+/// How far the waypoint relaxation goes.
+#[derive(Clone, Copy)]
+struct Relax {
+    /// Stop when a pass gains less than this (m).
+    stop_m: f64,
+    /// Smallest waypoint move tried (m).
+    min_move_m: f64,
+    /// At most this many passes.
+    max_passes: usize,
+}
+
+/// The relaxation of [`smooth`].
+const RELAX: Relax = Relax {
+    stop_m: RELAX_STOP_M,
+    min_move_m: MIN_MOVE_M,
+    max_passes: RELAX_MAX_PASSES,
+};
+
+/// The relaxation of [`polish`].
+const POLISH: Relax = Relax {
+    stop_m: POLISH_STOP_M,
+    min_move_m: POLISH_MIN_MOVE_M,
+    max_passes: POLISH_MAX_PASSES,
+};
 
 /// Greedy string pulling (stage 1).
 fn pull(fs: &FreeSpace, field: &CostField, pts: Vec<Point>) -> Vec<Point> {
@@ -175,9 +217,9 @@ fn nearest_on_segment(a: Point, b: Point, w: Point) -> Point {
 }
 
 /// Waypoint relaxation (stage 2).
-fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>) -> Vec<Point> {
+fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>, how: Relax) -> Vec<Point> {
     let max_points = 4 * pts.len() + 64;
-    for _ in 0..RELAX_MAX_PASSES {
+    for _ in 0..how.max_passes {
         let mut gained_m = 0.0;
         let mut i = 1;
         while i + 1 < pts.len() {
@@ -195,7 +237,7 @@ fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>) -> Vec<Point> {
             let mut moved = false;
             let reach = dist(w, q);
             let mut f = 0.5;
-            while f * reach >= MIN_MOVE_M {
+            while f * reach >= how.min_move_m {
                 let m = lerp(w, q, f);
                 let new_len = dist(a, m) + dist(m, b);
                 if new_len < old_len
@@ -218,7 +260,7 @@ fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>) -> Vec<Point> {
             if pts.len() < max_points {
                 let reach = dist(w, a).max(dist(w, b));
                 let mut f = 0.5;
-                while f * reach >= MIN_MOVE_M {
+                while f * reach >= how.min_move_m {
                     let (w1, w2) = (lerp(w, a, f), lerp(w, b, f));
                     let new_len = dist(a, w1) + dist(w1, w2) + dist(w2, b);
                     if old_len - new_len < CUT_MIN_GAIN_M {
@@ -246,7 +288,7 @@ fn relax(fs: &FreeSpace, field: &CostField, mut pts: Vec<Point>) -> Vec<Point> {
             }
             i += 1;
         }
-        if gained_m < RELAX_STOP_M {
+        if gained_m < how.stop_m {
             break;
         }
     }
