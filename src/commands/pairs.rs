@@ -5,8 +5,9 @@
 use crate::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use dupac_actor::pairs::{Split, split_pairs, write_pairs_jsonl};
-use dupac_actor::planner::Planner;
+use dupac_actor::pairs::{Pair, Split, split_pairs, write_pairs_jsonl};
+use dupac_actor::planner::{AuditSummary, Planner, audit};
+use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -40,6 +41,59 @@ pub struct PairsArgs {
     /// `pairs.test_file`).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Also audit the shortest path of every pair drawn: no coverage-aware path (λ = 0.5, 1, 2,
+    /// 4) may be shorter, and its gap above a lower bound (the 2D shortest path around the
+    /// footprints that span the flight band, with the vertical difference); a table and
+    /// `<pairs file>.audit.csv` (one row per pair).
+    #[arg(long)]
+    pub audit: bool,
+}
+
+/// λ of the coverage-aware paths the audit compares the shortest path with (`dupac eval`'s).
+const AUDIT_LAMBDAS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+
+/// `--audit`: the shortest path of every pair against its coverage-aware paths and the bound.
+fn audit_pairs(planner: &Planner, pairs: &[Pair], out: &std::path::Path) -> Result<()> {
+    let ends: Vec<_> = pairs
+        .iter()
+        .map(|p| (p.source_m, p.destination_m))
+        .collect();
+    let rows = audit(planner, &ends, &AUDIT_LAMBDAS)?;
+    let csv_path = PathBuf::from(format!("{}.audit.csv", out.display()));
+    let mut csv = String::from(
+        "pair_id,shortest_m,lambda_0.5_m,lambda_1_m,lambda_2_m,lambda_4_m,bound_m,gap_m\n",
+    );
+    for (p, r) in pairs.iter().zip(&rows) {
+        let l: Vec<String> = r.lambda_m.iter().map(|x| x.to_string()).collect();
+        csv.push_str(&format!(
+            "{},{},{},{},{}\n",
+            p.id,
+            r.shortest_m,
+            l.join(","),
+            r.bound_m,
+            r.gap_m()
+        ));
+    }
+    crate::io::write_atomic(&csv_path, csv.as_bytes())?;
+    // 1 µm: what the paths' f64 sums agree to.
+    let s = AuditSummary::of(&rows, 1e-6);
+    println!(
+        "audit: {} pairs; a coverage-aware path shorter than the shortest: {} (by at most {:.3} m); \
+         shortest below the bound: {}; gap to the bound max / mean / p95: {:.1} / {:.2} / {:.1} m \
+         ({:.1} / {:.2} / {:.1} %); {}",
+        s.pairs,
+        s.lambda_shorter,
+        s.max_lambda_shorter_m.max(0.0),
+        s.below_bound,
+        s.gap_max_m,
+        s.gap_mean_m,
+        s.gap_p95_m,
+        100.0 * s.gap_rel_max,
+        100.0 * s.gap_rel_mean,
+        100.0 * s.gap_rel_p95,
+        csv_path.display()
+    );
+    Ok(())
 }
 
 pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
@@ -55,8 +109,19 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
         None => Split::ALL.to_vec(),
     };
     let t = Instant::now();
-    let world = RadioWorld::build(&cfg).context("building the radio world")?;
-    let planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    // The audit's coverage-aware paths need the RSRP cache (built if missing); the pairs alone
+    // need the world.
+    let (world, rsrp) = if args.audit {
+        let (w, r) = dupac_run::scenario::world_and_cache(&cfg, global.no_progress())?;
+        (w, Some(r))
+    } else {
+        let w = RadioWorld::build(&cfg).context("building the radio world")?;
+        (std::sync::Arc::new(w), None)
+    };
+    let mut planner = Planner::new(&world.city, &cfg.env, &cfg.planner);
+    if let Some(r) = &rsrp {
+        planner.with_coverage(r.as_ref(), RsrpThresholds::from_config(&cfg.radio));
+    }
     eprintln!(
         "free airspace: {:.1} % of voxels ({:.1} s)",
         100.0 * planner.free_space().free_voxel_fraction(),
@@ -73,6 +138,9 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
         let pairs = split_pairs(&planner, &cfg.pairs, &cfg.env, split, &|n| pb.inc(n));
         pb.finish_and_clear();
         write_pairs_jsonl(&out, &pairs)?;
+        if args.audit {
+            audit_pairs(&planner, &pairs, &out)?;
+        }
         println!("{}\n", split.describe(&cfg.pairs));
         println!(
             "| bin (m) | pairs | mean shortest (m) | mean straight (m) | shortest / straight |"
