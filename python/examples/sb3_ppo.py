@@ -58,7 +58,7 @@ def main() -> None:
     ap.add_argument("--envs", type=int, default=8)
     ap.add_argument("--pairs", type=int, default=70)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--dupac-policy", default="results/issue15/lookahead10/base_s1/policy.bin")
+    ap.add_argument("--dupac-policy", default="results/fronts_pilot/dupac_cond_s1/policy.bin")
     args = ap.parse_args()
 
     import torch
@@ -66,7 +66,7 @@ def main() -> None:
     from stable_baselines3.common.env_util import make_vec_env
 
     torch.set_num_threads(1)
-    # The observation DUPAC's committed base-method policy was trained with, so that both fly
+    # The observation a committed DUPAC policy was trained with, so that both fly
     # the same environment.
     sc = dupac.Scenario(policy=args.dupac_policy)
     vec = make_vec_env(lambda: DupacEnv(sc), n_envs=args.envs, seed=args.seed)

@@ -410,3 +410,62 @@ fn fly_and_eval_draw_a_missing_held_out_set() {
     );
     assert!(!file("never.jsonl").exists());
 }
+
+/// Under the real channel a flight starts from the site the UAV measured strongest at the
+/// source, for the metrics as for the environment: every recorded flight's handovers, recounted
+/// from its start site, are the environment's per-step flags (a start site taken from the true
+/// RSRP instead adds a phantom handover where the two differ). With `--a3-front`: A3's front on
+/// the policy's moves and on each planner's A3 path, 100 settings each (`front.csv`,
+/// `fronts.png`).
+#[test]
+fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_front() {
+    let run = trained_run();
+    let ev = run.dir.join("eval_real");
+    let mut scenario = run.args.clone();
+    scenario.extend(["--set".into(), "radio.channel.model=real".into()]);
+    let e = dupac_output(
+        &scenario,
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--policy".into(),
+            format!("dupac={}", run.policy().display()),
+            "--lambda".into(),
+            "1".into(),
+            "--a3-front".into(),
+            "--out".into(),
+            ev.display().to_string(),
+        ],
+    );
+    assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    let files = dupac_run::eval::records::read_records(&ev.join("records")).expect("records");
+    let mut flights = 0;
+    for f in &files {
+        for fl in &f.flights {
+            let serving: Vec<u16> = std::iter::once(fl.start_serving)
+                .chain(fl.steps.iter().map(|s| s.serving))
+                .collect();
+            let (recount, _) =
+                dupac_actor::metrics::count_handovers(&serving, f.rules.ping_pong_window_steps);
+            let flagged = fl.steps.iter().filter(|s| s.handover).count() as u32;
+            assert_eq!(recount, flagged, "{} pair {}", f.method, fl.pair_id);
+            flights += 1;
+        }
+    }
+    assert!(flights >= 8 * 5, "{flights} flights");
+    let front = std::fs::read_to_string(ev.join("front.csv")).expect("front.csv");
+    for method in ["dupac", "shortest_a3", "coverage_l1"] {
+        let rows = front
+            .lines()
+            .filter(|l| l.starts_with(&format!("{method},")))
+            .count();
+        assert_eq!(rows, 100, "{method}: {front}");
+        assert!(
+            front
+                .lines()
+                .any(|l| l.starts_with(&format!("{method},")) && l.ends_with(",true")),
+            "{method} has an envelope"
+        );
+    }
+    assert!(ev.join("fronts.png").exists());
+}

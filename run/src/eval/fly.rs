@@ -233,19 +233,46 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     Ok(())
 }
 
+/// What a re-flight needs: the configuration, the world, its RSRP, the planners and the field
+/// split the pairs fly in.
+type FlyCtx<'a, 'w> = (
+    &'a Config,
+    &'a Arc<RadioWorld>,
+    &'a SharedRsrp,
+    &'a Planners<'w>,
+    FieldSplit,
+);
+
+/// Every flight of `flights` (one per pair of `pairs`) re-flown through its recorded positions
+/// under `rcfg` as `replay` ([`Kind::Replay`] or [`Kind::Hindsight`]), in parallel, in order.
+fn refly(
+    rcfg: &Config,
+    (_, world, rsrp, planners, fs): FlyCtx,
+    replay: &Method,
+    pairs: &[Pair],
+    flights: &[FlightRecord],
+) -> Result<Vec<FlightRecord>, RunError> {
+    pairs
+        .par_iter()
+        .zip(flights)
+        .map(|(p, f)| {
+            let w: Vec<Point> = f
+                .steps
+                .iter()
+                .map(|s| Point::from(s.position_m.map(f64::from)))
+                .collect();
+            fly_one(rcfg, world, rsrp, planners, fs, replay, p, Some(&w))
+        })
+        .collect()
+}
+
 /// The positions of every flight of `method` re-flown with the A3 rule (`LABEL+a3`) and with
 /// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
 /// A replay takes one step to each recorded position in turn (`pilot::replay_positions`), so it
 /// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
 /// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
 fn replay_associations(
-    (cfg, world, rsrp, planners, fs): (
-        &Config,
-        &Arc<RadioWorld>,
-        &SharedRsrp,
-        &Planners,
-        FieldSplit,
-    ),
+    ctx: FlyCtx,
     method: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
@@ -262,7 +289,7 @@ fn replay_associations(
         .into_iter()
         .chain(hindsight)
         .map(|(kind, suffix)| {
-            let mut rcfg = crate::scenario::unguided(cfg);
+            let mut rcfg = crate::scenario::unguided(ctx.0);
             rcfg.env.association = match kind {
                 Kind::Replay(a) => a,
                 _ => Association::Learned,
@@ -274,19 +301,7 @@ fn replay_associations(
                 kind,
                 a3: None,
             };
-            let v = pairs
-                .par_iter()
-                .zip(flights)
-                .map(|(p, f)| {
-                    let w: Vec<Point> = f
-                        .steps
-                        .iter()
-                        .map(|s| Point::from(s.position_m.map(f64::from)))
-                        .collect();
-                    fly_one(&rcfg, world, rsrp, planners, fs, &replay, p, Some(&w))
-                })
-                .collect::<Result<Vec<_>, RunError>>()?;
-            Ok((label, v))
+            Ok((label, refly(&rcfg, ctx, &replay, pairs, flights)?))
         })
         .collect()
 }
@@ -294,13 +309,7 @@ fn replay_associations(
 /// The positions of every flight of `method` re-flown with A3 at each setting of the `dupac
 /// tune-a3` grid ([`A3Grid`]): each setting's per-flight metrics ([`super::front`]).
 fn a3_front(
-    (cfg, world, rsrp, planners, fs): (
-        &Config,
-        &Arc<RadioWorld>,
-        &SharedRsrp,
-        &Planners,
-        FieldSplit,
-    ),
+    ctx: FlyCtx,
     method: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
@@ -322,22 +331,13 @@ fn a3_front(
     let points = settings
         .iter()
         .map(|setting| {
-            let mut rcfg = crate::scenario::unguided(cfg);
+            let mut rcfg = crate::scenario::unguided(ctx.0);
             rcfg.env.association = Association::A3;
             setting.apply(&mut rcfg.radio.a3);
-            let v = pairs
-                .par_iter()
-                .zip(flights)
-                .map(|(p, f)| {
-                    let w: Vec<Point> = f
-                        .steps
-                        .iter()
-                        .map(|s| Point::from(s.position_m.map(f64::from)))
-                        .collect();
-                    let r = fly_one(&rcfg, world, rsrp, planners, fs, &replay, p, Some(&w))?;
-                    Ok((p.id, flight_metrics(&r, rules)))
-                })
-                .collect::<Result<Vec<_>, RunError>>()?;
+            let v = refly(&rcfg, ctx, &replay, pairs, flights)?
+                .iter()
+                .map(|r| (r.pair_id, flight_metrics(r, rules)))
+                .collect();
             pb.inc(1);
             Ok(FrontPoint {
                 setting: *setting,

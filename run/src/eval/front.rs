@@ -18,7 +18,7 @@ use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Magic and version of a front file.
 pub const FRONT_MAGIC: &[u8; 8] = b"DUPACFRT";
@@ -61,13 +61,7 @@ pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
     if !dir.is_dir() {
         return Ok(Vec::new());
     }
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .context_with(|| format!("reading {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "bin"))
-        .collect();
-    paths.sort();
-    paths
+    super::records::bin_files(&dir)?
         .iter()
         .map(|p| {
             let bytes = codec::read_limited(p, codec::MAX_BLOB_BYTES)?;

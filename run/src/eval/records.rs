@@ -146,15 +146,20 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
     Ok((done(f)?, done(s)?))
 }
 
-/// Every records file of `dir`, in name order.
-pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
+/// The `.bin` files of `dir` (not of its subfolders), in name order.
+pub(crate) fn bin_files(dir: &Path) -> Result<Vec<PathBuf>, RunError> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .context_with(|| format!("reading {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "bin"))
+        .filter(|p| p.is_file() && p.extension().is_some_and(|x| x == "bin"))
         .collect();
     paths.sort();
-    paths
+    Ok(paths)
+}
+
+/// Every records file of `dir`, in name order.
+pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
+    bin_files(dir)?
         .iter()
         .map(|p| {
             let bytes = codec::read_limited(p, codec::MAX_BLOB_BYTES)?;
