@@ -460,11 +460,15 @@ fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_fron
             .filter(|l| l.starts_with(&format!("{method},")))
             .count();
         assert_eq!(rows, 100, "{method}: {front}");
+    }
+    // The planned paths arrive, so their excellent time is defined and their front has an
+    // envelope (the small policy's flights may all fail: its time is over successes only).
+    for method in ["shortest_a3", "coverage_l1"] {
         assert!(
             front
                 .lines()
                 .any(|l| l.starts_with(&format!("{method},")) && l.ends_with(",true")),
-            "{method} has an envelope"
+            "{method} has an envelope: {front}"
         );
     }
     assert!(ev.join("fronts.png").exists());

@@ -224,10 +224,13 @@ pub struct Matched {
     pub grid: Grid,
 }
 
+/// Round of the matched mix's hash ("matched").
+const MIX_ROUND: u64 = 0x0064_6568_6374_616d;
+
 /// Whether flight (seed, pair) takes the upper setting of a mix with share `alpha`: a SplitMix64
 /// hash of the two, as a uniform number in [0, 1), below `alpha`.
 pub fn takes_upper(seed: u32, pair_id: u64, alpha: f64) -> bool {
-    let h = dupac_common::seed::stream_seed(pair_id, u64::from(seed), 0x6d61_7463_6865_64);
+    let h = dupac_common::seed::stream_seed(pair_id, u64::from(seed), MIX_ROUND);
     ((h >> 11) as f64 / (1u64 << 53) as f64) < alpha
 }
 

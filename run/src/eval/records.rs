@@ -171,8 +171,9 @@ pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
                 &p.display().to_string(),
             )?;
             let k = &r.rules;
-            if !(k.interruption_steps.is_finite() && k.interruption_steps >= 0.0)
-                || !k.site_regret_threshold_db.is_finite()
+            if !(k.interruption_steps.is_finite()
+                && k.interruption_steps >= 0.0
+                && k.site_regret_threshold_db.is_finite())
             {
                 return Err(refused!(
                     "{}: metric rules {k:?}: not finite or negative",

@@ -401,8 +401,8 @@ fn the_tables_are_a_function_of_the_records_whatever_their_order() {
         lines.next(),
         Some("method_a,method_b,metric,n,mean_diff,lo,hi,excludes_zero")
     );
-    // dupac − base and dupac − shortest_a3, 7 metrics each; 3 seed indices × 12 pairs.
-    assert_eq!(lines.clone().count(), 14, "{paired_csv}");
+    // dupac − base and dupac − shortest_a3, 8 metrics each; 3 seed indices × 12 pairs.
+    assert_eq!(lines.clone().count(), 16, "{paired_csv}");
     assert!(
         lines
             .next()
