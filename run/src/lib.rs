@@ -4,6 +4,7 @@
 //! trajectory source ([`local`]), the held-out evaluation ([`evaluate`]) and the one training
 //! loop ([`train_loop`]) that `dupac train --single-process` and `dupac learner` both run.
 
+pub mod a3_setting;
 pub mod error;
 pub mod eval;
 pub mod evaluate;

@@ -4,10 +4,10 @@
 use super::front::{FrontFile, FrontPoint, write_front};
 use super::records::{RecordsFile, write_records, write_split};
 use super::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
+use crate::a3_setting::A3Grid;
 use crate::error::{Context, RunError};
 use crate::progress::progress_bar;
 use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
-use crate::tune_a3::A3Grid;
 use dupac_actor::env::Env;
 use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
 use dupac_actor::metrics::{MetricRules, flight_metrics};

@@ -11,8 +11,8 @@
 
 use super::records::RecordsFile;
 use super::stats::{Grid, Headline, SeedFlights};
+use crate::a3_setting::A3Setting;
 use crate::error::{Context, RunError};
-use crate::tune_a3::A3Setting;
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;

@@ -13,8 +13,8 @@ pub mod report;
 pub mod stats;
 pub mod stats_tables;
 
+use crate::a3_setting::A3Setting;
 use crate::error::{Context, RunError};
-use crate::tune_a3::A3Setting;
 use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;

@@ -280,7 +280,7 @@ pub fn write_tables(
             "# A3 at each learned policy's handover rate\n\nEach learned-site policy's own moves re-flown with every setting of the `dupac tune-a3` grid (`front.csv`); the two settings of that front bracketing the policy's handovers per km, mixed flight by flight (a fixed hash of seed and pair) so that the mix has the policy's rate: `LABEL+a3_matched`, compared with the policy in `paired.csv` and report.md's paired differences.\n\n| policy | lower setting (offset / hysteresis / TTT) | upper setting | share of the upper |\n|---|---|---|---:|\n",
         );
         for m in &matched {
-            let f = |s: &crate::tune_a3::A3Setting| {
+            let f = |s: &crate::a3_setting::A3Setting| {
                 format!(
                     "{} dB / {} dB / {} ms",
                     s.offset_db, s.hysteresis_db, s.time_to_trigger_ms

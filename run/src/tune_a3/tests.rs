@@ -1,4 +1,5 @@
 use super::*;
+use dupac_common::config::A3Config;
 
 fn result(o: f64, h: f64, t: f64, excellent: f64, ho: f64, pp: f64) -> SettingResult {
     let setting = A3Setting {
