@@ -13,7 +13,7 @@ use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
 use dupac_run::eval::front::{FrontFile, FrontMeasures, FrontRow, front_rows};
 use dupac_run::eval::records::RecordsFile;
-use dupac_run::eval::report::MethodData;
+use dupac_run::eval::report::{MethodData, is_planner};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -371,15 +371,23 @@ pub fn draw_examples(
     Ok(())
 }
 
-/// `fronts.png`: time in excellent RSRP against handovers per km. Each learned-site policy and
-/// each planner with A3 as a point, and A3's front on the same flights (every `dupac tune-a3`
-/// setting re-flying them, `front.csv`) as a line through its upper envelope with the other
-/// settings as small dots; ping-pongs per km labelled beside each policy's point and on the
-/// envelope.
+/// `fronts.png`: time in excellent RSRP against handovers per km. Every policy of the records and
+/// each planner with an A3 front as a point (a learned front: one policy flown at several
+/// handover weights, or several policies), and A3's front on the same flights (every `dupac
+/// tune-a3` setting re-flying them, `front.csv`) as a line through its upper envelope with the
+/// other settings as small dots; ping-pongs per km in the legend and on the envelope.
 pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> Result<()> {
     let rows = front_rows(fronts);
-    let mut methods: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
-    methods.dedup();
+    // The policies of the records (a learned front is several of them: DUPAC at several handover
+    // weights), then the methods whose flights have an A3 front.
+    let mut methods: Vec<&str> = files
+        .iter()
+        .map(|f| f.method.as_str())
+        .filter(|l| !l.contains('+') && !is_planner(l))
+        .chain(rows.iter().map(|r| r.method.as_str()))
+        .collect();
+    let mut seen = std::collections::BTreeSet::new();
+    methods.retain(|l| seen.insert(*l));
     // Each method's own point (its recorded flights with its own association).
     let own: Vec<(String, FrontMeasures)> = methods
         .iter()
@@ -425,6 +433,22 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
         for (k, method) in methods.iter().enumerate() {
             let c = series_colour(k);
             let mine: Vec<&FrontRow> = rows.iter().filter(|r| r.method == *method).collect();
+            if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
+                chart
+                    .draw_series(std::iter::once(TriangleMarker::new(
+                        (m.handovers_per_km, m.excellent_pct),
+                        9,
+                        c.filled(),
+                    )))?
+                    .label(format!(
+                        "{method} ({:.2} ping-pongs/km)",
+                        m.ping_pongs_per_km
+                    ))
+                    .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
+            }
+            if mine.is_empty() {
+                continue;
+            }
             chart.draw_series(mine.iter().map(|r| {
                 Circle::new(
                     (r.measures.handovers_per_km, r.measures.excellent_pct),
@@ -455,19 +479,6 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
                     (FONT, 11).into_font().color(&c.mix(0.8)),
                 )
             }))?;
-            if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
-                chart
-                    .draw_series(std::iter::once(TriangleMarker::new(
-                        (m.handovers_per_km, m.excellent_pct),
-                        9,
-                        c.filled(),
-                    )))?
-                    .label(format!(
-                        "{method} itself ({:.2} ping-pongs/km)",
-                        m.ping_pongs_per_km
-                    ))
-                    .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
-            }
         }
         chart
             .configure_series_labels()
