@@ -115,6 +115,29 @@ pub struct AuditSummary {
     pub shortest_s: f64,
 }
 
+impl std::fmt::Display for AuditSummary {
+    /// One line: the pairs, those with a shorter coverage-aware path (and by how much at most),
+    /// those below the bound, and the gap to the bound (max / mean / p95, in m and %).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} pairs; a coverage-aware path shorter than the shortest: {} (by at most {:.3} m); \
+             shortest below the bound: {}; gap to the bound max / mean / p95: {:.1} / {:.2} / \
+             {:.1} m ({:.1} / {:.2} / {:.1} %)",
+            self.pairs,
+            self.lambda_shorter,
+            self.max_lambda_shorter_m.max(0.0),
+            self.below_bound,
+            self.gap_max_m,
+            self.gap_mean_m,
+            self.gap_p95_m,
+            100.0 * self.gap_rel_max,
+            100.0 * self.gap_rel_mean,
+            100.0 * self.gap_rel_p95,
+        )
+    }
+}
+
 impl AuditSummary {
     /// Summarises `rows`; `tolerance_m` (m) is the slack of both counts.
     pub fn of(rows: &[AuditRow], tolerance_m: f64) -> AuditSummary {
