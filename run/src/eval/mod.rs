@@ -8,6 +8,7 @@
 
 pub mod fly;
 pub mod front;
+pub mod method_data;
 pub mod records;
 pub mod report;
 pub mod stats;

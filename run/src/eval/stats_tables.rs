@@ -3,8 +3,8 @@
 //! (columns of `summary.csv`), `paired.csv` (paired differences between the compared methods)
 //! and their sections of `report.md`. The statistics are [`super::stats`]'.
 
+use super::method_data::{MethodData, gather, is_planner};
 use super::records::RecordsFile;
-use super::report::{MethodData, gather, is_planner};
 use super::stats::{
     BootCi, Bootstrap, Comparison, HEADLINES, Headline, grids, method_intervals, paired,
 };
