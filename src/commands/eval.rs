@@ -87,6 +87,13 @@ pub struct EvalArgs {
     /// (`LABEL+a3_matched`, `matched.md`). About 100 re-flights per flight.
     #[arg(long)]
     pub a3_front: bool,
+    /// Fly every policy that observes the handover weight (`env.observation.handover_weight`)
+    /// at each of these weights (`env.reward.handover_weight`), each as its own method
+    /// `LABEL_w<W>`: one conditioned policy's front in one evaluation (repeatable, or
+    /// comma-separated: `--handover-weight 0,1,3,6`; docs/env.md "Handover weight"). Other
+    /// policies are flown once, under their own label.
+    #[arg(long = "handover-weight", value_name = "W", value_delimiter = ',')]
+    pub handover_weights: Vec<f64>,
     /// Resamples of the report's bootstrap over training seeds and pairs (its seed-aware
     /// intervals and paired differences; drawn from a fixed seed, so the report is the same on
     /// every run).
@@ -118,6 +125,7 @@ impl EvalArgs {
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),
             a3_front: self.a3_front,
+            handover_weights: self.handover_weights.clone(),
         })
     }
 }

@@ -148,6 +148,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             mcfg = p
                 .configure(&mcfg)
                 .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
+            if let Some(w) = method.handover_weight {
+                mcfg.env.reward.handover_weight = w;
+            }
             let probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
             if probe.layout().len() != p.obs_dim {
                 return Err(refused!(
@@ -300,6 +303,7 @@ fn replay_associations(
                 seed: method.seed,
                 kind,
                 a3: None,
+                handover_weight: None,
             };
             Ok((label, refly(&rcfg, ctx, &replay, pairs, flights)?))
         })
@@ -322,6 +326,7 @@ fn a3_front(
         seed: method.seed,
         kind: Kind::Replay(Association::A3),
         a3: None,
+        handover_weight: None,
     };
     let pb = progress_bar(
         settings.len() as u64,

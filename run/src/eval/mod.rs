@@ -23,6 +23,9 @@ use dupac_learner::checkpoint::load_policy;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The largest `--handover-weight` (the bound `env.reward.handover_weight` has).
+const MAX_HANDOVER_WEIGHT: f64 = 100.0;
+
 /// A refusal with a formatted reason.
 macro_rules! refused {
     ($($t:tt)*) => { $crate::error::RunError::Refused(format!($($t)*)) };
@@ -56,6 +59,10 @@ pub struct EvalPlan {
     /// Re-fly every learned-site policy's moves and every planner's A3 path with each setting of
     /// the `dupac tune-a3` grid ([`front`]).
     pub a3_front: bool,
+    /// Handover weights (`env.reward.handover_weight`, docs/env.md "Handover weight") at which
+    /// every policy that observes the weight is flown, each as its own method `LABEL_w<W>`
+    /// (empty: once, at the configuration's weight).
+    pub handover_weights: Vec<f64>,
 }
 
 /// A `--hindsight` value: handover cost (dB·steps) and the minimum stay (steps).
@@ -105,12 +112,25 @@ pub struct Method {
     pub kind: Kind,
     /// The A3 parameters it is flown with instead of `radio.a3` (the `+a3tuned` rows).
     pub a3: Option<A3Setting>,
+    /// The handover weight it is flown at instead of `env.reward.handover_weight` (a policy
+    /// that observes it, flown at each `--handover-weight`).
+    pub handover_weight: Option<f64>,
 }
 
 /// The methods of `plan`: its policies (seeds numbered per label in order), then the planners.
 pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
+    if let Some(w) = args
+        .handover_weights
+        .iter()
+        .find(|w| !(w.is_finite() && (0.0..=MAX_HANDOVER_WEIGHT).contains(*w)))
+    {
+        return Err(refused!(
+            "--handover-weight {w}: must be a number in [0, {MAX_HANDOVER_WEIGHT}]"
+        ));
+    }
     let mut out = Vec::new();
     let mut seeds: BTreeMap<String, u32> = BTreeMap::new();
+    let mut per_weight: BTreeMap<String, u32> = BTreeMap::new();
     for spec in &args.policies {
         let (label, file) = spec
             .split_once('=')
@@ -125,7 +145,6 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             ));
         }
         let p = load_policy(Path::new(file)).context_with(|| format!("--policy {spec}"))?;
-        let seed = seeds.entry(label.to_string()).or_insert(0);
         let a3 = match (args.tuned_labels.iter().any(|t| t == label), args.a3_tuned) {
             (false, _) => None,
             (true, Some(t)) => Some(t),
@@ -135,13 +154,30 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
                 ));
             }
         };
-        out.push(Method {
-            label: label.to_string(),
-            seed: *seed,
-            kind: Kind::Policy(Box::new(p)),
-            a3,
-        });
-        *seed += 1;
+        // One method per weight (`LABEL_w<W>`) for a policy that observes it; one at the
+        // configuration's weight otherwise (the weight would change only its reward).
+        let observes_weight = p.observation.as_ref().is_some_and(|o| o.handover_weight);
+        let weights: Vec<Option<f64>> = if args.handover_weights.is_empty() || !observes_weight {
+            vec![None]
+        } else {
+            args.handover_weights.iter().copied().map(Some).collect()
+        };
+        seeds.entry(label.to_string()).or_insert(0);
+        for w in weights {
+            let flown = match w {
+                Some(w) => format!("{label}_w{w}"),
+                None => label.to_string(),
+            };
+            let seed = per_weight.entry(flown.clone()).or_insert(0);
+            out.push(Method {
+                label: flown,
+                seed: *seed,
+                kind: Kind::Policy(Box::new(p.clone())),
+                a3,
+                handover_weight: w,
+            });
+            *seed += 1;
+        }
     }
     if let Some(t) = args.tuned_labels.iter().find(|t| !seeds.contains_key(*t)) {
         return Err(refused!("--tuned-label {t}: no --policy has this label"));
@@ -165,6 +201,7 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             seed: 0,
             kind,
             a3,
+            handover_weight: None,
         };
         out.push(planner(
             "shortest_a3".into(),
