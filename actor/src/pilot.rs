@@ -63,7 +63,8 @@ fn fly(
 ) -> Result<Flight, EnvError> {
     let (mut steps, mut episodic_return) = (Vec::new(), 0.0);
     while let Some(move_) = next_move(env) {
-        let s = env.step(&Action {
+        // Nothing here reads the observation: the step without it (`Env::step_unobserved`).
+        let s = env.step_unobserved(&Action {
             move_,
             site: site(env),
         })?;

@@ -480,6 +480,31 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
                 )
             }))?;
         }
+        // One policy flown at several handover weights (`LABEL_w<W>`, `dupac eval
+        // --handover-weight`): its points joined, the learned front.
+        let mut learned: std::collections::BTreeMap<&str, Vec<(f64, f64)>> = Default::default();
+        for (label, m) in &own {
+            if let Some((policy, w)) = label.rsplit_once("_w")
+                && w.parse::<f64>().is_ok()
+            {
+                learned
+                    .entry(policy)
+                    .or_default()
+                    .push((m.handovers_per_km, m.excellent_pct));
+            }
+        }
+        for (policy, mut points) in learned {
+            if points.len() < 2 {
+                continue;
+            }
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart
+                .draw_series(LineSeries::new(points, BLACK.stroke_width(2)))?
+                .label(format!("{policy}'s front (one policy, several weights)"))
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], BLACK.stroke_width(2))
+                });
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::LowerRight)

@@ -18,6 +18,15 @@ impl Env {
         Ok(s)
     }
 
+    /// One step as [`Env::step`] (the same move, measurement, reward and record) without
+    /// writing the next observation: for scripted flights that never read it (the pilot:
+    /// planned paths, replays, A3's front), which would otherwise pay the sensor fan and the
+    /// nearest-surface query at every step. [`Env::observation`] keeps the last one written.
+    pub fn step_unobserved(&mut self, action: &Action) -> Result<Step, EnvError> {
+        self.site_rewards.fill(0.0);
+        self.advance(action, true)
+    }
+
     /// One decision of a policy: `action` applied for `env.action_repeat` steps, or until the
     /// episode ends (frame skip). The rewards of those steps add up (undiscounted, as in every
     /// frame-skip agent); `terminated`/`truncated` and `info` are the last step's; every step's
