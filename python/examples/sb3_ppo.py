@@ -58,7 +58,7 @@ def main() -> None:
     ap.add_argument("--envs", type=int, default=8)
     ap.add_argument("--pairs", type=int, default=70)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--dupac-policy", default="results/fronts_pilot/dupac_cond_s1/policy.bin")
+    ap.add_argument("--dupac-policy", default="results/complete/real/base_s1/policy.bin")
     args = ap.parse_args()
 
     import torch

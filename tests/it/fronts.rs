@@ -9,7 +9,7 @@ use crate::support::dupac_output;
 
 /// The committed conditioned policy's point directory (its training `config.toml` and
 /// `policy.bin`): real channel, seed 1.
-const CONDITIONED: &str = "results/fronts_pilot/dupac_cond_s1";
+const CONDITIONED: &str = "results/complete/real/dupac_s1";
 
 /// Six validation pairs of the complete city (`pairs.eval_seed = 2024`, ids 0–2 of the 200 m bin
 /// and 50–52 of the 300 m bin).
