@@ -4,7 +4,7 @@
 //! bootstrap columns), refused `--hindsight` and `--bootstrap` values, and a report that is a
 //! function of the saved records alone.
 
-use crate::support::{TrainedRun, dupac_output, trained_run};
+use crate::support::{TrainedRun, dupac_output, summary_column, trained_run};
 use std::path::{Path, PathBuf};
 
 /// The tables `dupac eval` writes from its records.
@@ -49,20 +49,6 @@ fn evaluated() -> &'static Path {
         assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
         ev
     })
-}
-
-fn column(summary: &str, label: &str, name: &str) -> f64 {
-    let header: Vec<&str> = summary.lines().next().expect("header").split(',').collect();
-    let k = header.iter().position(|h| *h == name).expect("column");
-    let row = summary
-        .lines()
-        .find(|l| l.starts_with(&format!("{label},")))
-        .expect("row");
-    row.split(',')
-        .nth(k)
-        .expect("value")
-        .parse()
-        .expect("number")
 }
 
 #[test]
@@ -120,7 +106,7 @@ fn eval_flies_every_method_and_replays_the_association() {
         ],
         "{summary}"
     );
-    let col = |label: &str, name: &str| column(&summary, label, name);
+    let col = |label: &str, name: &str| summary_column(&summary, label, name);
     assert_eq!(col("dupac+oracle", "site_regret_db"), 0.0, "{summary}");
     // The hindsight association: at no handover cost the best site every step (the oracle's
     // regret, to the replay's f32 positions); with the minimum stay, no ping-pong and no more
@@ -193,7 +179,7 @@ fn eval_writes_per_seed_rows_and_paired_differences() {
     let ev = evaluated();
     let summary = std::fs::read_to_string(ev.join("summary.csv")).expect("summary.csv");
     for label in ["dupac", "shortest_a3"] {
-        let col = |name: &str| column(&summary, label, name);
+        let col = |name: &str| summary_column(&summary, label, name);
         assert!(
             col("success_boot_lo") <= col("success") && col("success") <= col("success_boot_hi"),
             "{summary}"

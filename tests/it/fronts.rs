@@ -5,7 +5,7 @@
 //! way the weight reaches the flight is through the observation — with the input ignored (or
 //! zeroed on its way to the network) all three rows are equal and the test fails.
 
-use crate::support::dupac_output;
+use crate::support::{dupac_output, summary_column};
 
 /// The committed conditioned policy's point directory (its training `config.toml` and
 /// `policy.bin`): real channel, seed 1.
@@ -57,22 +57,7 @@ fn the_conditioned_policy_hands_over_less_as_its_weight_rises() {
     );
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
     let summary = std::fs::read_to_string(out.join("summary.csv")).expect("summary.csv");
-    let header: Vec<&str> = summary.lines().next().expect("header").split(',').collect();
-    let k = header
-        .iter()
-        .position(|h| *h == "handovers_per_km")
-        .expect("handovers_per_km column");
-    let rate = |label: &str| -> f64 {
-        let row = summary
-            .lines()
-            .find(|l| l.starts_with(&format!("{label},")))
-            .unwrap_or_else(|| panic!("no row {label} in\n{summary}"));
-        row.split(',')
-            .nth(k)
-            .expect("value")
-            .parse()
-            .expect("number")
-    };
+    let rate = |label: &str| summary_column(&summary, label, "handovers_per_km");
     let [w0, w3, w6] = ["c_w0", "c_w3", "c_w6"].map(rate);
     assert!(
         w0 > w3 && w3 > w6,

@@ -592,3 +592,21 @@ pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk 
         }],
     }
 }
+
+/// The value of column `name` in the row of method `label` of a `summary.csv` (`dupac eval`).
+pub fn summary_column(summary: &str, label: &str, name: &str) -> f64 {
+    let header: Vec<&str> = summary.lines().next().expect("header").split(',').collect();
+    let k = header
+        .iter()
+        .position(|h| *h == name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    let row = summary
+        .lines()
+        .find(|l| l.starts_with(&format!("{label},")))
+        .unwrap_or_else(|| panic!("no row {label} in\n{summary}"));
+    row.split(',')
+        .nth(k)
+        .expect("value")
+        .parse()
+        .expect("number")
+}
