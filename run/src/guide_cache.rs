@@ -20,7 +20,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"DUPACGDE";
-const VERSION: u32 = 1;
+/// Format version, raised whenever the planner's paths for the same inputs change, so that an
+/// older file is rebuilt rather than reused.
+const VERSION: u32 = 2;
 
 /// The clearance (m) of the path `cfg`'s episodes are guided along:
 /// `env.observation.path_guide_clearance_m`, or `planner.clearance_m` where that is 0.

@@ -364,7 +364,8 @@ impl FreeSpace {
 
     /// Whether the lattice edge `u → v` (direction `d`, both ends free) is flyable. Exact: a cheap
     /// sufficient test on the stored distances (every point of the edge is at least
-    /// `(d_u + d_v − L) / 2` from the mesh), else the swept sphere, cached for both directions.
+    /// `(d_u + d_v − L) / 2` from the mesh), else the swept sphere (from the lower index to the
+    /// higher), cached for both directions.
     pub(crate) fn edge_clear(&self, u: u32, d: usize, v: u32) -> bool {
         let (du, dv) = match (self.dist_m.get(u as usize), self.dist_m.get(v as usize)) {
             (Some(&a), Some(&b)) => (f64::from(a), f64::from(b)),
@@ -382,10 +383,14 @@ impl FreeSpace {
         if word & (1u64 << (2 * d)) != 0 {
             return word & (1u64 << (2 * d + 1)) != 0;
         }
+        // Swept from the lower index to the higher, so that the cached answer (shared by both
+        // directions) does not depend on which direction a search asked first: plans stay a
+        // function of their endpoints, whatever was planned before in the process.
+        let (a, b) = if u < v { (u, v) } else { (v, u) };
         let clear = self
             .city
             .mesh
-            .sphere_sweep(self.centre_m(u), self.centre_m(v), r)
+            .sphere_sweep(self.centre_m(a), self.centre_m(b), r)
             .is_none();
         let bits = |d: usize| (1u64 << (2 * d)) | (u64::from(clear) << (2 * d + 1));
         eu.fetch_or(bits(d), Ordering::Relaxed);
