@@ -126,6 +126,9 @@ enum Command {
     Monitor(commands::monitor::MonitorArgs),
     /// A Zenoh router in this process, for multi-machine runs without `zenohd`.
     Router(commands::net::RouterArgs),
+    /// A TCP relay that impairs traffic (delay, jitter, rate cap; stalls, resets, partitions),
+    /// between an actor and the learner's router: a WAN rehearsal without `sch_netem`.
+    Relay(commands::relay::RelayArgs),
     /// Fly one pair with a trained policy (deterministic) and plot it beside the shortest path.
     Fly(commands::fly::FlyArgs),
     /// Evaluate policies and planners on the held-out pairs: step records, the paper's figures,
@@ -168,6 +171,7 @@ fn main() -> ExitCode {
         Command::Actor(a) => commands::actor::run(&cli.global, a),
         Command::Monitor(a) => commands::monitor::run(&cli.global, a),
         Command::Router(a) => commands::net::run_router(&cli.global, a),
+        Command::Relay(a) => commands::relay::run(a),
         Command::Fly(a) => commands::fly::run(&cli.global, a),
         Command::Eval(a) => commands::eval::run(&cli.global, a),
         Command::TuneA3(a) => commands::tune_a3::run(&cli.global, a),
@@ -186,12 +190,15 @@ fn main() -> ExitCode {
 }
 
 /// The log on stderr: errors only with `--quiet`, warnings by default, more with `-v`/`-vv`
-/// (`RUST_LOG` overrides all three); coloured only on a terminal and without `NO_COLOR`.
+/// (`RUST_LOG` overrides all three); coloured only on a terminal and without `NO_COLOR`; no
+/// line longer than [`dupac_node::ratelog::MAX_LINE_CHARS`] characters.
 fn init_tracing(verbose: u8, quiet: bool) {
-    // Zenoh's own retry warnings repeat every second while a peer is down; DUPAC says it once.
+    // Zenoh's own retry warnings repeat every second while a peer is down, and its transport
+    // errors during a partition name internal queues and peer ids: DUPAC says what happened in
+    // its own words (a process lost, waiting, back after N s); `-v` shows zenoh's lines too.
     let default = match (quiet, verbose) {
-        (true, _) => "error",
-        (false, 0) => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=error",
+        (true, _) => "error,zenoh_transport=off",
+        (false, 0) => "warn,zenoh=error,zenoh_link_tcp=error,zenoh_transport=off",
         (false, 1) => "info,zenoh=warn,zenoh_link_tcp=warn,zenoh_transport=warn",
         _ => "debug",
     };
@@ -199,9 +206,47 @@ fn init_tracing(verbose: u8, quiet: bool) {
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(CutStderr)
         .with_ansi(colour_on_stderr())
         .try_init();
+}
+
+/// stderr, every line cut to [`dupac_node::ratelog::MAX_LINE_CHARS`] characters: no log line
+/// carries a whole debug dump of an error's inner type.
+struct CutStderr;
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for CutStderr {
+    type Writer = CutWriter;
+    fn make_writer(&'a self) -> CutWriter {
+        CutWriter
+    }
+}
+
+/// One event's text (tracing's formatter writes an event at once), cut line by line.
+struct CutWriter;
+
+impl std::io::Write for CutWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let text = String::from_utf8_lossy(buf);
+        let mut out = String::with_capacity(buf.len().min(4096));
+        for line in text.split_inclusive('\n') {
+            let (body, end) = match line.strip_suffix('\n') {
+                Some(b) => (b, "\n"),
+                None => (line, ""),
+            };
+            out.push_str(&dupac_node::ratelog::cut_to(
+                body,
+                dupac_node::ratelog::MAX_LINE_CHARS,
+            ));
+            out.push_str(end);
+        }
+        std::io::stderr().write_all(out.as_bytes())?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        std::io::stderr().flush()
+    }
 }
 
 /// Whether stderr gets ANSI colours: only when it is a terminal and `NO_COLOR` is unset or

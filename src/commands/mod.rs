@@ -15,6 +15,7 @@ pub mod orchestrate;
 pub mod pairs;
 pub mod plan;
 pub mod radio;
+pub mod relay;
 pub mod run_args;
 pub mod scenario;
 pub mod shell;
