@@ -12,34 +12,27 @@
 //! weights replace the old ones even with a lower version). Its stats, and the learner's
 //! `Stop`, are JSON ([`dupac_common::jsonmsg`], zenoh encoding `application/json`).
 
-use crate::netside::{Every, Latest, NetSide};
+use crate::intake::{Offer, WeightsIntake, WeightsKey};
+use crate::outbox::ChunkOutbox;
+use crate::wiring::Wiring;
 use dupac_actor::env::{Env, EnvError};
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::{RolloutError, Worker};
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
-use dupac_common::jsonmsg::{decode_json, encode_json};
-use dupac_common::keys::{KeySpace, Role};
-use dupac_common::msg::EnvTrajectory;
+use dupac_common::jsonmsg::encode_json;
 use dupac_common::msg::{
-    ActorStats, Command, ControlMsg, Header, MsgLimits, TrajectoryChunk, WeightsMsg, decode_msg,
-    encode_msg, unix_ms,
+    ActorStats, EnvTrajectory, MsgLimits, TrajectoryChunk, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_common::seed::stream_seed;
-use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps, validate_weights};
+use dupac_common::validate::{ChunkExpect, SiteSteps};
 use dupac_radio::cache::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
-use std::collections::HashSet;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use zenoh::Wait;
-use zenoh::bytes::Encoding;
-use zenoh::handlers::{RingChannel, RingChannelHandler};
-use zenoh::qos::CongestionControl;
-use zenoh::sample::{Sample, SampleKind};
 
 /// Errors of an actor.
 #[derive(Debug, thiserror::Error)]
@@ -60,10 +53,7 @@ pub enum ActorError {
     Threads(String),
 }
 
-/// Chunks queued for the network side before the environments wait (besides the one being sent).
-const CHUNKS_IN_FLIGHT: usize = 2;
-
-fn z(e: impl std::fmt::Display) -> ActorError {
+pub(crate) fn z(e: impl std::fmt::Display) -> ActorError {
     ActorError::Zenoh(crate::net::zenoh_message(&e))
 }
 
@@ -138,236 +128,227 @@ pub struct ActorReport {
     pub resent_shares: u64,
 }
 
-/// The weights in use and where they came from.
-struct Current {
-    policy: Arc<PolicyWeights>,
-    incarnation: u64,
-    sent_unix_ms: u64,
-}
-
-/// Decodes and checks a weights message; a fingerprint or run mismatch is fatal (`Refused`).
-fn accept_weights(
-    bytes: &[u8],
-    expect: &ChunkExpect,
-    limits: MsgLimits,
-    origin: &str,
-) -> Result<Option<WeightsMsg>, ActorError> {
-    let w: WeightsMsg = match decode_msg(bytes, limits, origin) {
-        Ok(w) => w,
-        Err(e) => {
-            tracing::warn!("weights ignored: {e}");
-            return Ok(None);
-        }
+/// What a process expects of its weights: `cfg`'s run and chunk sizes, the environment
+/// `fingerprint`, a policy of `obs_dim` observations and `n_sites` site logits.
+fn weights_intake(cfg: &Config, fingerprint: u64, obs_dim: usize, n_sites: usize) -> WeightsIntake {
+    let d = &cfg.distributed;
+    let expect = ChunkExpect {
+        run_id: d.run.clone(),
+        incarnation: 0,
+        fingerprint,
+        obs_dim,
+        n_sites,
+        max_envs: d.actor_envs,
+        max_steps: d.chunk_steps,
+        site_steps: SiteSteps::of(cfg),
     };
-    match validate_weights(&w, expect) {
-        Ok(()) => Ok(Some(w)),
-        Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
-            Err(ActorError::Refused(r.detail))
-        }
-        Err(r) => {
-            tracing::warn!("weights ignored: {r}");
-            Ok(None)
-        }
-    }
+    WeightsIntake::new(expect, MsgLimits::weights(cfg, obs_dim, n_sites))
 }
 
-/// Everything an actor holds on the Zenoh side.
-struct Wiring {
-    session: zenoh::Session,
-    keys: KeySpace,
-    weights: zenoh::pubsub::Subscriber<RingChannelHandler<Sample>>,
-    learners: Arc<Mutex<HashSet<String>>>,
-    /// Actors of the run with a liveliness token (this one included).
-    actors: Arc<Mutex<HashSet<String>>>,
-    stop: Arc<AtomicBool>,
-    traj: Every,
-    stats: Latest,
-    net: NetSide,
-    _token: zenoh::liveliness::LivelinessToken,
-    _learner_sub: zenoh::pubsub::Subscriber<()>,
-    _actors_sub: zenoh::pubsub::Subscriber<()>,
-    _ctrl_sub: zenoh::pubsub::Subscriber<()>,
+/// The weights an actor acts with, kept current from the learner's publications and its
+/// queryable.
+struct Acting {
+    intake: WeightsIntake,
+    /// The policy in use and when the learner sent it (Unix ms).
+    policy: Option<(Arc<PolicyWeights>, u64)>,
+    last_weights_at: Instant,
+    waiting_logged: bool,
 }
 
-impl Wiring {
-    fn new(session: zenoh::Session, cfg: &Config, id: ActorId) -> Result<Wiring, ActorError> {
-        Wiring::with_role(session, cfg, id, Role::Actor)
+impl Acting {
+    fn new(intake: WeightsIntake) -> Acting {
+        Acting {
+            intake,
+            policy: None,
+            last_weights_at: Instant::now(),
+            waiting_logged: false,
+        }
     }
 
-    fn new_pilot(session: zenoh::Session, cfg: &Config, id: ActorId) -> Result<Wiring, ActorError> {
-        Wiring::with_role(session, cfg, id, Role::Pilot)
-    }
-
-    fn with_role(
-        session: zenoh::Session,
-        cfg: &Config,
-        id: ActorId,
-        role: Role,
-    ) -> Result<Wiring, ActorError> {
-        let keys = KeySpace::new(&cfg.distributed.run);
-        let weights = session
-            .declare_subscriber(keys.weights())
-            .with(RingChannel::new(1))
-            .wait()
-            .map_err(z)?;
-        let (learners, learner_sub) = track_alive(&session, &keys, Role::Learner, true)?;
-        let (actors, actors_sub) = track_alive(&session, &keys, Role::Actor, false)?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let ctrl_sub = {
-            let (stop, limit) = (stop.clone(), MsgLimits::small(cfg));
-            let key = keys.ctrl();
-            session
-                .declare_subscriber(keys.ctrl())
-                .callback(move |s| {
-                    match decode_json::<ControlMsg>(&s.payload().to_bytes(), limit, &key) {
-                        Ok(m) if m.command == Command::Stop => {
-                            tracing::info!("the learner ended the run");
-                            stop.store(true, Ordering::Relaxed);
-                        }
-                        Ok(_) => {}
-                        Err(e) => tracing::warn!("control message ignored: {e}"),
-                    }
-                })
-                .wait()
-                .map_err(z)?
-        };
-        let mut net = NetSide::new()
-            .map_err(|e| ActorError::Zenoh(format!("cannot start the network side: {e}")))?;
-        let traj = Every::start(
-            &mut net,
-            session
-                .declare_publisher(keys.traj(id))
-                .congestion_control(CongestionControl::Block)
-                .wait()
-                .map_err(z)?,
-            CHUNKS_IN_FLIGHT,
-            "trajectory chunk",
-        );
-        let stats = Latest::start(
-            &mut net,
-            session
-                .declare_publisher(keys.stats_actor(id))
-                .congestion_control(CongestionControl::Drop)
-                .encoding(Encoding::APPLICATION_JSON)
-                .wait()
-                .map_err(z)?,
-            "stats",
-        );
-        let token = session
-            .liveliness()
-            .declare_token(keys.alive(role, &id.0.to_string()))
-            .wait()
-            .map_err(z)?;
-        Ok(Wiring {
-            session,
-            keys,
-            weights,
-            learners,
-            actors,
-            stop,
-            traj,
-            stats,
-            net,
-            _token: token,
-            _learner_sub: learner_sub,
-            _actors_sub: actors_sub,
-            _ctrl_sub: ctrl_sub,
-        })
-    }
-
-    /// Sends what is still queued, stops the network side and closes the session.
-    fn close(self) {
-        let Wiring {
-            session,
-            traj,
-            stats,
-            net,
-            ..
-        } = self;
-        drop((traj, stats));
-        net.finish(Duration::from_secs(5));
-        let _ = session.close().wait();
-    }
-
-    fn actors_alive(&self) -> usize {
-        self.actors.lock().map(|a| a.len()).unwrap_or(1).max(1)
-    }
-
-    fn learner_alive(&self) -> bool {
-        self.learners.lock().map(|l| !l.is_empty()).unwrap_or(false)
-    }
-
-    /// Asks the learner's queryable for its latest weights.
-    fn query_weights(
-        &self,
-        expect: &ChunkExpect,
-        limit: MsgLimits,
-    ) -> Result<Option<WeightsMsg>, ActorError> {
-        let replies = self
-            .session
-            .get(self.keys.weights())
-            .timeout(Duration::from_secs(2))
-            .wait()
-            .map_err(z)?;
-        let mut best: Option<WeightsMsg> = None;
-        while let Ok(reply) = replies.recv() {
-            if let Ok(sample) = reply.result()
-                && let Some(w) = accept_weights(
-                    &sample.payload().to_bytes(),
-                    expect,
-                    limit,
-                    &self.keys.weights(),
-                )?
-                && best
-                    .as_ref()
-                    .is_none_or(|b| w.policy.version > b.policy.version)
+    /// One turn of the actor's loop: takes the newest weights (waiting briefly for them when
+    /// this version's share is sent: `at_cap`), asks the queryable when a publication may have
+    /// been missed or no learner is alive (and starts a new share when the learner is still at
+    /// this version: the last one was lost), and waits when there are no weights at all.
+    /// `false`: nothing to act with yet.
+    fn update(
+        &mut self,
+        wiring: &Wiring,
+        outbox: &mut ChunkOutbox,
+        at_cap: bool,
+        report: &mut ActorReport,
+    ) -> Result<bool, ActorError> {
+        let wait = at_cap.then_some(Duration::from_millis(50));
+        let mut incoming = wiring.receive_weights(&mut self.intake, wait)?;
+        if incoming.is_none() && at_cap && self.last_weights_at.elapsed() > Duration::from_secs(1) {
+            incoming = wiring.query_weights(&mut self.intake)?;
+            self.last_weights_at = Instant::now();
+            if let Some(w) = &incoming
+                && outbox.resend_if_lost(WeightsKey::of(w))
             {
-                best = Some(w);
+                tracing::info!(
+                    version = w.policy.version,
+                    "the learner still waits at this version; sending another share"
+                );
+                report.resent_shares += 1;
             }
         }
-        Ok(best)
+        if self.policy.is_none() || (!wiring.learner_alive() && incoming.is_none()) {
+            // Joining, or the learner is gone: ask for weights (a restarted learner answers).
+            if let Some(w) = wiring.query_weights(&mut self.intake)? {
+                incoming = Some(w);
+            }
+            if incoming.is_none() {
+                if !self.waiting_logged {
+                    tracing::info!("no learner answers; waiting");
+                    self.waiting_logged = true;
+                }
+                std::thread::sleep(Duration::from_millis(200));
+                return Ok(false);
+            }
+        }
+        if let Some(w) = incoming {
+            let offer = self.intake.offer(WeightsKey::of(&w));
+            if offer == Offer::NewIncarnation {
+                tracing::info!(
+                    version = w.policy.version,
+                    "following a new learner incarnation"
+                );
+            }
+            if offer != Offer::Stale {
+                self.last_weights_at = Instant::now();
+                self.policy = Some((Arc::new(w.policy), w.header.sent_unix_ms));
+                self.waiting_logged = false;
+            }
+        }
+        Ok(self.policy.is_some())
     }
 }
 
-/// The ids of the processes of `role` whose liveliness token is present, kept current by a
-/// liveliness subscriber (with history: tokens declared before it count); `log` reports joins
-/// and departures.
-#[allow(clippy::type_complexity)]
-fn track_alive(
-    session: &zenoh::Session,
-    keys: &KeySpace,
-    role: Role,
-    log: bool,
-) -> Result<(Arc<Mutex<HashSet<String>>>, zenoh::pubsub::Subscriber<()>), ActorError> {
-    let present: Arc<Mutex<HashSet<String>>> = Arc::default();
-    let (set, keys2) = (present.clone(), keys.clone());
-    let sub = session
-        .liveliness()
-        .declare_subscriber(keys.alive_role(role))
-        .history(true)
-        .callback(move |s| {
-            let Some((_, id)) = keys2.parse_alive(s.key_expr().as_str()) else {
-                return;
-            };
-            let Ok(mut set) = set.lock() else { return };
-            match s.kind() {
-                SampleKind::Put => {
-                    if log {
-                        tracing::info!(%role, id, "present");
-                    }
-                    set.insert(id);
-                }
-                SampleKind::Delete => {
-                    if log {
-                        tracing::warn!(%role, id, "gone");
-                    }
-                    set.remove(&id);
-                }
-            }
+/// An actor's environments on their own thread pool (or a recording replayed in their place),
+/// and the chunks kept for `--record`.
+struct Rollouts {
+    threads: rayon::ThreadPool,
+    workers: Vec<Worker>,
+    steps: usize,
+    replay: Option<Arc<Vec<Vec<EnvTrajectory>>>>,
+    recorded: Option<Vec<Vec<EnvTrajectory>>>,
+}
+
+impl Rollouts {
+    /// `distributed.actor_envs` training environments seeded from `train.seed`, the actor's id
+    /// and `salt` (new per start: a restarted actor does not replay its earlier episodes).
+    fn new(
+        cfg: &Config,
+        world: &Arc<RadioWorld>,
+        rsrp: &Arc<dyn RsrpSource + Send + Sync>,
+        pool: &Arc<Vec<Pair>>,
+        opts: &ActorOptions,
+        salt: u64,
+    ) -> Result<Rollouts, ActorError> {
+        let threads = rayon::ThreadPoolBuilder::new()
+            .num_threads(opts.threads.max(1))
+            .thread_name(|k| format!("dupac-env-{k}"))
+            .build()
+            .map_err(|e| ActorError::Threads(e.to_string()))?;
+        // Training rollouts: the sphere grown by env.training_margin_m.
+        let train_cfg = cfg.training();
+        let workers = (0..cfg.distributed.actor_envs)
+            .map(|k| {
+                let env = Env::new(&train_cfg, world.clone(), rsrp.clone())?;
+                let stream = (u64::from(opts.id.0) << 20) | k as u64;
+                let seed = stream_seed(cfg.train.seed, stream, salt);
+                Ok(Worker::new(k as u32, env, pool.clone(), seed)?)
+            })
+            .collect::<Result<_, ActorError>>()?;
+        Ok(Rollouts {
+            threads,
+            workers,
+            steps: cfg.distributed.chunk_steps,
+            replay: opts.replay.clone(),
+            recorded: opts.record.as_ref().map(|_| Vec::new()),
         })
-        .wait()
-        .map_err(z)?;
-    Ok((present, sub))
+    }
+
+    /// The next chunk's trajectories acted with `policy` (chunk `index` of a replay).
+    fn collect(
+        &mut self,
+        policy: &Arc<PolicyWeights>,
+        index: u64,
+    ) -> Result<Vec<EnvTrajectory>, ActorError> {
+        let trajectories: Vec<EnvTrajectory> = match &self.replay {
+            Some(chunks) => chunks[(index % chunks.len() as u64) as usize].clone(),
+            None => {
+                let (workers, steps) = (&mut self.workers, self.steps);
+                self.threads.install(|| {
+                    workers
+                        .par_iter_mut()
+                        .map(|w| w.collect(policy, steps))
+                        .collect::<Result<_, _>>()
+                })?
+            }
+        };
+        if let Some(r) = &mut self.recorded {
+            r.push(trajectories.clone());
+        }
+        Ok(trajectories)
+    }
+}
+
+/// An actor's statistics since its start, published every `distributed.stats_every_s`.
+struct StatsClock {
+    every_s: f64,
+    last: Instant,
+    steps_at_last: u64,
+    episodes: u64,
+    last_swap_latency_ms: Option<f64>,
+}
+
+impl StatsClock {
+    /// Stats due every `every_s` seconds from now.
+    fn new(every_s: f64) -> StatsClock {
+        StatsClock {
+            every_s,
+            last: Instant::now(),
+            steps_at_last: 0,
+            episodes: 0,
+            last_swap_latency_ms: None,
+        }
+    }
+
+    /// Counts a chunk's episodes.
+    fn sent(&mut self, chunk: &TrajectoryChunk) {
+        self.episodes += chunk
+            .trajectories
+            .iter()
+            .map(|t| t.episodes.len() as u64)
+            .sum::<u64>();
+    }
+
+    /// The stats to publish when they are due.
+    fn due(
+        &mut self,
+        report: &ActorReport,
+        outbox: &ChunkOutbox,
+        num_envs: usize,
+    ) -> Option<ActorStats> {
+        let dt = self.last.elapsed().as_secs_f64();
+        if dt < self.every_s {
+            return None;
+        }
+        let stats = ActorStats {
+            header: outbox.header(outbox.acting()?),
+            num_envs: num_envs as u32,
+            env_steps: report.env_steps,
+            steps_per_s: (report.env_steps - self.steps_at_last) as f64 / dt,
+            chunks_sent: report.chunks_sent,
+            swaps: report.swaps,
+            last_swap_latency_ms: self.last_swap_latency_ms,
+            episodes: self.episodes,
+        };
+        self.last = Instant::now();
+        self.steps_at_last = report.env_steps;
+        Some(stats)
+    }
 }
 
 /// Runs one actor until the learner stops the run, `stop` is set, or `max_chunks` chunks are
@@ -384,225 +365,62 @@ pub fn run_actor(
     stop: &AtomicBool,
 ) -> Result<ActorReport, ActorError> {
     let d = &cfg.distributed;
-    let probe = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let (obs_dim, n_sites) = probe.policy_shape();
-    let limit = MsgLimits::weights(cfg, obs_dim, n_sites);
-    let expect = ChunkExpect {
-        run_id: d.run.clone(),
-        incarnation: 0,
-        fingerprint,
-        obs_dim: probe.layout().len(),
-        n_sites,
-        max_envs: d.actor_envs,
-        max_steps: d.chunk_steps,
-        site_steps: SiteSteps::of(cfg),
-    };
+    let (obs_dim, n_sites) = Env::new(cfg, world.clone(), rsrp.clone())?.policy_shape();
     let wiring = Wiring::new(session, cfg, opts.id)?;
-    let threads = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads.max(1))
-        .thread_name(|k| format!("dupac-env-{k}"))
-        .build()
-        .map_err(|e| ActorError::Threads(e.to_string()))?;
-    // A restarted actor must not replay its earlier episodes: the salt differs per start.
+    // A restarted actor must not replay its earlier episodes: the salt differs per start, and
+    // the chunks' sender id (the learner's replay check is per actor and sender) with it.
     let salt = unix_ms() ^ u64::from(std::process::id()).rotate_left(32);
-    // This process's id in chunk headers: the learner's replay check is per (actor, this).
-    let sender_incarnation = stream_seed(salt, u64::from(opts.id.0), 0x5e9d_e1ca);
-    // Training rollouts: the sphere grown by env.training_margin_m.
-    let train_cfg = cfg.training();
-    let mut workers: Vec<Worker> = (0..d.actor_envs)
-        .map(|k| {
-            let env = Env::new(&train_cfg, world.clone(), rsrp.clone())?;
-            let stream = (u64::from(opts.id.0) << 20) | k as u64;
-            Ok(Worker::new(
-                k as u32,
-                env,
-                pool.clone(),
-                stream_seed(cfg.train.seed, stream, salt),
-            )?)
-        })
-        .collect::<Result<_, ActorError>>()?;
-
-    let mut report = ActorReport::default();
-    let mut recorded: Vec<Vec<EnvTrajectory>> = Vec::new();
-    let mut current: Option<Current> = None;
-    let mut seq = 0u64;
-    let mut episodes = 0u64;
-    let mut last_swap_latency_ms = None;
-    let (mut last_stats, mut steps_at_stats) = (Instant::now(), 0u64);
-    let mut waiting_logged = false;
-    let batch = cfg.train.num_envs * cfg.train.num_steps;
-    let cap = |actors: usize| d.chunks_per_version(batch, actors);
-    let mut chunks_this_version = 0usize;
-    let mut last_key: Option<(u64, u64)> = None;
-    let mut last_weights_at = Instant::now();
-    let mut swapped_at = Instant::now();
-    let stopped = || stop.load(Ordering::Relaxed) || wiring.stop.load(Ordering::Relaxed);
+    let mut rollouts = Rollouts::new(cfg, &world, &rsrp, &pool, opts, salt)?;
+    let sender = stream_seed(salt, u64::from(opts.id.0), 0x5e9d_e1ca);
+    let resend_after = Duration::from_secs_f64(d.resend_after_s);
+    let mut outbox = ChunkOutbox::new(&d.run, opts.id, fingerprint, sender, resend_after);
+    let mut acting = Acting::new(weights_intake(cfg, fingerprint, obs_dim, n_sites));
+    let (mut report, mut stats) = (ActorReport::default(), StatsClock::new(d.stats_every_s));
+    let cap =
+        |actors: usize| d.chunks_per_version(cfg.train.num_envs * cfg.train.num_steps, actors);
     tracing::info!(actor = %opts.id, envs = d.actor_envs, "actor started; waiting for weights");
-    while !stopped() {
+    while !(stop.load(Ordering::Relaxed) || wiring.stopped()) {
         if opts.max_chunks > 0 && report.chunks_sent >= opts.max_chunks {
             break;
         }
-        // Newest published weights (ring channel of 1), swapped at the chunk boundary. An actor
-        // that has sent its share for this version waits for the next one.
-        let at_cap = current.is_some() && chunks_this_version >= cap(wiring.actors_alive());
-        let received = if at_cap {
-            wiring.weights.recv_timeout(Duration::from_millis(50))
-        } else {
-            wiring.weights.try_recv()
-        };
-        let mut incoming: Option<WeightsMsg> = None;
-        if let Ok(Some(sample)) = received {
-            incoming = accept_weights(
-                &sample.payload().to_bytes(),
-                &expect,
-                limit,
-                &wiring.keys.weights(),
-            )?;
-            if incoming.is_none() {
-                report.refused_weights += 1;
-            }
-        }
-        let learner_alive = wiring.learner_alive();
-        // Waiting long at the cap means a publication was missed (a learner that restarted
-        // while this actor reconnected): ask the queryable, which always has the latest.
-        if incoming.is_none() && at_cap && last_weights_at.elapsed() > Duration::from_secs(1) {
-            incoming = wiring.query_weights(&expect, limit)?;
-            last_weights_at = Instant::now();
-            // Still the version this actor acts with: the learner is waiting for data, so
-            // chunks of this share were lost (a router restart, a partition: delivery is at
-            // most once). Produce another share rather than wait for ever.
-            if let (Some(w), Some(c)) = (&incoming, &current)
-                && w.header.learner_incarnation == c.incarnation
-                && w.policy.version == c.policy.version
-                && swapped_at.elapsed().as_secs_f64() > d.resend_after_s
-            {
-                tracing::info!(actor = %opts.id, version = c.policy.version, "the learner still waits at this version; sending another share");
-                chunks_this_version = 0;
-                swapped_at = Instant::now();
-                report.resent_shares += 1;
-            }
-        }
-        if current.is_none() || (!learner_alive && incoming.is_none()) {
-            // Joining, or the learner is gone: ask for weights (a restarted learner answers).
-            if let Some(w) = wiring.query_weights(&expect, limit)? {
-                incoming = Some(w);
-            }
-            if incoming.is_none() {
-                if !waiting_logged {
-                    tracing::info!(actor = %opts.id, "no learner answers; waiting");
-                    waiting_logged = true;
-                }
-                std::thread::sleep(Duration::from_millis(200));
-                continue;
-            }
-        }
-        if let Some(w) = incoming {
-            let newer = match &current {
-                None => true,
-                Some(c) => {
-                    w.header.learner_incarnation != c.incarnation
-                        || w.policy.version > c.policy.version
-                }
-            };
-            if newer {
-                last_weights_at = Instant::now();
-                if let Some(c) = &current
-                    && w.header.learner_incarnation != c.incarnation
-                {
-                    tracing::info!(
-                        actor = %opts.id,
-                        version = w.policy.version,
-                        "following a new learner incarnation"
-                    );
-                }
-                current = Some(Current {
-                    policy: Arc::new(w.policy),
-                    incarnation: w.header.learner_incarnation,
-                    sent_unix_ms: w.header.sent_unix_ms,
-                });
-                waiting_logged = false;
-            }
-        }
-        let Some(cur) = &current else { continue };
-        let version = cur.policy.version;
-        let swapped = last_key != Some((cur.incarnation, version));
-        if at_cap && !swapped {
+        let at_cap = outbox.at_cap(cap(wiring.actors_alive()));
+        if !acting.update(&wiring, &mut outbox, at_cap, &mut report)? {
             continue;
         }
-        if swapped {
-            last_key = Some((cur.incarnation, version));
-            chunks_this_version = 0;
-            swapped_at = Instant::now();
+        let (Some((policy, sent_unix_ms)), Some(key)) =
+            (acting.policy.clone(), acting.intake.current())
+        else {
+            continue;
+        };
+        if outbox.swap(key) {
             // The first step acted with this version starts now.
-            let latency_ms = unix_ms().saturating_sub(cur.sent_unix_ms) as f64;
-            last_swap_latency_ms = Some(latency_ms);
-            if !report.versions.is_empty() {
-                report.swaps += 1;
-            }
-            report.versions.push(version);
-            tracing::debug!(actor = %opts.id, version, latency_ms, "acting with new weights");
+            let latency_ms = unix_ms().saturating_sub(sent_unix_ms) as f64;
+            stats.last_swap_latency_ms = Some(latency_ms);
+            report.swaps += u64::from(!report.versions.is_empty());
+            report.versions.push(key.version);
+            tracing::debug!(actor = %opts.id, version = key.version, latency_ms, "acting with new weights");
+        } else if at_cap {
+            continue;
         }
-        let policy = cur.policy.clone();
-        let steps = d.chunk_steps;
-        let trajectories: Vec<EnvTrajectory> = match &opts.replay {
-            Some(chunks) => chunks[(report.chunks_sent % chunks.len() as u64) as usize].clone(),
-            None => threads.install(|| {
-                workers
-                    .par_iter_mut()
-                    .map(|w| w.collect(&policy, steps))
-                    .collect::<Result<_, _>>()
-            })?,
+        let trajectories = rollouts.collect(&policy, report.chunks_sent)?;
+        let Some(chunk) = outbox.wrap(trajectories) else {
+            continue;
         };
-        if opts.record.is_some() {
-            recorded.push(trajectories.clone());
-        }
-        let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
-        header.sender_incarnation = sender_incarnation;
-        header.seq = seq;
-        header.policy_version = version;
-        let chunk = TrajectoryChunk {
-            header,
-            trajectories,
-        };
-        let n = chunk.samples() as u64;
-        episodes += chunk
-            .trajectories
-            .iter()
-            .map(|t| t.episodes.len() as u64)
-            .sum::<u64>();
+        stats.sent(&chunk);
+        report.chunks_sent += 1;
+        report.env_steps += chunk.samples() as u64;
         wiring
             .traj
             .send(encode_msg(&chunk)?)
             .map_err(ActorError::Zenoh)?;
-        seq += 1;
-        chunks_this_version += 1;
-        report.chunks_sent += 1;
-        report.env_steps += n;
-
-        if last_stats.elapsed().as_secs_f64() >= d.stats_every_s {
-            let dt = last_stats.elapsed().as_secs_f64();
-            let mut header = Header::new(&d.run, cur.incarnation, opts.id, fingerprint);
-            header.sender_incarnation = sender_incarnation;
-            header.policy_version = version;
-            header.seq = seq;
-            let stats = ActorStats {
-                header,
-                num_envs: d.actor_envs as u32,
-                env_steps: report.env_steps,
-                steps_per_s: (report.env_steps - steps_at_stats) as f64 / dt,
-                chunks_sent: report.chunks_sent,
-                swaps: report.swaps,
-                last_swap_latency_ms,
-                episodes,
-            };
-            wiring.stats.set(encode_json(&stats)?);
-            last_stats = Instant::now();
-            steps_at_stats = report.env_steps;
+        if let Some(s) = stats.due(&report, &outbox, d.actor_envs) {
+            wiring.stats.set(encode_json(&s)?);
         }
     }
     wiring.close();
-    if let Some(path) = &opts.record {
-        write_recording(path, &recorded)?;
+    report.refused_weights = acting.intake.refused;
+    if let (Some(path), Some(recorded)) = (&opts.record, &rollouts.recorded) {
+        write_recording(path, recorded)?;
     }
     Ok(report)
 }
@@ -611,9 +429,7 @@ pub fn run_actor(
 /// checked like an actor checks it, swapped in by the caller at a step boundary.
 pub struct Follower {
     wiring: Wiring,
-    expect: ChunkExpect,
-    limit: MsgLimits,
-    current: Option<(u64, u64)>,
+    intake: WeightsIntake,
 }
 
 impl Follower {
@@ -626,23 +442,10 @@ impl Follower {
         obs_dim: usize,
         n_sites: usize,
     ) -> Result<Follower, ActorError> {
-        let d = &cfg.distributed;
         let id = ActorId(u32::MAX - 1 - (std::process::id() % 1_000_000));
-        let wiring = Wiring::new_pilot(session, cfg, id)?;
         Ok(Follower {
-            wiring,
-            expect: ChunkExpect {
-                run_id: d.run.clone(),
-                incarnation: 0,
-                fingerprint,
-                obs_dim,
-                n_sites,
-                max_envs: d.actor_envs,
-                max_steps: d.chunk_steps,
-                site_steps: SiteSteps::of(cfg),
-            },
-            limit: MsgLimits::weights(cfg, obs_dim, n_sites),
-            current: None,
+            wiring: Wiring::new_pilot(session, cfg, id)?,
+            intake: weights_intake(cfg, fingerprint, obs_dim, n_sites),
         })
     }
 
@@ -650,8 +453,8 @@ impl Follower {
     pub fn initial(&mut self, timeout: Duration) -> Result<Option<PolicyWeights>, ActorError> {
         let t0 = Instant::now();
         while t0.elapsed() < timeout {
-            if let Some(w) = self.wiring.query_weights(&self.expect, self.limit)? {
-                self.current = Some((w.header.learner_incarnation, w.policy.version));
+            if let Some(w) = self.wiring.query_weights(&mut self.intake)? {
+                self.intake.offer(WeightsKey::of(&w));
                 return Ok(Some(w.policy));
             }
             std::thread::sleep(Duration::from_millis(200));
@@ -661,33 +464,14 @@ impl Follower {
 
     /// Newer weights than the ones in use, if any arrived.
     pub fn newer(&mut self) -> Result<Option<PolicyWeights>, ActorError> {
-        let Ok(Some(sample)) = self.wiring.weights.try_recv() else {
-            return Ok(None);
-        };
-        let Some(w) = accept_weights(
-            &sample.payload().to_bytes(),
-            &self.expect,
-            self.limit,
-            &self.wiring.keys.weights(),
-        )?
-        else {
-            return Ok(None);
-        };
-        let key = (w.header.learner_incarnation, w.policy.version);
-        let newer = match self.current {
-            None => true,
-            Some((inc, v)) => key.0 != inc || key.1 > v,
-        };
-        if newer {
-            self.current = Some(key);
-            Ok(Some(w.policy))
-        } else {
-            Ok(None)
+        match self.wiring.receive_weights(&mut self.intake, None)? {
+            Some(w) if self.intake.offer(WeightsKey::of(&w)) != Offer::Stale => Ok(Some(w.policy)),
+            _ => Ok(None),
         }
     }
 
     /// The learner ended the run.
     pub fn stopped(&self) -> bool {
-        self.wiring.stop.load(Ordering::Relaxed)
+        self.wiring.stopped()
     }
 }

@@ -4,6 +4,7 @@
 //! decode task ([`decode_task`], on the node's network side) decodes each within its
 //! allocation budget, validates it, drops replays and queues it for PPO.
 
+use crate::ratelog::RateLog;
 use dupac_common::dedup::{SeqTracker, Verdict};
 use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
@@ -12,7 +13,7 @@ use dupac_common::validate::{ChunkExpect, DropReason, validate_chunk};
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// A chunk that passed validation, waiting for the PPO loop.
 #[derive(Debug)]
@@ -137,7 +138,12 @@ pub(crate) struct Inbox {
     pub(crate) arrived: tokio::sync::Notify,
     pub(crate) drops: Mutex<BTreeMap<DropReason, u64>>,
     pub(crate) budget: InboxBudget,
+    /// The drops' warnings: one line per kind per [`WARN_PERIOD`], with counts.
+    pub(crate) warnings: RateLog,
 }
+
+/// At most one warning line per kind of dropped message in this period.
+pub(crate) const WARN_PERIOD: Duration = Duration::from_secs(10);
 
 impl Inbox {
     pub(crate) fn new(budget: InboxBudget) -> Inbox {
@@ -147,6 +153,7 @@ impl Inbox {
             arrived: tokio::sync::Notify::new(),
             drops: Mutex::default(),
             budget,
+            warnings: RateLog::new(WARN_PERIOD),
         }
     }
 
@@ -173,11 +180,13 @@ impl Inbox {
         };
         if len > self.budget.message_bytes {
             self.drop_one(DropReason::TooLarge);
-            tracing::warn!(
-                key,
-                len,
-                limit = self.budget.message_bytes,
-                "oversized message dropped unread"
+            self.warnings.warn(
+                "oversized message",
+                Some(sender.0),
+                format_args!(
+                    "{len} bytes on {key}, over the {} byte limit (dropped unread)",
+                    self.budget.message_bytes
+                ),
             );
             return;
         }
@@ -234,18 +243,24 @@ pub(crate) async fn decode_task(
             Ok(c) => c,
             Err(e) => {
                 refuse(DropReason::of_codec(&e));
-                tracing::warn!("{e}");
+                inbox
+                    .warnings
+                    .warn("undecodable chunk", Some(raw.sender.0), e);
                 continue;
             }
         };
         if chunk.header.actor != raw.sender {
             refuse(DropReason::Garbage);
-            tracing::warn!(key = raw.key, actor = %chunk.header.actor, "chunk published on another actor's key");
+            inbox.warnings.warn(
+                "chunk on another actor's key",
+                Some(raw.sender.0),
+                format_args!("actor {} on {}", chunk.header.actor, raw.key),
+            );
             continue;
         }
         if let Err(r) = validate_chunk(&chunk, &expect) {
             refuse(r.reason);
-            tracing::warn!(key = raw.key, "chunk rejected: {r}");
+            inbox.warnings.warn("rejected chunk", Some(raw.sender.0), r);
             continue;
         }
         let h = &chunk.header;
@@ -253,17 +268,20 @@ pub(crate) async fn decode_task(
             Verdict::Accept => {}
             Verdict::Replay { high_water } => {
                 refuse(DropReason::Replay);
-                tracing::warn!(
-                    key = raw.key,
-                    seq = h.seq,
-                    high_water,
-                    "chunk already received: dropped (replay)"
+                inbox.warnings.warn(
+                    "replayed chunk",
+                    Some(raw.sender.0),
+                    format_args!("seq {} at or below {high_water} (already received)", h.seq),
                 );
                 continue;
             }
             Verdict::TooManySenders => {
                 refuse(DropReason::Overflow);
-                tracing::warn!(key = raw.key, "too many actor ids: chunk dropped");
+                inbox.warnings.warn(
+                    "chunk of one actor id too many",
+                    Some(raw.sender.0),
+                    "more actor ids than the learner tracks",
+                );
                 continue;
             }
         }

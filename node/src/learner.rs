@@ -129,6 +129,8 @@ struct ActorInfo {
     last_version: u64,
     last_seen: Option<Instant>,
     steps_at_last_stats: u64,
+    /// When its liveliness token went (for "back after N s").
+    left_at: Option<Instant>,
 }
 
 impl ActorInfo {
@@ -140,6 +142,7 @@ impl ActorInfo {
             last_version: 0,
             last_seen: None,
             steps_at_last_stats: 0,
+            left_at: None,
         }
     }
 }
@@ -316,14 +319,27 @@ impl LearnerNode {
                         tracing::warn!(actor = %id, "too many actor ids: liveliness ignored");
                         return;
                     }
+                    let alive = t.values().filter(|a| a.state == ActorState::Alive).count();
+                    let info = t.entry(id).or_insert_with(ActorInfo::new);
                     match sample.kind() {
                         SampleKind::Put => {
-                            tracing::info!(actor = %id, "actor joined");
-                            t.entry(id).or_insert_with(ActorInfo::new).state = ActorState::Alive;
+                            match info.left_at.take() {
+                                Some(at) => tracing::info!(
+                                    "actor {id} back after {:.0} s",
+                                    at.elapsed().as_secs_f64()
+                                ),
+                                None => tracing::info!(actor = %id, "actor joined"),
+                            }
+                            info.state = ActorState::Alive;
                         }
                         SampleKind::Delete => {
-                            tracing::warn!(actor = %id, "actor left");
-                            t.entry(id).or_insert_with(ActorInfo::new).state = ActorState::Left;
+                            tracing::warn!(
+                                "actor {id} left (its process ended or the network parted it); \
+                                 training goes on with {} actor(s), it rejoins by itself",
+                                alive.saturating_sub(1)
+                            );
+                            info.state = ActorState::Left;
+                            info.left_at = Some(Instant::now());
                         }
                     }
                 })
@@ -402,6 +418,7 @@ impl LearnerNode {
             if self.since_stats_s() >= self.stats_every_s {
                 idle(self);
             }
+            self.inbox.warnings.flush_due();
             let next = {
                 let Ok(mut q) = self.inbox.queues.lock() else {
                     return None;
@@ -572,6 +589,7 @@ impl LearnerNode {
         } = self;
         closing.store(true, Ordering::Relaxed);
         inbox.arrived.notify_one();
+        inbox.warnings.flush();
         // Their senders gone, the publishing and replying tasks send what is left and end.
         drop((weights, stats, _queryable));
         net.finish(Duration::from_secs(5));

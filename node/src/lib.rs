@@ -7,12 +7,18 @@
 //!   weights and statistics published; [`source`]: the node as a
 //!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
+//! - [`intake`]: which weights an actor or a pilot takes; [`outbox`]: an actor's chunk headers,
+//!   sequence numbers, share per version and re-send; `wiring`: their Zenoh side.
 //! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.
 
 pub mod actor;
 pub mod follow;
 pub mod inbox;
+pub mod intake;
 pub mod learner;
 pub mod net;
 pub(crate) mod netside;
+pub mod outbox;
+pub mod ratelog;
 pub mod source;
+pub(crate) mod wiring;

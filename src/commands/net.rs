@@ -10,6 +10,10 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// How long a process waits quietly for its router or peer before it warns (s): a learner's
+/// router takes a few seconds to listen when `dupac train` starts everything at once.
+const JOIN_GRACE: std::time::Duration = std::time::Duration::from_secs(30);
+
 /// The node's role in the Zenoh network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ModeArg {
@@ -67,7 +71,7 @@ impl ConnectArgs {
     }
 
     /// Opens the session, retrying every second until `stop` while the endpoint is not up yet
-    /// (a client started before its router). zenoh drops received messages over
+    /// (a client started before its router: quiet for [`JOIN_GRACE`], then one warning). zenoh drops received messages over
     /// `rx_max_message_bytes` (the run's largest message).
     pub fn open_retrying(
         &self,
@@ -76,19 +80,37 @@ impl ConnectArgs {
     ) -> Result<zenoh::Session> {
         let mut opts = self.opts();
         opts.rx_max_message_bytes = Some(rx_max_message_bytes);
-        let mut logged = false;
+        let started = std::time::Instant::now();
+        let mut warned = false;
         loop {
             match opts.open() {
                 Ok(s) => return Ok(s),
                 Err(dupac_node::net::NetError::Open(e)) if !stop.load(Ordering::Relaxed) => {
-                    if !logged {
-                        tracing::warn!("cannot join the zenoh network yet ({e}); retrying");
-                        logged = true;
+                    // A client started before its router is a normal start: quiet until the
+                    // grace period has passed, then one warning in words.
+                    if !warned && started.elapsed() >= JOIN_GRACE {
+                        tracing::warn!(
+                            "no zenoh router or peer at {} after {} s ({e}); still trying",
+                            self.endpoints(),
+                            JOIN_GRACE.as_secs()
+                        );
+                        warned = true;
+                    } else {
+                        tracing::debug!("cannot join the zenoh network yet ({e}); retrying");
                     }
                     std::thread::sleep(std::time::Duration::from_secs(1));
                 }
                 Err(e) => return Err(e.into()),
             }
+        }
+    }
+
+    /// The endpoints this process connects to, for messages ("multicast scouting" without any).
+    fn endpoints(&self) -> String {
+        if self.connect.is_empty() {
+            "any endpoint multicast scouting finds".into()
+        } else {
+            self.connect.join(", ")
         }
     }
 }

@@ -372,6 +372,62 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
     p.signal_and_wait("learner", "-INT");
 }
 
+/// A flood of bad chunks writes a few lines, not one per chunk: 40 chunks over the learner's
+/// decoding budget from 8 senders give at most 3 WARN lines (the first drop at once, the rest
+/// summed with their count and senders), and the drops are all counted. (Seen failing with
+/// every drop warned: 40 lines.)
+#[test]
+fn a_flood_of_bad_chunks_writes_a_few_lines() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = "e2e-flood";
+    let mut p = Procs::new(dir.path(), run, 256 * 100_000);
+    // Warnings on, as a user runs it (the processes of these tests are otherwise quiet).
+    let (out, ep) = (
+        dir.path().join("run").display().to_string(),
+        p.endpoint.clone(),
+    );
+    p.spawn_warnings(
+        "learner",
+        &[
+            "learner",
+            "--out",
+            &out,
+            "--mode",
+            "router",
+            "--listen",
+            &ep,
+            "--no-multicast-scouting",
+        ],
+    );
+    let w = Watcher::new(&p.endpoint, run);
+    w.wait_for(&p, "the learner up", 120, |_| true);
+    let weights = w.weights();
+    for k in 0..40u32 {
+        let actor = 60 + k % 8;
+        w.publish(actor, amplifying_chunk(&weights, actor, 12_000));
+    }
+    let seen = w.wait_for(&p, "the 40 chunks dropped", 60, |s| {
+        drops(s, "too_large") + drops(s, "garbage") >= 40
+    });
+    p.signal_and_wait("learner", "-INT");
+    let err = p.read("learner.err");
+    let warns: Vec<&str> = err.lines().filter(|l| l.contains("WARN")).collect();
+    assert!(
+        !warns.is_empty() && warns.len() <= 3,
+        "{} WARN lines for 40 dropped chunks ({:?}):\n{}",
+        warns.len(),
+        seen.drops,
+        warns.join("\n")
+    );
+    assert!(
+        warns
+            .iter()
+            .any(|l| l.contains("more undecodable chunks from 8 senders")),
+        "{}",
+        warns.join("\n")
+    );
+}
+
 /// One learner per run: a second learner on the same run directory is refused by the
 /// directory's lock, naming the directory and the holder; one on another directory but the same
 /// run name is refused by the live learner's liveliness token, naming it. The first learner

@@ -315,13 +315,24 @@ impl Procs {
 
     /// [`Procs::spawn`] with extra environment variables (`DUPAC_FAULT`, say).
     pub fn spawn_env(&mut self, name: &str, args: &[&str], envs: &[(&str, &str)]) {
+        self.spawn_logging(name, args, envs, "-q");
+    }
+
+    /// [`Procs::spawn`] with the default log level (warnings), as a user runs it: for tests
+    /// that count what a process says.
+    pub fn spawn_warnings(&mut self, name: &str, args: &[&str]) {
+        self.spawn_logging(name, args, &[], "--no-progress");
+    }
+
+    /// Spawns `dupac --config CONFIG LEVEL ARGS…` (`LEVEL`: `-q` or a neutral flag).
+    fn spawn_logging(&mut self, name: &str, args: &[&str], envs: &[(&str, &str)], level: &str) {
         let log = |ext: &str| {
             std::fs::File::create(self.dir.join(format!("{name}.{ext}"))).expect("log file")
         };
         let child = dupac_cmd()
             .arg("--config")
             .arg(&self.config)
-            .arg("-q")
+            .arg(level)
             .args(args)
             .envs(envs.iter().copied())
             .stdin(Stdio::null())

@@ -243,3 +243,31 @@ fn a_run_guided_along_the_coverage_aware_path_trains_and_is_flown_guided() {
     assert!(!resume.status.success());
     assert!(stderr.contains("env.observation.path_guide"), "{stderr}");
 }
+
+/// A normal distributed start and finish says nothing alarming: `dupac train` (the learner and
+/// its actor processes over Zenoh, the actors started before the learner's router listens)
+/// prints no WARN or ERROR line from start to finish. (Seen failing with the actors' "cannot
+/// join the zenoh network yet" warning, which used to greet every run.)
+#[test]
+fn a_normal_distributed_run_prints_no_warning() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let common = small_run_args(dir.path());
+    let out = dir.path().join("run").display().to_string();
+    let done = dupac_output(
+        &common,
+        &[
+            "train".into(),
+            "--out".into(),
+            out,
+            "--set".into(),
+            "train.total_timesteps=2048".into(),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(done.status.success(), "{stderr}");
+    let alarming: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains(" WARN ") || l.contains(" ERROR "))
+        .collect();
+    assert!(alarming.is_empty(), "{alarming:#?}\n{stderr}");
+}

@@ -1,0 +1,272 @@
+//! The weights intake of an actor or a pilot: what a weights message must be to be used, and
+//! which of several is the one to act with. No zenoh here: the node hands it bytes (a
+//! publication or the replies to a query), so the rules are tested on their own.
+//!
+//! A message is decoded within the size and allocation limits of this process's own network
+//! ([`MsgLimits::weights`]) and checked against what this process expects
+//! ([`validate_weights`]: the run, the environment fingerprint, the policy's shape, finite
+//! values). Another run or another environment fingerprint is fatal (the process was started
+//! with another configuration); anything else wrong is ignored and counted. Weights are
+//! **newer** when they come from another learner incarnation (a restarted learner: its versions
+//! continue from its checkpoint and may be lower than the ones in use) or carry a higher version
+//! of the same incarnation.
+
+use dupac_common::msg::{MsgLimits, WeightsMsg, decode_msg};
+use dupac_common::validate::{ChunkExpect, DropReason, validate_weights};
+
+/// A learner incarnation and a policy version: which weights are in use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WeightsKey {
+    pub incarnation: u64,
+    pub version: u64,
+}
+
+impl WeightsKey {
+    /// The key of a weights message.
+    pub fn of(w: &WeightsMsg) -> WeightsKey {
+        WeightsKey {
+            incarnation: w.header.learner_incarnation,
+            version: w.policy.version,
+        }
+    }
+}
+
+/// What [`WeightsIntake::offer`] did with weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Offer {
+    /// Not newer than the weights in use: ignored.
+    Stale,
+    /// The first weights, or a higher version of the same learner incarnation.
+    Newer,
+    /// Weights of another learner incarnation (a restarted learner).
+    NewIncarnation,
+}
+
+/// A fatal mismatch: the weights come from another run or another environment fingerprint.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct Mismatch(pub String);
+
+/// The checks and the "newer" rule for one process's weights.
+#[derive(Debug, Clone)]
+pub struct WeightsIntake {
+    expect: ChunkExpect,
+    limit: MsgLimits,
+    current: Option<WeightsKey>,
+    /// Messages ignored (undecodable, wrong shape, non-finite).
+    pub refused: u64,
+}
+
+impl WeightsIntake {
+    /// An intake expecting `expect`'s run, fingerprint and policy shape, decoding within `limit`.
+    pub fn new(expect: ChunkExpect, limit: MsgLimits) -> WeightsIntake {
+        WeightsIntake {
+            expect,
+            limit,
+            current: None,
+            refused: 0,
+        }
+    }
+
+    /// The weights in use, if any.
+    pub fn current(&self) -> Option<WeightsKey> {
+        self.current
+    }
+
+    /// Decodes and checks one message from `origin` (a key expression, for the log): `Ok(None)`
+    /// when it is ignored (logged once at debug level and counted in `refused`), `Err` when it
+    /// belongs to another run or environment.
+    pub fn check(&mut self, bytes: &[u8], origin: &str) -> Result<Option<WeightsMsg>, Mismatch> {
+        let w: WeightsMsg = match decode_msg(bytes, self.limit, origin) {
+            Ok(w) => w,
+            Err(e) => {
+                self.refused += 1;
+                tracing::debug!("weights ignored: {e}");
+                return Ok(None);
+            }
+        };
+        match validate_weights(&w, &self.expect) {
+            Ok(()) => Ok(Some(w)),
+            Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
+                Err(Mismatch(r.detail))
+            }
+            Err(r) => {
+                self.refused += 1;
+                tracing::debug!("weights ignored: {r}");
+                Ok(None)
+            }
+        }
+    }
+
+    /// The weights to act with among a query's replies: the highest version of those that pass
+    /// [`WeightsIntake::check`].
+    pub fn best_reply<B: AsRef<[u8]>>(
+        &mut self,
+        replies: impl IntoIterator<Item = B>,
+        origin: &str,
+    ) -> Result<Option<WeightsMsg>, Mismatch> {
+        let mut best: Option<WeightsMsg> = None;
+        for bytes in replies {
+            if let Some(w) = self.check(bytes.as_ref(), origin)?
+                && best
+                    .as_ref()
+                    .is_none_or(|b| w.policy.version > b.policy.version)
+            {
+                best = Some(w);
+            }
+        }
+        Ok(best)
+    }
+
+    /// Whether `key` is newer than the weights in use: none in use, another learner
+    /// incarnation, or a higher version of the same one.
+    pub fn is_newer(&self, key: WeightsKey) -> bool {
+        match self.current {
+            None => true,
+            Some(c) => key.incarnation != c.incarnation || key.version > c.version,
+        }
+    }
+
+    /// Takes `key` as the weights in use when it is newer.
+    pub fn offer(&mut self, key: WeightsKey) -> Offer {
+        if !self.is_newer(key) {
+            return Offer::Stale;
+        }
+        let previous = self.current.replace(key);
+        match previous {
+            Some(p) if p.incarnation != key.incarnation => Offer::NewIncarnation,
+            _ => Offer::Newer,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dupac_common::ids::ActorId;
+    use dupac_common::msg::{Header, encode_msg};
+    use dupac_common::normalize::{ObsNormalizer, RewardScaler};
+    use dupac_common::obs::OBS_VERSION;
+    use dupac_common::policy::mlp::{Dense, Mlp};
+    use dupac_common::policy::{MOVE_DIM, PolicyWeights};
+
+    fn key(incarnation: u64, version: u64) -> WeightsKey {
+        WeightsKey {
+            incarnation,
+            version,
+        }
+    }
+
+    const OBS: usize = 6;
+    const SITES: usize = 2;
+
+    fn dense(n_in: usize, n_out: usize) -> Dense {
+        Dense {
+            n_in,
+            n_out,
+            weight: (0..n_in * n_out)
+                .map(|i| (i as f32 * 0.37).sin() * 0.3)
+                .collect(),
+            bias: vec![0.01; n_out],
+        }
+    }
+
+    /// A small valid policy: 6 observations, 2 sites, one hidden layer of 4.
+    fn policy(version: u64) -> PolicyWeights {
+        PolicyWeights {
+            version,
+            obs_version: OBS_VERSION,
+            obs_dim: OBS,
+            n_sites: SITES,
+            actor: Mlp {
+                layers: vec![dense(OBS, 4), dense(4, MOVE_DIM + SITES)],
+            },
+            critic: Mlp {
+                layers: vec![dense(OBS, 4), dense(4, 1)],
+            },
+            site_head: None,
+            log_std: [-0.5; MOVE_DIM],
+            obs_norm: ObsNormalizer::new(OBS, true, 5.0),
+            reward_scaler: RewardScaler::new(true, 0.95, 10.0),
+            observation: None,
+        }
+    }
+
+    const RUN: &str = "run-a";
+    const FINGERPRINT: u64 = 7;
+
+    fn intake() -> WeightsIntake {
+        let expect = ChunkExpect {
+            run_id: RUN.into(),
+            incarnation: 0,
+            fingerprint: FINGERPRINT,
+            obs_dim: OBS,
+            n_sites: SITES,
+            max_envs: 4,
+            max_steps: 64,
+            site_steps: None,
+        };
+        WeightsIntake::new(expect, MsgLimits::both(1 << 20))
+    }
+
+    /// The bytes of weights `version` from learner `incarnation` of `run` in world `fingerprint`.
+    fn message(run: &str, incarnation: u64, version: u64, fingerprint: u64) -> Vec<u8> {
+        let msg = WeightsMsg {
+            header: Header::new(run, incarnation, ActorId(0), fingerprint),
+            policy: policy(version),
+        };
+        encode_msg(&msg).expect("encode")
+    }
+
+    #[test]
+    fn a_stale_version_is_not_newer_and_a_higher_one_is() {
+        let mut i = intake();
+        assert_eq!(i.offer(key(1, 5)), Offer::Newer);
+        assert_eq!(i.offer(key(1, 5)), Offer::Stale);
+        assert_eq!(i.offer(key(1, 4)), Offer::Stale);
+        assert_eq!(i.current(), Some(key(1, 5)));
+        assert_eq!(i.offer(key(1, 6)), Offer::Newer);
+        assert_eq!(i.current(), Some(key(1, 6)));
+    }
+
+    #[test]
+    fn a_restarted_learner_is_followed_even_at_a_lower_version() {
+        let mut i = intake();
+        assert_eq!(i.offer(key(1, 40)), Offer::Newer);
+        assert_eq!(i.offer(key(2, 12)), Offer::NewIncarnation);
+        assert_eq!(i.current(), Some(key(2, 12)));
+        // The old incarnation's late publication does not take the weights back.
+        assert_eq!(i.offer(key(2, 11)), Offer::Stale);
+    }
+
+    #[test]
+    fn checks_refuse_garbage_and_stop_at_another_run_or_world() {
+        let mut i = intake();
+        let w = i
+            .check(&message(RUN, 3, 9, FINGERPRINT), "w")
+            .expect("same run")
+            .expect("valid");
+        assert_eq!(WeightsKey::of(&w), key(3, 9));
+        assert_eq!(i.check(b"not weights", "w"), Ok(None));
+        assert_eq!(i.refused, 1);
+        assert!(i.check(&message("run-b", 3, 9, FINGERPRINT), "w").is_err());
+        assert!(i.check(&message(RUN, 3, 9, FINGERPRINT + 1), "w").is_err());
+    }
+
+    #[test]
+    fn the_best_reply_is_the_highest_valid_version() {
+        let mut i = intake();
+        let replies = [
+            message(RUN, 3, 4, FINGERPRINT),
+            b"garbage".to_vec(),
+            message(RUN, 3, 9, FINGERPRINT),
+            message(RUN, 3, 6, FINGERPRINT),
+        ];
+        let best = i
+            .best_reply(&replies, "w")
+            .expect("same run")
+            .expect("some");
+        assert_eq!(best.policy.version, 9);
+        assert_eq!(i.refused, 1);
+    }
+}
