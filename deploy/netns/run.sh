@@ -41,6 +41,10 @@
 #   DUPAC_NETNS_TIMEOUT=120      seconds the learner may take
 #   DUPAC_NETNS_TIMESTEPS=4096   train.total_timesteps (a multiple of 256)
 #   DUPAC_NETNS_DELAY_MS=0       one-way delay added with netem on every host's link (needs tc)
+#   DUPAC_NETNS_RELAY=           a WAN without netem: each actor host runs `dupac relay` with
+#                                this link spec (e.g. delay=50ms,jitter=20ms,rate=10mbit) between
+#                                its actor (connecting to tcp/127.0.0.1:7448) and the router
+#   DUPAC_NETNS_RELAY_FAULTS=none  the relays' fault schedule (e.g. stall@20s+3s,reset@40s)
 #   DUPAC_NETNS_KEEP=1           keep the work directory (logs, run output) after a PASS
 #   DUPAC_NETNS_PARTITION_S=0    > 0: partition actor 2 (its link down) for this many seconds
 #                                once training runs, then heal it. Longer than the
@@ -68,6 +72,8 @@ else
     TIMESTEPS=${DUPAC_NETNS_TIMESTEPS:-4096}
 fi
 DELAY_MS=${DUPAC_NETNS_DELAY_MS:-0}
+RELAY=${DUPAC_NETNS_RELAY:-}
+RELAY_FAULTS=${DUPAC_NETNS_RELAY_FAULTS:-none}
 CITY=${DUPAC_NETNS_CITY:-midtown}
 NUM_ENVS=4
 NUM_STEPS=64
@@ -341,10 +347,21 @@ start monitor m --config "$CONFIG" -q monitor --plain --jsonl "$WORK/monitor.jso
 T_LEARNER=$(date +%s.%N)
 start learner l --config "$CONFIG" -q learner --out runs/r1 \
     --zenoh-config "$ZDIR/learner.json5" "${NET[@]}"
+# The actors' way to the router: straight, or through a relay on their own host.
+ACTOR_EP=$ENDPOINT
+if [ -n "$RELAY" ]; then
+    for a in 1 2; do
+        start "relay$a" "a$a" -q relay --listen 127.0.0.1:7448 --upstream "$ROUTER_IP:7447" \
+            --link "$RELAY" --faults "$RELAY_FAULTS" --report-every-s 0
+    done
+    ACTOR_EP=tcp/127.0.0.1:7448
+    sleep 0.5
+    log "actors through dupac relay ($RELAY; faults: $RELAY_FAULTS)"
+fi
 start actor1 a1 --config "$CONFIG" -q actor --id 1 \
-    --zenoh-config "$ZDIR/actor.json5" "${NET[@]}"
+    --zenoh-config "$ZDIR/actor.json5" --connect "$ACTOR_EP" --no-multicast-scouting
 # Actor 2 as dupac-actor@2.service runs it: actor-start.sh with dupac.env's variables.
-"$IP" netns exec "$P-a2" env DUPAC_CONFIG="$CONFIG" DUPAC_ZENOH_DIR="$ZDIR" DUPAC_ROUTER="$ENDPOINT" \
+"$IP" netns exec "$P-a2" env DUPAC_CONFIG="$CONFIG" DUPAC_ZENOH_DIR="$ZDIR" DUPAC_ROUTER="$ACTOR_EP" \
     DUPAC_BIN="$DUPAC" DUPAC_ACTOR_ARGS= \
     sh "$SCRIPT_DIR/../systemd/actor-start.sh" 2 >"$WORK/actor2.log" 2>&1 </dev/null &
 PID[actor2]=$!

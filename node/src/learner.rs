@@ -324,7 +324,8 @@ impl LearnerNode {
                     match sample.kind() {
                         SampleKind::Put => {
                             match info.left_at.take() {
-                                Some(at) => tracing::info!(
+                                // Paired with the warning of the departure, at its level.
+                                Some(at) => tracing::warn!(
                                     "actor {id} back after {:.0} s",
                                     at.elapsed().as_secs_f64()
                                 ),

@@ -234,7 +234,8 @@ pub(crate) fn track_alive(
                 SampleKind::Put => {
                     if log.is_some() {
                         match gone.lock().ok().and_then(|mut g| g.remove(&id)) {
-                            Some(at) => tracing::info!(
+                            // Paired with the warning of the loss, at its level.
+                            Some(at) => tracing::warn!(
                                 "{role} {id} back after {:.0} s",
                                 at.elapsed().as_secs_f64()
                             ),
