@@ -15,9 +15,9 @@
 use crate::intake::{Offer, WeightsIntake, WeightsKey};
 use crate::outbox::ChunkOutbox;
 use crate::wiring::Wiring;
-use dupac_actor::env::{Env, EnvError};
+use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
-use dupac_actor::rollout::{RolloutError, Worker};
+use dupac_actor::rollout::Worker;
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::encode_json;
@@ -34,28 +34,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// Errors of an actor.
-#[derive(Debug, thiserror::Error)]
-pub enum ActorError {
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    #[error(transparent)]
-    Env(#[from] EnvError),
-    #[error(transparent)]
-    Rollout(#[from] RolloutError),
-    #[error(transparent)]
-    Codec(#[from] dupac_common::codec::CodecError),
-    #[error(
-        "refusing to act for this learner: {0}. Start the actor with the learner's configuration (the same city, radio, environment and pairs settings)"
-    )]
-    Refused(String),
-    #[error("cannot start the environment threads: {0}")]
-    Threads(String),
-}
-
-pub(crate) fn z(e: impl std::fmt::Display) -> ActorError {
-    ActorError::Zenoh(crate::net::zenoh_message(&e))
-}
+pub use crate::actor_error::ActorError;
 
 /// How one actor process runs.
 #[derive(Debug, Clone)]

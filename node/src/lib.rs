@@ -12,6 +12,7 @@
 //! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.
 
 pub mod actor;
+pub(crate) mod actor_error;
 pub mod follow;
 pub mod inbox;
 pub mod intake;

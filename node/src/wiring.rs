@@ -3,7 +3,7 @@
 //! trajectory and stats publishers on the network side's tasks ([`crate::netside`]), and the
 //! query of the learner's weights queryable (for late joiners and missed publications).
 
-use crate::actor::{ActorError, z};
+use crate::actor_error::{ActorError, z};
 use crate::intake::WeightsIntake;
 use crate::netside::{Every, Latest, NetSide};
 use dupac_common::config::Config;
