@@ -21,6 +21,7 @@
 
 use crate::inbox::{Inbox, InboxBudget, decode_task};
 use crate::netside::{Latest, NetSide};
+use crate::presence::{LOSS_GRACE, PresenceLog};
 use dupac_common::config::Config;
 use dupac_common::dedup::MAX_TRACKED_SENDERS;
 use dupac_common::ids::ActorId;
@@ -129,8 +130,6 @@ struct ActorInfo {
     last_version: u64,
     last_seen: Option<Instant>,
     steps_at_last_stats: u64,
-    /// When its liveliness token went (for "back after N s").
-    left_at: Option<Instant>,
 }
 
 impl ActorInfo {
@@ -142,7 +141,6 @@ impl ActorInfo {
             last_version: 0,
             last_seen: None,
             steps_at_last_stats: 0,
-            left_at: None,
         }
     }
 }
@@ -304,6 +302,7 @@ impl LearnerNode {
             .map_err(z)?;
         let alive_sub = {
             let (actors, keys2) = (actors.clone(), keys.clone());
+            let presence = PresenceLog::default();
             session
                 .liveliness()
                 .declare_subscriber(keys.alive_role(Role::Actor))
@@ -319,28 +318,25 @@ impl LearnerNode {
                         tracing::warn!(actor = %id, "too many actor ids: liveliness ignored");
                         return;
                     }
-                    let alive = t.values().filter(|a| a.state == ActorState::Alive).count();
                     let info = t.entry(id).or_insert_with(ActorInfo::new);
                     match sample.kind() {
                         SampleKind::Put => {
-                            match info.left_at.take() {
-                                // Paired with the warning of the departure, at its level.
-                                Some(at) => tracing::warn!(
-                                    "actor {id} back after {:.0} s",
-                                    at.elapsed().as_secs_f64()
-                                ),
-                                None => tracing::info!(actor = %id, "actor joined"),
+                            if !presence.back(&id.to_string(), &format!("actor {id}")) {
+                                tracing::info!(actor = %id, "actor joined");
                             }
                             info.state = ActorState::Alive;
                         }
                         SampleKind::Delete => {
-                            tracing::warn!(
-                                "actor {id} left (its process ended or the network parted it); \
-                                 training goes on with {} actor(s), it rejoins by itself",
-                                alive.saturating_sub(1)
+                            presence.left(
+                                &id.to_string(),
+                                format!(
+                                    "actor {id} left {} s ago (its process ended or the network \
+                                     parted it); training goes on with the others, it rejoins \
+                                     by itself",
+                                    LOSS_GRACE.as_secs()
+                                ),
                             );
                             info.state = ActorState::Left;
-                            info.left_at = Some(Instant::now());
                         }
                     }
                 })

@@ -9,6 +9,8 @@
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
 //! - [`intake`]: which weights an actor or a pilot takes; [`outbox`]: an actor's chunk headers,
 //!   sequence numbers, share per version and re-send; `wiring`: their Zenoh side.
+//! - [`presence`]: peers' departures and returns in the log (a blip at debug, a loss warned
+//!   once, then its return).
 //! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.
 
 pub mod actor;
@@ -20,6 +22,7 @@ pub mod learner;
 pub mod net;
 pub(crate) mod netside;
 pub mod outbox;
+pub mod presence;
 pub mod ratelog;
 pub mod source;
 pub(crate) mod wiring;

@@ -6,6 +6,7 @@
 use crate::actor_error::{ActorError, z};
 use crate::intake::WeightsIntake;
 use crate::netside::{Every, Latest, NetSide};
+use crate::presence::{LOSS_GRACE, PresenceLog};
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::decode_json;
@@ -219,8 +220,7 @@ pub(crate) fn track_alive(
 ) -> Result<(Arc<Mutex<HashSet<String>>>, zenoh::pubsub::Subscriber<()>), ActorError> {
     let present: Arc<Mutex<HashSet<String>>> = Arc::default();
     let (set, keys2) = (present.clone(), keys.clone());
-    // When each departed process went (for "back after N s"), a few at most.
-    let gone: Mutex<std::collections::HashMap<String, std::time::Instant>> = Mutex::default();
+    let presence = PresenceLog::default();
     let sub = session
         .liveliness()
         .declare_subscriber(keys.alive_role(role))
@@ -232,15 +232,8 @@ pub(crate) fn track_alive(
             let Ok(mut set) = set.lock() else { return };
             match s.kind() {
                 SampleKind::Put => {
-                    if log.is_some() {
-                        match gone.lock().ok().and_then(|mut g| g.remove(&id)) {
-                            // Paired with the warning of the loss, at its level.
-                            Some(at) => tracing::warn!(
-                                "{role} {id} back after {:.0} s",
-                                at.elapsed().as_secs_f64()
-                            ),
-                            None => tracing::info!(%role, id, "present"),
-                        }
+                    if log.is_some() && !presence.back(&id, &format!("{role} {id}")) {
+                        tracing::info!(%role, id, "present");
                     }
                     set.insert(id);
                 }
@@ -249,17 +242,14 @@ pub(crate) fn track_alive(
                         Some(ended) if ended.load(Ordering::Relaxed) => {
                             tracing::info!(%role, id, "gone (the run ended)");
                         }
-                        Some(_) => {
-                            tracing::warn!(
-                                "lost the {role} {id} (stopped, or the network parted us); \
-                                 waiting, will rejoin"
-                            );
-                            if let Ok(mut g) = gone.lock()
-                                && g.len() < 64
-                            {
-                                g.insert(id.clone(), std::time::Instant::now());
-                            }
-                        }
+                        Some(_) => presence.left(
+                            &id,
+                            format!(
+                                "lost the {role} {id} for {} s (stopped, or the network parted \
+                                 us); waiting, will rejoin",
+                                LOSS_GRACE.as_secs()
+                            ),
+                        ),
                         None => {}
                     }
                     set.remove(&id);
