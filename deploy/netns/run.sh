@@ -380,7 +380,9 @@ alive_seq() { grep -o '"dist/alive_actors":[0-9]*' "$OUT/metrics.jsonl" 2>/dev/n
 
 if [ "$PARTITION_S" -gt 0 ]; then
     # ------------------------------------------------------------ the partition
-    for _ in $(seq 300); do [ "$(rows_now)" -ge 20 ] && break; sleep 0.1; done
+    # Up to 30 s for 20 updates (120 s through a relay: at 10 Mbit/s ≈ 1 update/s).
+    WAIT_DS=300; [ -n "$RELAY" ] && WAIT_DS=1200
+    for _ in $(seq "$WAIT_DS"); do [ "$(rows_now)" -ge 20 ] && break; sleep 0.1; done
     before=$(rows_now)
     [ "$before" -ge 20 ] && s=ok || s=FAIL
     check "$s" "training before the partition: $before updates"
