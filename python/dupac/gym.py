@@ -117,11 +117,38 @@ class DupacEnv(gymnasium.Env):
         return self._env.observation_fields()
 
 
+def _per_env(name: str, value: Any, n: int, dtype) -> list | None:
+    """``value`` as a list for the binding: ``None``, one value for all, or one per env."""
+    if value is None:
+        return None
+    a = np.asarray(value)
+    if a.ndim == 0:
+        return [a.astype(dtype).item()]
+    a = a.reshape(-1)
+    if a.shape[0] != n:
+        raise ValueError(f"{name}: {a.shape[0]} values for {n} environments")
+    return [x.item() for x in a.astype(dtype)]
+
+
 class DupacVecEnv(VectorEnv):
-    """``num_envs`` UAVs of one scenario stepped together in Rust (one call, the GIL released).
-    An environment whose episode ends is reset in the same step; its last observation is in
-    ``info["final_obs"]`` (rows where ``info["_final_obs"]``) and how it ended in
-    ``info["outcome"]`` (−1 none, 0 goal, 1 collision, 2 out of bounds, 3 time limit)."""
+    """``num_envs`` UAVs of one scenario stepped together in Rust on ``num_threads`` threads
+    (default: one per core, or ``RAYON_NUM_THREADS``), the GIL released. Each environment draws
+    only from its own RNG: the results do not depend on the number of threads.
+
+    Autoreset in the same step (``AutoresetMode.SAME_STEP``): an environment whose episode ends
+    is reset at once; its last observation is in ``info["final_obs"]`` and what ended in
+    ``info["final_info"]`` (a dict of arrays: ``outcome`` −1 none, 0 goal, 1 collision, 2 out of
+    bounds, 3 time limit; ``pair_id``; ``episode`` ``{"r": return, "l": decisions}`` as
+    Gymnasium's ``RecordEpisodeStatistics`` names them; ``distance_flown_m``,
+    ``distance_to_goal_m``), both with their ``_``-prefixed masks (rows where an episode ended).
+
+    ``reset(seed=s)`` seeds environment i with ``s + i``; ``seed=[s0, s1, …]`` each with its own.
+    ``reset(options={"pair": k, "reversed": r, "reset_mask": m})``: a value, or one per
+    environment (``pair`` −1: drawn; ``reversed`` −1: drawn); only the environments in
+    ``reset_mask`` are reset. ``send(actions)`` starts a step and returns at once, ``recv()``
+    returns its result (EnvPool's asynchronous pair): the environments step while Python does
+    other work.
+    """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
 
@@ -136,9 +163,10 @@ class DupacVecEnv(VectorEnv):
         policy: str | None = None,
         split: str = "train",
         seed: int = 0,
+        num_threads: int = 0,
     ) -> None:
         self.scenario = make_scenario(scenario, config, set, association, policy)
-        self._vec = _VecEnv(self.scenario, num_envs, split=split, seed=seed)
+        self._vec = _VecEnv(self.scenario, num_envs, split=split, seed=seed, num_threads=num_threads)
         probe = _Env(self.scenario, split=split)
         self.num_envs = num_envs
         self.learned = probe.learned_site
@@ -150,25 +178,93 @@ class DupacVecEnv(VectorEnv):
         )
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        if seed is not None:
-            self._np_random, _ = gymnasium.utils.seeding.np_random(seed)
-        return self._vec.reset(seed=None if seed is None else int(seed) % 2**64), {}
+    @property
+    def num_threads(self) -> int:
+        """Threads the environments are stepped on."""
+        return self._vec.num_threads
 
-    def step(self, actions):
+    def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
+        n = self.num_envs
+        if seed is not None:
+            first = seed if np.ndim(seed) == 0 else np.asarray(seed).reshape(-1)[0]
+            self._np_random, _ = gymnasium.utils.seeding.np_random(int(first))
+        options = options or {}
+        unknown = set(options) - {"pair", "reversed", "reset_mask"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}: expected pair, reversed, reset_mask")
+        seeds = None
+        if seed is not None:
+            seeds = [int(x) % 2**64 for x in np.asarray(seed, dtype=object).reshape(-1)]
+            if len(seeds) not in (1, n):
+                raise ValueError(f"seed: {len(seeds)} values for {n} environments")
+        reversed_ = options.get("reversed")
+        if reversed_ is not None:
+            reversed_ = np.where(np.asarray(reversed_) == -1, -1, np.asarray(reversed_).astype(bool))
+        obs = self._vec.reset(
+            seed=seeds,
+            pair=_per_env("pair", options.get("pair"), n, np.int64),
+            reversed=_per_env("reversed", reversed_, n, np.int8),
+            mask=_per_env("reset_mask", options.get("reset_mask"), n, bool),
+        )
+        return obs, {}
+
+    def _actions(self, actions) -> tuple[np.ndarray, np.ndarray]:
         n = self.num_envs
         if self.learned:
+            if not isinstance(actions, dict) or "move" not in actions or "site" not in actions:
+                raise ValueError("DUPAC's actions are a dict {'move': (N, 3) array, 'site': (N,) ints}")
             moves = np.asarray(actions["move"], dtype=np.float64).reshape(n, 3)
-            sites = np.asarray(actions["site"], dtype=np.int64).reshape(n)
+            sites = np.asarray(actions["site"]).astype(np.int64).reshape(n)
         else:
             moves = np.asarray(actions, dtype=np.float64).reshape(n, 3)
             sites = np.zeros(n, dtype=np.int64)
-        obs, rew, term, trunc, final_obs, outcome = self._vec.step(
-            np.ascontiguousarray(moves), np.ascontiguousarray(sites)
-        )
+        return np.ascontiguousarray(moves), np.ascontiguousarray(sites)
+
+    @staticmethod
+    def _result(out):
+        obs, rew, term, trunc, final_obs, fin = out
         done = term | trunc
-        info = {"final_obs": final_obs, "_final_obs": done, "outcome": outcome, "_outcome": done}
+        final_info = {
+            "outcome": fin["outcome"],
+            "_outcome": done,
+            "pair_id": fin["pair_id"],
+            "_pair_id": done,
+            "episode": {
+                "r": fin["episode_return"],
+                "l": fin["episode_length"],
+                "_r": done,
+                "_l": done,
+            },
+            "_episode": done,
+            "distance_flown_m": fin["distance_flown_m"],
+            "_distance_flown_m": done,
+            "distance_to_goal_m": fin["distance_to_goal_m"],
+            "_distance_to_goal_m": done,
+        }
+        info = {
+            "final_obs": final_obs,
+            "_final_obs": done,
+            "final_info": final_info,
+            "_final_info": done,
+            "outcome": fin["outcome"],
+            "_outcome": done,
+        }
         return obs, rew, term, trunc, info
 
+    def step(self, actions):
+        return self._result(self._vec.step(*self._actions(actions)))
 
-gymnasium.register(id="dupac/Dupac-v0", entry_point="dupac.gym:DupacEnv")
+    def send(self, actions) -> None:
+        """Starts a step with ``actions`` and returns at once; :meth:`recv` returns its result."""
+        self._vec.send(*self._actions(actions))
+
+    def recv(self):
+        """The result of the step started by :meth:`send`, as :meth:`step` returns it."""
+        return self._result(self._vec.recv())
+
+
+gymnasium.register(
+    id="dupac/Dupac-v0",
+    entry_point="dupac.gym:DupacEnv",
+    vector_entry_point="dupac.gym:DupacVecEnv",
+)

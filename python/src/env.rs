@@ -4,7 +4,9 @@
 //! a scenario's pairs exactly as the trainer's rollout workers draw them
 //! ([`dupac_actor::rollout::Worker`]): a pair uniformly from the pool, flown either way.
 
+use crate::arrays::{Real, view1, view2};
 use crate::scenario::{Scenario, Shared, Split};
+use crate::threads::{MAX_THREADS, Threads};
 use crate::{runtime_error, value_error};
 use dupac_actor::env::{Action, Env as RustEnv, EnvError, Step};
 use dupac_actor::pairs::Pair;
@@ -13,7 +15,7 @@ use dupac_common::geometry::Vector;
 use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use numpy::ndarray::{Array1, Array2};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rand::{RngExt, SeedableRng};
@@ -44,6 +46,9 @@ struct Core {
     split: Split,
     rng: ChaCha8Rng,
     pair_id: u64,
+    /// The episode's rewards summed so far, and its decisions.
+    episode_return: f64,
+    episode_length: u32,
 }
 
 impl Core {
@@ -66,6 +71,8 @@ impl Core {
             split,
             rng: ChaCha8Rng::seed_from_u64(seed),
             pair_id: 0,
+            episode_return: 0.0,
+            episode_length: 0,
         })
     }
 
@@ -99,6 +106,8 @@ impl Core {
         let reset_seed = self.rng.random::<u64>();
         let p = &self.pairs[k];
         self.pair_id = p.id;
+        self.episode_return = 0.0;
+        self.episode_length = 0;
         // A held-out pair's episode is seeded by its id (its field and measurement errors), as
         // evaluation seeds it.
         let reset_seed = match self.split {
@@ -114,12 +123,16 @@ impl Core {
     fn act(&mut self, move_: [f64; 3], site: i64) -> PyResult<Step> {
         let site = u16::try_from(site)
             .map_err(|_| value_error(format!("action site {site} is out of range")))?;
-        self.env
+        let s = self
+            .env
             .act(&Action {
                 move_: Vector::new(move_[0], move_[1], move_[2]),
                 site: SiteId(site),
             })
-            .map_err(env_error)
+            .map_err(env_error)?;
+        self.episode_return += s.reward;
+        self.episode_length = self.episode_length.saturating_add(1);
+        Ok(s)
     }
 }
 
@@ -309,7 +322,7 @@ impl Env {
     fn step<'py>(
         &mut self,
         py: Python<'py>,
-        r#move: PyReadonlyArray1<'py, f64>,
+        r#move: Real<'py, f64>,
         site: i64,
     ) -> PyResult<(
         Bound<'py, PyArray1<f32>>,
@@ -318,7 +331,7 @@ impl Env {
         bool,
         Bound<'py, PyDict>,
     )> {
-        let m = move_of(r#move.as_slice()?)?;
+        let m = move_of(&view1(&r#move, "move", Some(3))?.to_vec())?;
         let s = self.core.act(m, site)?;
         Ok((
             PyArray1::from_slice(py, self.core.env.observation()),
@@ -344,13 +357,128 @@ impl Env {
     }
 }
 
-/// N environments of one scenario stepped together in Rust, the GIL released: arrays in, arrays
-/// out. An environment whose episode ends is reset at once (its next episode drawn from its own
-/// RNG); its last observation is returned in `final_obs`.
+/// What one decision left in one environment of a [`VecEnv`] (a row of the step's arrays).
+#[derive(Debug, Clone, Copy, Default)]
+struct Row {
+    reward: f64,
+    terminated: bool,
+    truncated: bool,
+    /// How the episode ended (−1 none: it goes on).
+    outcome: i8,
+    /// The ended episode's pair, return (summed rewards), length (decisions), distance flown
+    /// and distance left to the destination (m); meaningful where `outcome >= 0`.
+    pair_id: u64,
+    episode_return: f64,
+    episode_length: u32,
+    distance_flown_m: f64,
+    distance_to_goal_m: f64,
+}
+
+/// One decision of every environment: observations after any reset `[N × obs_dim]`, the last
+/// observations of the episodes that ended (zeros elsewhere) and a row per environment.
+struct Batch {
+    obs: Vec<f32>,
+    final_obs: Vec<f32>,
+    rows: Vec<Row>,
+}
+
+/// One decision in each environment, on `threads`: environment i acts `moves[i]` with
+/// `sites[i]`, and is reset from its own RNG when its episode ends. Each environment draws
+/// only from its own RNG, so the result does not depend on the number of threads.
+fn step_all(
+    threads: &Threads,
+    cores: &mut [Core],
+    moves: &[[f64; 3]],
+    sites: &[i64],
+    obs_dim: usize,
+) -> PyResult<Batch> {
+    let n = cores.len();
+    let mut b = Batch {
+        obs: vec![0f32; n * obs_dim],
+        final_obs: vec![0f32; n * obs_dim],
+        rows: vec![Row::default(); n],
+    };
+    let mut work: Vec<_> = cores
+        .iter_mut()
+        .zip(b.obs.chunks_mut(obs_dim))
+        .zip(b.final_obs.chunks_mut(obs_dim))
+        .zip(b.rows.iter_mut())
+        .zip(moves.iter().zip(sites))
+        .collect();
+    threads.for_each(&mut work, |((((c, obs), fin), row), (m, site))| {
+        let s = c.act(**m, **site)?;
+        **row = Row {
+            reward: s.reward,
+            terminated: s.terminated,
+            truncated: s.truncated,
+            outcome: -1,
+            ..Row::default()
+        };
+        if s.terminated || s.truncated {
+            row.outcome = outcome_code(Some(s.info.outcome.unwrap_or(Outcome::TimeLimit)));
+            row.pair_id = c.pair_id;
+            row.episode_return = c.episode_return;
+            row.episode_length = c.episode_length;
+            row.distance_flown_m = s.info.distance_flown_m;
+            row.distance_to_goal_m = s.info.distance_to_goal_m;
+            fin.copy_from_slice(c.env.observation());
+            c.reset(None, None, None)?;
+        }
+        obs.copy_from_slice(c.env.observation());
+        Ok(())
+    })?;
+    drop(work);
+    Ok(b)
+}
+
+/// How a [`VecEnv::reset`] treats environment i.
+#[derive(Debug, Clone, Copy)]
+struct ResetOf {
+    reset: bool,
+    seed: Option<u64>,
+    pair: Option<usize>,
+    reversed: Option<bool>,
+}
+
+/// The value of a per-environment argument for environment i: absent, one for all, or one each.
+fn per_env<T: Copy>(v: &Option<Vec<T>>, i: usize) -> Option<T> {
+    match v.as_deref() {
+        None | Some([]) => None,
+        Some([one]) => Some(*one),
+        Some(each) => each.get(i).copied(),
+    }
+}
+
+/// The values of an optional array argument (a scalar is one value).
+fn values<T: numpy::Element + Copy>(a: Option<Real<'_, T>>) -> Option<Vec<T>> {
+    a.map(|a| a.as_array().iter().copied().collect())
+}
+
+/// Checks that a per-environment argument has 0, 1 or `n` values.
+fn check_len<T>(name: &str, v: &Option<Vec<T>>, n: usize) -> PyResult<()> {
+    match v {
+        Some(v) if v.len() > 1 && v.len() != n => Err(value_error(format!(
+            "{name}: {} values for {n} environments (expected one, or one per environment)",
+            v.len()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// N environments of one scenario stepped together in Rust on the calling thread and a pool of
+/// others ([`Threads`]), the GIL released: arrays in, arrays out. An environment whose episode ends is reset at once (its next
+/// episode drawn from its own RNG); its last observation is returned in `final_obs`.
+/// `send`/`recv` split a step in two: the step runs on its own threads while Python does other
+/// work.
 #[pyclass(module = "dupac._dupac")]
 pub struct VecEnv {
-    cores: Vec<Core>,
+    /// The environments; `None` while a step sent with `send` is in flight.
+    cores: Option<Vec<Core>>,
+    num_envs: usize,
     obs_dim: usize,
+    threads: Arc<Threads>,
+    /// The step in flight (`send`): its thread returns the environments and the result.
+    pending: Option<std::thread::JoinHandle<(Vec<Core>, PyResult<Batch>)>>,
 }
 
 type StepArrays<'py> = (
@@ -359,41 +487,150 @@ type StepArrays<'py> = (
     Bound<'py, PyArray1<bool>>,
     Bound<'py, PyArray1<bool>>,
     Bound<'py, PyArray2<f32>>,
-    Bound<'py, PyArray1<i8>>,
+    Bound<'py, PyDict>,
 );
+
+impl VecEnv {
+    fn cores_mut(&mut self) -> PyResult<&mut Vec<Core>> {
+        if self.pending.is_some() {
+            return Err(runtime_error(
+                "a step is in flight: call recv() before stepping or resetting again",
+            ));
+        }
+        self.cores.as_mut().ok_or_else(|| {
+            runtime_error("the environments were lost in a failed step: create a new VecEnv")
+        })
+    }
+
+    /// `moves` (N, 3) and `sites` (N,) as one action per environment, shapes checked.
+    fn actions(
+        &self,
+        moves: &Real<'_, f64>,
+        sites: &Real<'_, i64>,
+    ) -> PyResult<(Vec<[f64; 3]>, Vec<i64>)> {
+        let n = self.num_envs;
+        let mv = view2(moves, "moves", Some(3))?;
+        let st = view1(sites, "sites", Some(n))?;
+        if mv.nrows() != n {
+            return Err(value_error(format!(
+                "moves: expected an array of shape ({n}, 3), got shape ({}, 3)",
+                mv.nrows()
+            )));
+        }
+        Ok((
+            mv.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect(),
+            st.to_vec(),
+        ))
+    }
+
+    /// The step's arrays for Python: `(obs, reward, terminated, truncated, final_obs,
+    /// final_info)`, `final_info` a dict of arrays (rows where an episode ended).
+    fn arrays<'py>(&self, py: Python<'py>, b: Batch) -> PyResult<StepArrays<'py>> {
+        let (n, d) = (self.num_envs, self.obs_dim);
+        let col = |f: fn(&Row) -> f64| b.rows.iter().map(f).collect::<Vec<f64>>();
+        let info = PyDict::new(py);
+        info.set_item(
+            "outcome",
+            b.rows
+                .iter()
+                .map(|r| r.outcome)
+                .collect::<Vec<i8>>()
+                .into_pyarray(py),
+        )?;
+        info.set_item(
+            "pair_id",
+            b.rows
+                .iter()
+                .map(|r| r.pair_id)
+                .collect::<Vec<u64>>()
+                .into_pyarray(py),
+        )?;
+        info.set_item("episode_return", col(|r| r.episode_return).into_pyarray(py))?;
+        info.set_item(
+            "episode_length",
+            b.rows
+                .iter()
+                .map(|r| r.episode_length)
+                .collect::<Vec<u32>>()
+                .into_pyarray(py),
+        )?;
+        info.set_item(
+            "distance_flown_m",
+            col(|r| r.distance_flown_m).into_pyarray(py),
+        )?;
+        info.set_item(
+            "distance_to_goal_m",
+            col(|r| r.distance_to_goal_m).into_pyarray(py),
+        )?;
+        let flags = |f: fn(&Row) -> bool| b.rows.iter().map(f).collect::<Vec<bool>>();
+        Ok((
+            Array2::from_shape_vec((n, d), b.obs)
+                .map_err(value_error)?
+                .into_pyarray(py),
+            col(|r| r.reward).into_pyarray(py),
+            flags(|r| r.terminated).into_pyarray(py),
+            flags(|r| r.truncated).into_pyarray(py),
+            Array2::from_shape_vec((n, d), b.final_obs)
+                .map_err(value_error)?
+                .into_pyarray(py),
+            info,
+        ))
+    }
+}
 
 #[pymethods]
 impl VecEnv {
     /// `num_envs` environments of `scenario` over the pairs of `split`; environment i's RNG is
-    /// seeded with `seed + i`.
+    /// seeded with `seed + i`. They are stepped on `num_threads` threads (0: the default,
+    /// `RAYON_NUM_THREADS` or one per core).
     #[new]
-    #[pyo3(signature = (scenario, num_envs, split="train", seed=0))]
+    #[pyo3(signature = (scenario, num_envs, split="train", seed=0, num_threads=0))]
     fn new(
         py: Python<'_>,
         scenario: &Scenario,
         num_envs: usize,
         split: &str,
         seed: u64,
+        num_threads: usize,
     ) -> PyResult<VecEnv> {
         if num_envs == 0 || num_envs > 65_536 {
             return Err(value_error(format!(
                 "num_envs = {num_envs}: expected 1 … 65536"
             )));
         }
+        if num_threads > MAX_THREADS {
+            return Err(value_error(format!(
+                "num_threads = {num_threads}: expected 0 (the default) … {MAX_THREADS}"
+            )));
+        }
         let split = Split::parse(split)?;
         let shared = scenario.shared.clone();
-        let cores = py.detach(move || {
-            (0..num_envs)
-                .map(|i| Core::new(shared.clone(), split, seed.wrapping_add(i as u64)))
-                .collect::<PyResult<Vec<_>>>()
+        let threads = Threads::new(num_threads)?;
+        let cores = py.detach(|| {
+            let mut made: Vec<(usize, Option<Core>)> = (0..num_envs).map(|i| (i, None)).collect();
+            threads.for_each(&mut made, |(i, c)| {
+                *c = Some(Core::new(
+                    shared.clone(),
+                    split,
+                    seed.wrapping_add(*i as u64),
+                )?);
+                Ok(())
+            })?;
+            Ok::<_, PyErr>(made.into_iter().filter_map(|(_, c)| c).collect::<Vec<_>>())
         })?;
         let obs_dim = cores[0].env.layout().len();
-        Ok(VecEnv { cores, obs_dim })
+        Ok(VecEnv {
+            cores: Some(cores),
+            num_envs,
+            obs_dim,
+            threads: Arc::new(threads),
+            pending: None,
+        })
     }
 
     #[getter]
     fn num_envs(&self) -> usize {
-        self.cores.len()
+        self.num_envs
     }
 
     #[getter]
@@ -401,41 +638,84 @@ impl VecEnv {
         self.obs_dim
     }
 
-    /// Resets every environment (with `seed`, environment i's RNG is seeded with `seed + i`
-    /// first) and returns the observations (N, obs_dim) float32.
-    #[pyo3(signature = (seed=None))]
+    /// Threads the environments are stepped on.
+    #[getter]
+    fn num_threads(&self) -> usize {
+        self.threads.count()
+    }
+
+    /// Resets the environments and returns the observations (N, obs_dim) float32 (of every
+    /// environment; those not reset keep theirs). Each argument is absent, one value for all, or
+    /// one per environment: `seed` (environment i's RNG is seeded with `seed + i` for one value,
+    /// with its own for one each), `pair` (index in the split; −1 or absent: drawn), `reversed`
+    /// (−1 or absent: drawn, 0 forward, 1 reversed), `mask` (only these environments reset).
+    #[pyo3(signature = (seed=None, pair=None, reversed=None, mask=None))]
     fn reset<'py>(
         &mut self,
         py: Python<'py>,
-        seed: Option<u64>,
+        seed: Option<Real<'py, u64>>,
+        pair: Option<Real<'py, i64>>,
+        reversed: Option<Real<'py, i8>>,
+        mask: Option<Real<'py, bool>>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let d = self.obs_dim;
-        let cores = &mut self.cores;
+        let (n, d) = (self.num_envs, self.obs_dim);
+        let (seed, pair) = (values(seed), values(pair));
+        let (reversed, mask) = (values(reversed), values(mask));
+        check_len("seed", &seed, n)?;
+        check_len("pair", &pair, n)?;
+        check_len("reversed", &reversed, n)?;
+        check_len("mask", &mask, n)?;
+        let one_seed = seed.as_ref().is_some_and(|s| s.len() == 1);
+        let of: Vec<ResetOf> = (0..n)
+            .map(|i| ResetOf {
+                reset: per_env(&mask, i).unwrap_or(true),
+                seed: per_env(&seed, i).map(|s| {
+                    if one_seed {
+                        s.wrapping_add(i as u64)
+                    } else {
+                        s
+                    }
+                }),
+                pair: per_env(&pair, i).and_then(|k| usize::try_from(k).ok()),
+                reversed: per_env(&reversed, i).and_then(|r| (r >= 0).then_some(r > 0)),
+            })
+            .collect();
+        let threads = self.threads.clone();
+        let cores = self.cores_mut()?;
         let obs = py.detach(|| -> PyResult<Vec<f32>> {
-            let mut obs = Vec::with_capacity(cores.len() * d);
-            for (i, c) in cores.iter_mut().enumerate() {
-                c.reset(seed.map(|s| s.wrapping_add(i as u64)), None, None)?;
-                obs.extend_from_slice(c.env.observation());
-            }
+            let mut obs = vec![0f32; n * d];
+            let mut work: Vec<_> = cores.iter_mut().zip(obs.chunks_mut(d)).zip(&of).collect();
+            threads.for_each(&mut work, |((c, row), r)| {
+                if r.reset {
+                    c.reset(r.seed, r.pair, r.reversed)?;
+                }
+                row.copy_from_slice(c.env.observation());
+                Ok(())
+            })?;
+            drop(work);
             Ok(obs)
         })?;
-        Ok(Array2::from_shape_vec((self.cores.len(), d), obs)
+        Ok(Array2::from_shape_vec((n, d), obs)
             .map_err(value_error)?
             .into_pyarray(py))
     }
 
     /// `moves.shape[0]` decisions in every environment in one call, as that many calls of
-    /// [`VecEnv::step`] would make them (`moves` (T, N, 3), `sites` (T, N)); returns the summed
-    /// reward and the number of episodes that ended. For benchmarks: the same work without
-    /// Python between the decisions (python/benches/vec_env.py).
+    /// [`VecEnv::step`] would make them, in the same order (`moves` (T, N, 3), `sites` (T, N)),
+    /// on the pool's threads; returns the summed reward and the number of episodes that ended. For benchmarks:
+    /// the same work without Python between the decisions (python/benches/vec_env.py).
     fn _step_many(
         &mut self,
         py: Python<'_>,
-        moves: numpy::PyReadonlyArray3<'_, f64>,
-        sites: PyReadonlyArray2<'_, i64>,
+        moves: Real<'_, f64>,
+        sites: Real<'_, i64>,
     ) -> PyResult<(f64, u64)> {
-        let n = self.cores.len();
-        let (mv, st) = (moves.as_array(), sites.as_array());
+        let n = self.num_envs;
+        let mv = moves
+            .as_array()
+            .into_dimensionality::<numpy::ndarray::Ix3>()
+            .map_err(value_error)?;
+        let st = view2(&sites, "sites", Some(n))?;
         let t = mv.dim().0;
         if mv.dim() != (t, n, 3) || st.dim() != (t, n) {
             return Err(value_error(format!(
@@ -444,81 +724,89 @@ impl VecEnv {
                 st.dim()
             )));
         }
-        let cores = &mut self.cores;
+        let threads = self.threads.clone();
+        let cores = self.cores_mut()?;
         py.detach(move || -> PyResult<(f64, u64)> {
-            let (mut total, mut ended) = (0.0, 0u64);
+            let mut rows: Vec<(usize, &mut Core, f64, u64)> = cores
+                .iter_mut()
+                .enumerate()
+                .map(|(i, c)| (i, c, 0.0, 0))
+                .collect();
             for k in 0..t {
-                for (i, c) in cores.iter_mut().enumerate() {
-                    let s = c.act([mv[[k, i, 0]], mv[[k, i, 1]], mv[[k, i, 2]]], st[[k, i]])?;
-                    total += s.reward;
+                threads.for_each(&mut rows, |(i, c, total, ended)| {
+                    let s = c.act(
+                        [mv[[k, *i, 0]], mv[[k, *i, 1]], mv[[k, *i, 2]]],
+                        st[[k, *i]],
+                    )?;
+                    *total += s.reward;
                     if s.terminated || s.truncated {
-                        ended += 1;
+                        *ended += 1;
                         c.reset(None, None, None)?;
                     }
-                }
+                    Ok(())
+                })?;
             }
-            Ok((total, ended))
+            Ok(rows
+                .iter()
+                .fold((0.0, 0), |(r, e), row| (r + row.2, e + row.3)))
         })
     }
 
     /// One decision in every environment: `moves` (N, 3) float64, `sites` (N,) int64. Returns
-    /// `(obs, reward, terminated, truncated, final_obs, outcome)`: the observations (N, obs_dim)
-    /// after any reset, the summed rewards, the ends, the last observation of each episode that
-    /// ended (zeros elsewhere), and how it ended (−1 none, 0 goal, 1 collision, 2 out of bounds,
-    /// 3 time limit).
+    /// `(obs, reward, terminated, truncated, final_obs, final_info)`: the observations
+    /// (N, obs_dim) after any reset, the summed rewards, the ends, the last observation of each
+    /// episode that ended (zeros elsewhere), and a dict of arrays about the episodes that ended
+    /// (`outcome`: −1 none, 0 goal, 1 collision, 2 out of bounds, 3 time limit; `pair_id`,
+    /// `episode_return`, `episode_length` in decisions, `distance_flown_m`,
+    /// `distance_to_goal_m`, meaningful where `outcome >= 0`).
     fn step<'py>(
         &mut self,
         py: Python<'py>,
-        moves: PyReadonlyArray2<'py, f64>,
-        sites: PyReadonlyArray1<'py, i64>,
+        moves: Real<'py, f64>,
+        sites: Real<'py, i64>,
     ) -> PyResult<StepArrays<'py>> {
-        let n = self.cores.len();
-        let (mv, st) = (moves.as_array(), sites.as_array());
-        if mv.dim() != (n, 3) || st.len() != n {
-            return Err(value_error(format!(
-                "expected moves of shape ({n}, 3) and sites of shape ({n},), got {:?} and ({},)",
-                mv.dim(),
-                st.len()
-            )));
-        }
-        let mv: Vec<[f64; 3]> = mv.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-        let st: Vec<i64> = st.to_vec();
-        let d = self.obs_dim;
-        let cores = &mut self.cores;
-        let out = py.detach(move || -> PyResult<_> {
-            let mut obs = vec![0f32; n * d];
-            let mut fin = vec![0f32; n * d];
-            let mut rew = vec![0f64; n];
-            let mut term = vec![false; n];
-            let mut trunc = vec![false; n];
-            let mut outc = vec![-1i8; n];
-            for (i, c) in cores.iter_mut().enumerate() {
-                let s = c.act(mv[i], st[i])?;
-                rew[i] = s.reward;
-                term[i] = s.terminated;
-                trunc[i] = s.truncated;
-                let row = i * d..(i + 1) * d;
-                if s.terminated || s.truncated {
-                    outc[i] = outcome_code(Some(s.info.outcome.unwrap_or(Outcome::TimeLimit)));
-                    fin[row.clone()].copy_from_slice(c.env.observation());
-                    c.reset(None, None, None)?;
-                }
-                obs[row].copy_from_slice(c.env.observation());
-            }
-            Ok((obs, rew, term, trunc, fin, outc))
+        let (mv, st) = self.actions(&moves, &sites)?;
+        let (threads, d) = (self.threads.clone(), self.obs_dim);
+        let cores = self.cores_mut()?;
+        let b = py.detach(move || step_all(&threads, cores, &mv, &st, d))?;
+        self.arrays(py, b)
+    }
+
+    /// Starts one decision in every environment (as [`VecEnv::step`]) and returns at once: the
+    /// step runs on the pool's threads while Python goes on; [`VecEnv::recv`] returns its
+    /// result. Stepping or resetting before `recv` is an error.
+    fn send(&mut self, moves: Real<'_, f64>, sites: Real<'_, i64>) -> PyResult<()> {
+        let (mv, st) = self.actions(&moves, &sites)?;
+        self.cores_mut()?;
+        let Some(mut cores) = self.cores.take() else {
+            return Err(runtime_error("no environments"));
+        };
+        let (threads, d) = (self.threads.clone(), self.obs_dim);
+        let handle = std::thread::Builder::new()
+            .name("dupac-vecenv-send".into())
+            .spawn(move || {
+                let r = step_all(&threads, &mut cores, &mv, &st, d);
+                (cores, r)
+            })
+            .map_err(runtime_error)?;
+        self.pending = Some(handle);
+        Ok(())
+    }
+
+    /// The result of the step started by [`VecEnv::send`] (waiting for it with the GIL
+    /// released), as [`VecEnv::step`] returns it.
+    fn recv<'py>(&mut self, py: Python<'py>) -> PyResult<StepArrays<'py>> {
+        let rx = self
+            .pending
+            .take()
+            .ok_or_else(|| runtime_error("recv() without a send(): nothing in flight"))?;
+        let (cores, r) = py.detach(move || rx.join()).map_err(|_| {
+            runtime_error(
+                "the step in flight failed: the environments are lost; create a new VecEnv",
+            )
         })?;
-        let (obs, rew, term, trunc, fin, outc) = out;
-        Ok((
-            Array2::from_shape_vec((n, d), obs)
-                .map_err(value_error)?
-                .into_pyarray(py),
-            rew.into_pyarray(py),
-            term.into_pyarray(py),
-            trunc.into_pyarray(py),
-            Array2::from_shape_vec((n, d), fin)
-                .map_err(value_error)?
-                .into_pyarray(py),
-            outc.into_pyarray(py),
-        ))
+        self.cores = Some(cores);
+        let b = r?;
+        self.arrays(py, b)
     }
 }

@@ -6,10 +6,12 @@
 //! Every Rust error reaches Python as an exception whose message is the error's own text
 //! (`ValueError` for bad input, `RuntimeError` otherwise); nothing here panics on user input.
 
+mod arrays;
 mod env;
 mod planner;
 mod policy;
 mod scenario;
+mod threads;
 
 use pyo3::prelude::*;
 

@@ -2,6 +2,7 @@
 //! coverage-aware path (docs/env.md "Planners"), and `fly_path`, a planned path flown by the
 //! scripted pilot with the A3 rule choosing the site (what `dupac eval` reports for the planners).
 
+use crate::arrays::{Real, view1};
 use crate::policy::summary_dict;
 use crate::scenario::{Scenario, Shared, Split};
 use crate::{runtime_error, value_error};
@@ -10,8 +11,8 @@ use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use dupac_run::flights::fly_path_with_a3;
+use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Arc;
@@ -35,14 +36,9 @@ pub struct Planner {
 }
 
 /// One point `(3,)` in metres.
-fn point(a: &PyReadonlyArray1<'_, f64>, what: &str) -> PyResult<Point> {
-    let v = a.as_array();
-    match v.len() {
-        3 => Ok(Point::new(v[0], v[1], v[2])),
-        n => Err(value_error(format!(
-            "{what}: expected 3 coordinates x, y, z in metres, got {n}"
-        ))),
-    }
+fn point(a: &Real<'_, f64>, what: &str) -> PyResult<Point> {
+    let v = view1(a, what, Some(3))?;
+    Ok(Point::new(v[0], v[1], v[2]))
 }
 
 /// A path as `{"waypoints_m": (N, 3) array, "length_m": float}`.
@@ -95,7 +91,7 @@ impl Planner {
 
     /// Checks a point as an endpoint: finite, in the area and the band, outside every building
     /// and at least the clearance from them. Raises `ValueError` naming the reason.
-    fn check_point(&self, point_m: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+    fn check_point(&self, point_m: Real<'_, f64>) -> PyResult<()> {
         let p = point(&point_m, "point_m")?;
         self.planned
             .borrow_dependent()
@@ -108,8 +104,8 @@ impl Planner {
     fn shortest<'py>(
         &self,
         py: Python<'py>,
-        source_m: PyReadonlyArray1<'_, f64>,
-        destination_m: PyReadonlyArray1<'_, f64>,
+        source_m: Real<'_, f64>,
+        destination_m: Real<'_, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (s, d) = (
             point(&source_m, "source_m")?,
@@ -128,8 +124,8 @@ impl Planner {
     fn coverage_aware<'py>(
         &self,
         py: Python<'py>,
-        source_m: PyReadonlyArray1<'_, f64>,
-        destination_m: PyReadonlyArray1<'_, f64>,
+        source_m: Real<'_, f64>,
+        destination_m: Real<'_, f64>,
         lam: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (s, d) = (
@@ -161,12 +157,12 @@ impl Planner {
 pub fn fly_path<'py>(
     py: Python<'py>,
     scenario: &Scenario,
-    waypoints_m: PyReadonlyArray2<'_, f64>,
+    waypoints_m: Real<'_, f64>,
     pair: usize,
     split: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
     let split = Split::parse(split)?;
-    let w = crate::scenario::points(&waypoints_m)?;
+    let w = crate::scenario::points(&waypoints_m, "waypoints_m")?;
     let sh = scenario.shared.clone();
     let (flight, summary) = py.detach(|| -> PyResult<_> {
         let pairs = sh.pairs(split)?;

@@ -2,6 +2,7 @@
 //! train`) run on observations, and `fly`: one held-out pair flown with it exactly as `dupac fly`
 //! flies it.
 
+use crate::arrays::{Real, view1, view2};
 use crate::scenario::{Scenario, Split};
 use crate::{runtime_error, value_error};
 use dupac_actor::env::Env as RustEnv;
@@ -10,7 +11,7 @@ use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::{PolicyWeights, Scratch};
 use dupac_learner::checkpoint::load_policy;
 use numpy::ndarray::{Array1, Array2};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
@@ -71,11 +72,11 @@ impl Policy {
     fn act<'py>(
         &self,
         py: Python<'py>,
-        obs: PyReadonlyArray1<'py, f32>,
+        obs: Real<'py, f32>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, u32)> {
-        let o = obs.as_slice()?;
+        let o = view1(&obs, "obs", None)?.to_vec();
         self.check_obs(o.len())?;
-        let a = self.weights.act_deterministic(o, &mut Scratch::default());
+        let a = self.weights.act_deterministic(&o, &mut Scratch::default());
         Ok((PyArray1::from_slice(py, &a.move_raw), a.site))
     }
 
@@ -85,9 +86,9 @@ impl Policy {
     fn act_batch<'py>(
         &self,
         py: Python<'py>,
-        obs: PyReadonlyArray2<'py, f32>,
+        obs: Real<'py, f32>,
     ) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<i64>>)> {
-        let v = obs.as_array();
+        let v = view2(&obs, "obs", None)?;
         self.check_obs(v.ncols())?;
         let rows: Vec<Vec<f32>> = v.rows().into_iter().map(|r| r.to_vec()).collect();
         let w = &self.weights;
@@ -111,10 +112,10 @@ impl Policy {
     }
 
     /// The critic's value of one raw observation (in the learner's scaled reward units).
-    fn value(&self, obs: PyReadonlyArray1<'_, f32>) -> PyResult<f32> {
-        let o = obs.as_slice()?;
+    fn value(&self, obs: Real<'_, f32>) -> PyResult<f32> {
+        let o = view1(&obs, "obs", None)?.to_vec();
         self.check_obs(o.len())?;
-        Ok(self.weights.value(o, &mut Scratch::default()))
+        Ok(self.weights.value(&o, &mut Scratch::default()))
     }
 
     fn __repr__(&self) -> String {

@@ -1,6 +1,7 @@
 //! `Scenario`: one resolved configuration with its radio world and RSRP source, the pairs its
 //! episodes are drawn from, and the radio queries on NumPy arrays (spec/radio.md).
 
+use crate::arrays::{Real, view2};
 use crate::{runtime_error, value_error};
 use dupac_actor::pairs::Pair;
 use dupac_common::config::{Association, Config};
@@ -14,7 +15,7 @@ use dupac_run::scenario::{
     Planners, SharedRsrp, guide_sets_cached, held_out_pairs, make_pool, unguided, world_and_cache,
 };
 use numpy::ndarray::{Array1, Array2};
-use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{AllowTypeChange, IntoPyArray, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -87,14 +88,8 @@ pub struct Scenario {
 }
 
 /// Parses a point array `(N, 3)` in metres, refusing non-finite values.
-pub(crate) fn points(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
-    let v = a.as_array();
-    if v.ncols() != 3 {
-        return Err(value_error(format!(
-            "points: expected an array of shape (N, 3) in metres, got (N, {})",
-            v.ncols()
-        )));
-    }
+pub(crate) fn points(a: &Real<'_, f64>, what: &str) -> PyResult<Vec<Point>> {
+    let v = view2(a, what, Some(3))?;
     v.rows()
         .into_iter()
         .enumerate()
@@ -249,10 +244,11 @@ impl Scenario {
     fn rsrp_dbm<'py>(
         &self,
         py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
+        points: Real<'py, f64>,
         exact: bool,
     ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        let pts = self::points(&points)?;
+        let pts = self::points(&points, "points")?;
+        let rows = pts.len();
         let m = self.shared.world.num_sites();
         let sh = self.shared.clone();
         let out = py.detach(move || {
@@ -268,7 +264,7 @@ impl Scenario {
                 });
             out
         });
-        let a = Array2::from_shape_vec((points.as_array().nrows(), m), out).map_err(value_error)?;
+        let a = Array2::from_shape_vec((rows, m), out).map_err(value_error)?;
         Ok(a.into_pyarray(py))
     }
 
@@ -277,9 +273,10 @@ impl Scenario {
     fn los<'py>(
         &self,
         py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
+        points: Real<'py, f64>,
     ) -> PyResult<Bound<'py, numpy::PyArray2<bool>>> {
-        let pts = self::points(&points)?;
+        let pts = self::points(&points, "points")?;
+        let rows = pts.len();
         let m = self.shared.world.num_sites();
         let sh = self.shared.clone();
         let out = py.detach(move || {
@@ -293,7 +290,7 @@ impl Scenario {
                 });
             out
         });
-        let a = Array2::from_shape_vec((points.as_array().nrows(), m), out).map_err(value_error)?;
+        let a = Array2::from_shape_vec((rows, m), out).map_err(value_error)?;
         Ok(a.into_pyarray(py))
     }
 
@@ -305,7 +302,7 @@ impl Scenario {
     fn best_site<'py>(
         &self,
         py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
+        points: Real<'py, f64>,
         exact: bool,
     ) -> PyResult<(
         Bound<'py, numpy::PyArray1<i64>>,
@@ -332,8 +329,8 @@ impl Scenario {
     fn rsrp_class<'py>(
         &self,
         py: Python<'py>,
-        rsrp_dbm: PyReadonlyArray1<'py, f64>,
-    ) -> Bound<'py, numpy::PyArray1<i8>> {
+        rsrp_dbm: numpy::PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+    ) -> Bound<'py, numpy::PyArrayDyn<i8>> {
         let t = RsrpThresholds::from_config(&self.shared.cfg.radio);
         rsrp_dbm
             .as_array()

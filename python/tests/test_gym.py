@@ -93,3 +93,108 @@ def test_the_vectorised_env_steps_each_env_as_the_single_one_does(base_scenario)
             assert np.array_equal(o, obs[i])
     assert ended > 0, "no episode ended: the autoreset was not exercised"
     assert vec.observation_space.shape == (n, obs.shape[1])
+
+
+def test_make_vec_returns_the_rust_vector_env(scenario):
+    for mode in ("vector_entry_point", None):
+        kw = {} if mode is None else {"vectorization_mode": mode}
+        vec = gym.make_vec("dupac/Dupac-v0", num_envs=3, scenario=scenario, **kw)
+        assert isinstance(vec, DupacVecEnv) and vec.num_envs == 3
+        obs, _ = vec.reset(seed=0)
+        assert vec.observation_space.contains(obs)
+        out = vec.step(vec.action_space.sample())
+        assert vec.observation_space.contains(out[0])
+        vec.close()
+
+
+def _random_actions(vec, steps, seed):
+    rng = np.random.default_rng(seed)
+    n, m = vec.num_envs, vec.single_action_space["site"].n
+    return [{"move": rng.uniform(-1, 1, (n, 3)), "site": rng.integers(0, m, n)} for _ in range(steps)]
+
+
+def test_the_vector_env_matches_gymnasiums_own_over_single_envs(scenario):
+    """Gymnasium's SyncVectorEnv over DupacEnv, same-step autoreset, is the reference: the Rust
+    vector env on 2 threads gives the same observations, rewards, ends, final observations and
+    final infos, step for step."""
+    n, steps = 4, 80
+    ours = DupacVecEnv(n, scenario, num_threads=2)
+    ref = gym.vector.SyncVectorEnv(
+        [lambda: DupacEnv(scenario) for _ in range(n)], autoreset_mode="SameStep"
+    )
+    o1, _ = ours.reset(seed=7)
+    o2, _ = ref.reset(seed=7)
+    assert np.array_equal(o1, o2)
+    returns, ended = np.zeros(n), 0
+    for a in _random_actions(ours, steps, 3):
+        o1, r1, te1, tr1, i1 = ours.step(a)
+        o2, r2, te2, tr2, i2 = ref.step(a)
+        returns += r2
+        assert np.array_equal(o1, o2) and np.array_equal(r1, r2)
+        assert np.array_equal(te1, te2) and np.array_equal(tr1, tr2)
+        done = te1 | tr1
+        assert np.array_equal(i1["_final_obs"], done) and np.array_equal(i1["_final_info"], done)
+        for k in np.flatnonzero(done):
+            ended += 1
+            assert np.array_equal(i1["final_obs"][k], i2["final_obs"][k])
+            fin = i1["final_info"]
+            assert fin["pair_id"][k] == i2["final_info"]["pair_id"][k]
+            assert fin["episode"]["r"][k] == pytest.approx(returns[k], rel=1e-12)
+            assert fin["distance_flown_m"][k] == i2["final_info"]["distance_flown_m"][k]
+            names = ("goal", "collision", "out_of_bounds", "time_limit")
+            assert names[fin["outcome"][k]] == (i2["final_info"]["outcome"][k] or "time_limit")
+            returns[k] = 0.0
+    assert ended > 0, "no episode ended: the autoreset was not exercised"
+
+
+def test_threads_do_not_change_the_results_and_send_recv_is_step(scenario):
+    runs = []
+    for threads, split_step in ((1, False), (2, False), (2, True)):
+        vec = DupacVecEnv(5, scenario, num_threads=threads)
+        assert vec.num_threads == threads
+        out = [vec.reset(seed=3)[0]]
+        for a in _random_actions(vec, 40, 5):
+            if split_step:
+                vec.send(a)
+                o, r, te, tr, info = vec.recv()
+            else:
+                o, r, te, tr, info = vec.step(a)
+            out += [o, r, te, tr, info["final_obs"]]
+        runs.append(out)
+    for other in runs[1:]:
+        assert all(np.array_equal(x, y) for x, y in zip(runs[0], other))
+
+
+def test_a_step_in_flight_must_be_received_first(scenario):
+    vec = DupacVecEnv(2, scenario)
+    vec.reset(seed=0)
+    a = _random_actions(vec, 1, 0)[0]
+    with pytest.raises(RuntimeError, match="nothing in flight"):
+        vec.recv()
+    vec.send(a)
+    with pytest.raises(RuntimeError, match="in flight"):
+        vec.step(a)
+    with pytest.raises(RuntimeError, match="in flight"):
+        vec.reset()
+    vec.recv()
+    vec.step(a)
+
+
+def test_reset_takes_a_seed_per_env_options_and_a_mask(scenario):
+    n = 3
+    vec = DupacVecEnv(n, scenario, split="eval")
+    singles = [DupacEnv(scenario, split="eval") for _ in range(n)]
+    obs, _ = vec.reset(seed=[11, 5, 9])
+    assert all(np.array_equal(obs[i], s.reset(seed=seed)[0]) for i, (s, seed) in enumerate(zip(singles, [11, 5, 9])))
+    obs, _ = vec.reset(seed=0, options={"pair": [2, 0, 1], "reversed": 0})
+    for i, k in enumerate([2, 0, 1]):
+        want, _ = singles[i].reset(seed=i, options={"pair": k, "reversed": False})
+        assert np.array_equal(obs[i], want)
+    before = obs.copy()
+    obs, _ = vec.reset(options={"pair": 3, "reset_mask": [False, True, False]})
+    assert np.array_equal(obs[0], before[0]) and np.array_equal(obs[2], before[2])
+    assert not np.array_equal(obs[1], before[1])
+    with pytest.raises(ValueError, match="2 values for 3"):
+        vec.reset(seed=[1, 2])
+    with pytest.raises(ValueError, match="unknown reset options"):
+        vec.reset(options={"pairs": 1})
