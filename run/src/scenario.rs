@@ -299,16 +299,16 @@ pub fn split_unguided(
     split: Split,
     quiet: bool,
 ) -> Result<Vec<Pair>, RunError> {
-    let file = split.file(&cfg.pairs);
+    let file = split.file(&cfg.pairs, planner.city());
     if file.exists() {
-        return read_pairs_jsonl(file, planner, &cfg.pairs)
+        return read_pairs_jsonl(&file, planner, &cfg.pairs)
             .context_with(|| format!("reading the {} pairs ({})", split.name(), split.file_key()));
     }
     let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
     let pb = progress_bar(total, &format!("{} pairs", split.name()), quiet);
     let pairs = split_pairs(planner, &cfg.pairs, &cfg.env, split, &|n| pb.inc(n));
     pb.finish_and_clear();
-    write_pairs_jsonl(file, &pairs)?;
+    write_pairs_jsonl(&file, &pairs)?;
     eprintln!(
         "wrote {} {} pairs ({} = {}) to {}",
         pairs.len(),
@@ -329,7 +329,7 @@ pub fn read_eval_pairs(
     split: Split,
     planners: &Planners,
 ) -> Result<(PathBuf, Vec<Pair>), RunError> {
-    let default = split.file(&cfg.pairs).to_path_buf();
+    let default = split.file(&cfg.pairs, planners.pairs.city());
     if file.is_none() && !default.exists() {
         let pairs = split_guided(cfg, planners, split, true)?;
         return Ok((default, pairs));

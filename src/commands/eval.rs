@@ -140,8 +140,8 @@ pub fn run(global: &GlobalArgs, args: &EvalArgs) -> Result<ExitCode> {
         let split = args.split();
         match &args.pairs {
             Some(p) => crate::io::check_readable("--pairs", p)?,
-            None if split.file(&cfg.pairs).exists() => {
-                crate::io::check_readable(split.file_key(), split.file(&cfg.pairs))?
+            None if split.configured_file(&cfg.pairs).exists() => {
+                crate::io::check_readable(split.file_key(), split.configured_file(&cfg.pairs))?
             }
             None => {}
         }

@@ -116,7 +116,7 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
         let out = args
             .out
             .clone()
-            .unwrap_or_else(|| split.file(&cfg.pairs).to_path_buf());
+            .unwrap_or_else(|| split.file(&cfg.pairs, planner.city()));
         let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
         let label = format!("{} pairs", split.name());
         let pb = dupac_run::progress::progress_bar(total, &label, global.no_progress());

@@ -6,7 +6,7 @@ use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode, PathGuide};
-use dupac_actor::pairs::read_pairs_jsonl;
+use dupac_actor::pairs::{Split, read_pairs_jsonl};
 use dupac_actor::pilot::fly_waypoints;
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
@@ -16,6 +16,7 @@ use dupac_radio::cache::{RsrpCache, RsrpSource};
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use dupac_run::flights::{env_rsrp_at, slug, summarise, summary_md, write_steps_csv};
+use dupac_run::scenario::held_out_unguided;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -36,9 +37,10 @@ pub struct PlanArgs {
     /// A pairs file (JSON Lines, e.g. from `dupac pairs`); with `--pair`.
     #[arg(long, value_name = "FILE", conflicts_with = "from")]
     pub pairs: Option<PathBuf>,
-    /// The pair to plan: its line in `--pairs`, counted from 0 (blank lines skipped).
-    #[arg(long, value_name = "N", default_value_t = 0, requires = "pairs")]
-    pub pair: usize,
+    /// The pair to plan: its line in `--pairs` (default: this city's validation split,
+    /// `pairs.eval_file`, drawn when missing), counted from 0 (blank lines skipped).
+    #[arg(long, value_name = "N", conflicts_with = "from")]
+    pub pair: Option<usize>,
     /// λ values of the coverage-aware planner (repeatable; default `planner.lambda`).
     #[arg(long = "lambda")]
     pub lambdas: Vec<f64>,
@@ -64,7 +66,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     cfg.env.association = Association::A3;
     // The arguments before the world is built.
     if let Some(file) = &args.pairs {
-        crate::io::check_pair_index(file, args.pair, None)?;
+        crate::io::check_pair_index(file, args.pair.unwrap_or(0), None)?;
     }
     for l in &args.lambdas {
         if !(l.is_finite() && *l >= 0.0) {
@@ -76,19 +78,29 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
 
     let (source, destination) = match (&args.from, &args.to, &args.pairs) {
         (Some(f), Some(t), None) => (parse_xyz(f, "from")?, parse_xyz(t, "to")?),
-        (None, None, Some(file)) => {
-            let pairs = read_pairs_jsonl(file, &planner, &cfg.pairs)?;
-            let p = pairs.get(args.pair).ok_or_else(|| {
-                anyhow!(
-                    "{}: --pair {} but the file has {} pairs",
-                    file.display(),
-                    args.pair,
-                    pairs.len()
-                )
+        (None, None, file) if file.is_some() || args.pair.is_some() => {
+            let (name, pairs) = match file {
+                Some(file) => (
+                    file.display().to_string(),
+                    read_pairs_jsonl(file, &planner, &cfg.pairs)?,
+                ),
+                None => (
+                    Split::Validation
+                        .file(&cfg.pairs, planner.city())
+                        .display()
+                        .to_string(),
+                    held_out_unguided(&cfg, &planner, global.no_progress())?,
+                ),
+            };
+            let k = args.pair.unwrap_or(0);
+            let p = pairs.get(k).ok_or_else(|| {
+                anyhow!("{name}: --pair {k} but the file has {} pairs", pairs.len())
             })?;
             (p.source_m, p.destination_m)
         }
-        _ => bail!("give --from X,Y,Z --to X,Y,Z, or --pairs FILE [--pair N]"),
+        _ => bail!(
+            "give --from X,Y,Z --to X,Y,Z, --pair N (the validation split) or --pairs FILE [--pair N]"
+        ),
     };
     let shortest = planner
         .shortest(source, destination)

@@ -203,3 +203,85 @@ fn pairs_audit_writes_a_row_per_pair_and_a_summary() {
         "{stdout}"
     );
 }
+
+/// The default pair files follow the city (`{city}` in `pairs.eval_file`: its fingerprint): two
+/// procedural cities evaluated one after the other in one working directory, neither naming a
+/// pairs file, each draw and fly their own pairs. (With a fixed default path the second city
+/// read the first one's file and stopped: "source … is 4.22 m from a building".)
+#[test]
+fn switching_the_city_evaluates_its_own_pairs_without_a_path() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut dirs = Vec::new();
+    for size_m in [500, 420] {
+        let mut a = crate::support::small_world_args(dir.path());
+        for kv in [
+            format!("scenario.procedural.size_m={size_m}"),
+            "pairs.min_m=40".into(),
+            "pairs.max_m=70".into(),
+            "pairs.eval_bins_m=[50, 60]".into(),
+            "pairs.eval_per_bin=4".into(),
+            "pairs.bin_tolerance=0.1".into(),
+        ] {
+            a.push("--set".into());
+            a.push(kv);
+        }
+        let out = dir.path().join(format!("eval{size_m}"));
+        let run = crate::support::dupac_cmd()
+            .current_dir(dir.path())
+            .args(cmd(&[
+                "eval",
+                "-q",
+                "--lambda",
+                "1",
+                "--out",
+                &out.display().to_string(),
+            ]))
+            .args(&a)
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("run dupac");
+        ok(&run);
+        assert!(out.join("report.md").exists());
+        dirs = std::fs::read_dir(dir.path().join("out/pairs"))
+            .expect("out/pairs written in the working directory")
+            .map(|e| e.expect("entry").path())
+            .collect();
+    }
+    assert_eq!(dirs.len(), 2, "one pairs directory per city: {dirs:?}");
+    for d in &dirs {
+        assert_eq!(
+            pairs_of(&d.join("eval_pairs.jsonl")).len(),
+            8,
+            "{}",
+            d.display()
+        );
+        let name = d.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        assert!(
+            name.len() == 16 && name.chars().all(|c| c.is_ascii_hexdigit()),
+            "{name}"
+        );
+    }
+}
+
+/// `plan --pair N` without `--pairs` plans pair N of this city's validation split (drawn and
+/// written when missing), the pair `dupac fly --pair N` flies.
+#[test]
+fn plan_takes_a_pair_of_the_validation_split_by_default() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let a = args(dir.path());
+    let out = dir.path().join("plan");
+    let o = out.display().to_string();
+    ok(&dupac_output(
+        &a,
+        &cmd(&["plan", "-q", "--pair", "3", "--lambda", "1", "--out", &o]),
+    ));
+    let val = pairs_of(&dir.path().join("val.jsonl"));
+    assert_eq!(val.len(), 8, "the split was drawn and written");
+    let bad = dupac_output(&a, &cmd(&["plan", "-q", "--pair", "8", "--out", &o]));
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("val.jsonl: --pair 8 but the file has 8 pairs"),
+        "{err}"
+    );
+}

@@ -3,7 +3,8 @@
 
 use super::{EVAL_DOMAIN, TEST_DOMAIN};
 use dupac_common::config::PairsConfig;
-use std::path::Path;
+use dupac_radio::city::City;
+use std::path::PathBuf;
 
 /// A held-out split (docs/env.md "Held-out pairs: validation and test"): both have
 /// `pairs.eval_bins_m` × `pairs.eval_per_bin` pairs and differ in seed, ChaCha domain and file.
@@ -16,6 +17,9 @@ pub enum Split {
     /// `pairs.test_seed`, [`TEST_DOMAIN`], `pairs.test_file`: for the final report only.
     Test,
 }
+
+/// What `pairs.eval_file` and `pairs.test_file` write for the city's fingerprint.
+pub const CITY_PLACEHOLDER: &str = "{city}";
 
 impl Split {
     /// Both splits, validation first.
@@ -50,8 +54,24 @@ impl Split {
         }
     }
 
-    /// The split's file (`pairs.eval_file` or `pairs.test_file`).
-    pub fn file(self, cfg: &PairsConfig) -> &Path {
+    /// The split's file in `city` (`pairs.eval_file` or `pairs.test_file`, with `{city}`
+    /// replaced by the city's fingerprint: [`CITY_PLACEHOLDER`]).
+    pub fn file(self, cfg: &PairsConfig, city: &City) -> PathBuf {
+        let configured = match self {
+            Split::Validation => &cfg.eval_file,
+            Split::Test => &cfg.test_file,
+        };
+        match configured.to_str() {
+            Some(s) if s.contains(CITY_PLACEHOLDER) => {
+                PathBuf::from(s.replace(CITY_PLACEHOLDER, &format!("{:016x}", city.fingerprint())))
+            }
+            _ => configured.clone(),
+        }
+    }
+
+    /// The split's file as configured (`{city}` not replaced): what can be checked before the
+    /// city is built (a path with the placeholder does not exist).
+    pub fn configured_file(self, cfg: &PairsConfig) -> &std::path::Path {
         match self {
             Split::Validation => &cfg.eval_file,
             Split::Test => &cfg.test_file,

@@ -423,14 +423,17 @@ pub struct PairsConfig {
     /// was chosen on (`dupac eval --split validation`, the default).
     pub eval_seed: u64,
     /// Where `dupac pairs` writes the validation split (JSON Lines; read when present).
+    /// `{city}` in the path stands for the city's fingerprint (16 hex digits): with the default,
+    /// each city (Midtown, a procedural one, an import) has its own pairs, as it has its own
+    /// caches, and switching the scenario needs no path.
     pub eval_file: PathBuf,
     /// Seed of the test split: the same bins and count as the validation split, drawn from its
     /// own random streams (never a validation or training pair); for the final report only
     /// (`dupac eval --split test`). Not part of the environment fingerprint. 5171 since the
     /// complete Midtown (4049, the earlier test split, was flown for a report).
     pub test_seed: u64,
-    /// Where `dupac pairs` writes the test split (JSON Lines; read when present). Not part of
-    /// the environment fingerprint.
+    /// Where `dupac pairs` writes the test split (JSON Lines; read when present; `{city}` as in
+    /// `eval_file`). Not part of the environment fingerprint.
     pub test_file: PathBuf,
 }
 
@@ -444,9 +447,9 @@ impl Default for PairsConfig {
             bin_tolerance: 0.05,
             eval_per_bin: 50,
             eval_seed: 2024,
-            eval_file: "out/pairs/eval_pairs.jsonl".into(),
+            eval_file: "out/pairs/{city}/eval_pairs.jsonl".into(),
             test_seed: 5171,
-            test_file: "out/pairs/test_pairs.jsonl".into(),
+            test_file: "out/pairs/{city}/test_pairs.jsonl".into(),
         }
     }
 }

@@ -526,7 +526,7 @@ mod tests {
         assert_ne!(v.env_fingerprint(1), c.env_fingerprint(1));
         let e = Config::load(
             None,
-            &["pairs.test_file=\"out/pairs/eval_pairs.jsonl\"".to_string()],
+            &["pairs.test_file=\"out/pairs/{city}/eval_pairs.jsonl\"".to_string()],
         )
         .unwrap_err();
         assert!(e.to_string().contains("pairs.test_file"), "{e}");
