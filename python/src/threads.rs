@@ -1,8 +1,8 @@
 //! The threads a vector environment steps its environments on: the calling thread and a pool
 //! of the others. Each call splits the environments into one contiguous block per thread; the
-//! calling thread steps the first block itself while the pool steps the others, so a step is
-//! never handed to another thread and back (on this 2-core VM that handoff, rayon's `install`,
-//! cost about a third of a 64-environment step). Written over rayon's `in_place_scope`.
+//! calling thread steps the first block itself while the pool steps the others, so the caller
+//! never sits idle waiting for a pool to wake up, and one thread means no pool at all. Written
+//! over rayon's `in_place_scope`.
 
 use crate::runtime_error;
 use pyo3::PyErr;
