@@ -12,6 +12,7 @@ use dupac_common::config::Config;
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_radio::cache::RsrpCache;
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
@@ -41,7 +42,7 @@ fn benches(c: &mut Criterion) {
         if let Ok(path) = planner.shortest(s, d) {
             episodes.push(Episode {
                 guide: PathGuide::new(&path.waypoints_m).map(Arc::new),
-                ..Episode::new(s, d, path.length_m)
+                ..Episode::new(s, d, path.length_m, FieldSplit::Train)
             });
         }
     }

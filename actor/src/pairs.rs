@@ -32,6 +32,7 @@ use crate::env::{Episode, PathGuide};
 use crate::planner::{PlanError, Planner, dist};
 use dupac_common::config::{EnvConfig, PairsConfig};
 use dupac_common::geometry::Point;
+use dupac_radio::channel::FieldSplit;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -92,9 +93,10 @@ pub struct Pair {
 }
 
 impl Pair {
-    /// The episode of this pair, flown from source to destination or, `reversed`, back; with
-    /// the planned path as its guide when the pair has one.
-    pub fn episode(&self, reversed: bool) -> Episode {
+    /// The episode of this pair, flown from source to destination or, `reversed`, back, in
+    /// `field`'s shadow-fading realisations (the split the pair belongs to: [`Episode::field`]);
+    /// with the planned path as its guide when the pair has one.
+    pub fn episode(&self, reversed: bool, field: FieldSplit) -> Episode {
         let (source_m, destination_m) = if reversed {
             (self.destination_m, self.source_m)
         } else {
@@ -103,6 +105,7 @@ impl Pair {
         Episode {
             source_m,
             destination_m,
+            field,
             shortest_m: self.shortest_m,
             guide: self.path.as_ref().map(|g| {
                 if reversed {

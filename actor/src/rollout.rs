@@ -136,7 +136,11 @@ impl Worker {
     fn new_episode(&mut self) -> Result<(), RolloutError> {
         let k = self.rng.random_range(0..self.pool.len());
         let p = &self.pool[k];
-        let episode = p.episode(!self.rng.random::<bool>());
+        // The training pool flies in training's realisations.
+        let episode = p.episode(
+            !self.rng.random::<bool>(),
+            dupac_radio::channel::FieldSplit::Train,
+        );
         let reset_seed = self.rng.random::<u64>();
         self.pair_id = p.id;
         self.shortest_m = p.shortest_m;

@@ -52,7 +52,7 @@ fn scripted_pilot_reaches_the_goal_on_every_evaluation_pair() {
                 Ok(path) => path,
                 Err(e) => return Some(format!("pair {}: {e}", p.id)),
             };
-            let ep = p.episode(false);
+            let ep = p.episode(false, dupac_radio::channel::FieldSplit::Eval);
             match fly_waypoints(&mut env, p.id, ep.clone(), &path.waypoints_m, |e| {
                 e.serving()
             }) {

@@ -53,13 +53,8 @@ struct Core {
 
 impl Core {
     fn new(shared: Arc<Shared>, split: Split, seed: u64) -> PyResult<Core> {
-        let mut env = RustEnv::new(&shared.cfg, shared.world.clone(), shared.rsrp.clone())
+        let env = RustEnv::new(&shared.cfg, shared.world.clone(), shared.rsrp.clone())
             .map_err(env_error)?;
-        // The held-out pairs fly in the validation's shadow-fading realisations, as `dupac fly`
-        // and `dupac eval` fly them.
-        if split == Split::Eval {
-            env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
-        }
         let pairs = shared.pairs(split)?;
         if pairs.is_empty() {
             return Err(runtime_error("the scenario has no pairs to fly"));
@@ -115,7 +110,10 @@ impl Core {
             Split::Eval => p.id,
         };
         self.env
-            .reset(reset_seed, p.episode(reversed.unwrap_or(drawn_reversed)))
+            .reset(
+                reset_seed,
+                p.episode(reversed.unwrap_or(drawn_reversed), self.split.field()),
+            )
             .map_err(env_error)?;
         Ok(())
     }

@@ -169,7 +169,7 @@ pub fn fly_path<'py>(
         let p = pairs.get(pair).ok_or_else(|| {
             value_error(format!("pair {pair}: the split has {} pairs", pairs.len()))
         })?;
-        fly_path_with_a3(&sh.cfg, &sh.world, &sh.rsrp, &w, p).map_err(runtime_error)
+        fly_path_with_a3(&sh.cfg, &sh.world, &sh.rsrp, &w, p, split.field()).map_err(runtime_error)
     })?;
     Ok((
         summary_dict(py, &summary)?,

@@ -153,7 +153,6 @@ pub fn fly<'py>(
         })?;
         let mut env = RustEnv::new(&sh.cfg, sh.world.clone(), sh.rsrp.clone())
             .map_err(value_error)?;
-        env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
         if env.layout().len() != w.obs_dim {
             return Err(value_error(format!(
                 "{}: the policy expects {} observations, the scenario gives {}: build it with Scenario(policy=…)",
@@ -162,7 +161,8 @@ pub fn fly<'py>(
                 env.layout().len()
             )));
         }
-        fly_policy(&mut env, w, p.id, p.episode(false), p.id).map_err(runtime_error)
+        fly_policy(&mut env, w, p.id, p.episode(false, split.field()), p.id)
+            .map_err(runtime_error)
     })?;
     Ok((
         summary_dict(py, &summary)?,

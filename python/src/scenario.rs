@@ -41,6 +41,15 @@ impl Split {
             ))),
         }
     }
+
+    /// The shadow-fading realisations the split's episodes fly in: training's for the pool,
+    /// the validation's for the held-out pairs (as `dupac fly` and `dupac eval` fly them).
+    pub(crate) fn field(self) -> dupac_radio::channel::FieldSplit {
+        match self {
+            Split::Train => dupac_radio::channel::FieldSplit::Train,
+            Split::Eval => dupac_radio::channel::FieldSplit::Eval,
+        }
+    }
 }
 
 /// The resolved configuration, the radio world and its RSRP source, and the pairs (planned on

@@ -60,10 +60,11 @@ def test_dupac_fly_matches_the_binary(trained, small_set, dupac_bin, tmp_path, a
         assert f"{steps['reward'][i]:.5f}" == r["reward"]
 
 
-def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, small_set):
+def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, small_set, dupac_bin, tmp_path):
     """Under the real channel a held-out pair flies in its validation realisation with its own
-    measurement errors, in the Gymnasium env as in `dupac.fly` (and `dupac fly`, `dupac eval`):
-    a training field would give other RSRP and another flight."""
+    measurement errors, in the Gymnasium env as in `dupac.fly` and the `dupac fly` binary (each
+    entry point builds the episode with its field: a training field would give other RSRP,
+    other rewards and another flight)."""
     path = trained["a3"]
     real = small_set + ["radio.channel.model=real"]
     sc = dupac.Scenario(set=real, policy=str(path))
@@ -74,3 +75,11 @@ def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, smal
         assert summary["length"] == len(py["step"])
         for k in rust:
             assert np.array_equal(py[k], rust[k]), (pair, k)
+        out = tmp_path / f"fly{pair}"
+        run_dupac(dupac_bin, real, "fly", "--policy", str(path), "--pair", str(pair), "--out", str(out))
+        with open(out / "steps.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert len(rows) == len(rust["step"])
+        for i, r in enumerate(rows):
+            assert f"{rust['reward'][i]:.5f}" == r["reward"], (pair, i)
+            assert int(r["serving"]) == rust["serving"][i]

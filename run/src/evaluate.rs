@@ -25,8 +25,8 @@ pub fn evaluate(
         .par_iter()
         .map(|p| {
             let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-            env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
-            let ep = p.episode(false);
+            // Held-out pairs fly in the validation's realisations.
+            let ep = p.episode(false, dupac_radio::channel::FieldSplit::Eval);
             Ok(fly_policy(&mut env, policy, p.id, ep, p.id)?.0)
         })
         .collect()

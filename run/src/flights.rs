@@ -16,6 +16,7 @@ use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
 use dupac_common::msg::{EpisodeSummary, Outcome};
 use dupac_radio::cache::RsrpSource;
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::class::RsrpClass;
 use dupac_radio::world::RadioWorld;
 use std::fmt::Write as _;
@@ -218,32 +219,35 @@ pub fn episodes_md(title: &str, rows: &[(&str, &EpisodeSummary)]) -> String {
 }
 
 /// Pair `p`'s shortest flyable path flown by the scripted pilot with A3 choosing the site (the
-/// reference `dupac fly` draws beside a policy's flight), with its episode summary.
+/// reference `dupac fly` draws beside a policy's flight), in `field`'s realisations, with its
+/// episode summary.
 pub fn shortest_with_a3(
     cfg: &Config,
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     planner: &Planner,
     p: &Pair,
+    field: FieldSplit,
 ) -> Result<(Flight, EpisodeSummary), RunError> {
     let shortest = planner.shortest(p.source_m, p.destination_m)?;
-    fly_path_with_a3(cfg, world, rsrp, &shortest.waypoints_m, p)
+    fly_path_with_a3(cfg, world, rsrp, &shortest.waypoints_m, p, field)
 }
 
 /// `waypoints_m` (m) flown from pair `p`'s source by the scripted pilot with A3 choosing the
-/// site (as `dupac eval` flies the planners' paths), with its episode summary.
+/// site (as `dupac eval` flies the planners' paths), in `field`'s realisations, with its
+/// episode summary.
 pub fn fly_path_with_a3(
     cfg: &Config,
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     waypoints_m: &[Point],
     p: &Pair,
+    field: FieldSplit,
 ) -> Result<(Flight, EpisodeSummary), RunError> {
     let mut a3_cfg = cfg.clone();
     a3_cfg.env.association = Association::A3;
     let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
-    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
-    let episode = p.episode(false);
+    let episode = p.episode(false, field);
     let flight = fly_waypoints(&mut env, p.id, episode, waypoints_m, |e| e.serving())?;
     let mut acc = EpisodeAccumulator::new(&a3_cfg.env);
     flight.steps.iter().for_each(|s| acc.push(s));

@@ -241,20 +241,25 @@ pub fn guide_sets_cached(
     Ok(loaded)
 }
 
-/// The episode of `p` as `cfg`'s environment flies it: with the guide path of `cfg`'s λ and
-/// clearance, planned now when `p` has another (a policy is flown with the observation it
-/// recorded, which may ask for another guide than the pairs were given).
-pub fn episode(cfg: &Config, planners: &Planners, p: &Pair) -> Result<Episode, RunError> {
+/// The episode of `p` as `cfg`'s environment flies it, in `field`'s realisations: with the
+/// guide path of `cfg`'s λ and clearance, planned now when `p` has another (a policy is flown
+/// with the observation it recorded, which may ask for another guide than the pairs were given).
+pub fn episode(
+    cfg: &Config,
+    planners: &Planners,
+    p: &Pair,
+    field: FieldSplit,
+) -> Result<Episode, RunError> {
     let lambda = cfg.env.observation.path_guide_lambda;
     let has =
         p.path.is_some() && p.path_lambda == lambda && p.path_clearance_m == guide_clearance_m(cfg);
     if !cfg.env.needs_path() || has {
-        return Ok(p.episode(false));
+        return Ok(p.episode(false, field));
     }
     let mut q = p.clone();
     plan_path(planners.guide(cfg)?, &planners.pairs, &mut q, lambda)
         .map_err(|e| RunError::Refused(format!("pair {}: planning its guide path: {e}", p.id)))?;
-    Ok(q.episode(false))
+    Ok(q.episode(false, field))
 }
 
 /// The held-out evaluation pairs (the validation split): `pairs.eval_file` when it exists, else

@@ -125,11 +125,9 @@ pub fn tune_a3(
                 .iter()
                 .map(|c| {
                     let mut env = Env::new(c, world.clone(), rsrp.clone())?;
-                    env.set_field_split(FieldSplit::Eval);
+                    let episode = p.episode(false, FieldSplit::Eval);
                     let flight =
-                        fly_waypoints(&mut env, p.id, p.episode(false), path.points_m(), |e| {
-                            e.serving()
-                        })?;
+                        fly_waypoints(&mut env, p.id, episode, path.points_m(), |e| e.serving())?;
                     let r = flight_record(
                         &world,
                         &rsrp,

@@ -13,6 +13,7 @@ use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use dupac_learner::learner::Learner;
 use dupac_radio::cache::RsrpSource;
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
 use dupac_run::evaluate::evaluate;
 use dupac_run::local::LocalWorkers;
@@ -60,7 +61,8 @@ fn random_policy_success(
     let mut ok = 0;
     for p in pairs {
         let mut env = Env::new(cfg, world.clone(), rsrp.clone()).expect("env");
-        env.reset(p.id, p.episode(false)).expect("reset");
+        env.reset(p.id, p.episode(false, FieldSplit::Eval))
+            .expect("reset");
         loop {
             let a = Action {
                 move_: Vector::new(
@@ -156,7 +158,7 @@ fn learns(association: Association, site_every_step: bool) {
             let (mut sum, mut n) = (0.0, 0usize);
             for p in &held_out {
                 let mut env = Env::new(&c, world.clone(), rsrp.clone()).expect("env");
-                let ep = p.episode(false);
+                let ep = p.episode(false, FieldSplit::Eval);
                 let (_, steps) = fly_policy(&mut env, &policy, p.id, ep, p.id).expect("fly");
                 for s in &steps {
                     sum += s.site_regret_db();

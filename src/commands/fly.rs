@@ -132,9 +132,10 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let mut chosen = [pairs.swap_remove(args.pair)];
     dupac_run::scenario::guide_pairs(&cfg, &planners, &mut chosen)?;
     let p = &chosen[0];
-    let episode = p.episode(false);
+    // Held-out pairs and the user's own fly in the validation's realisations (docs/env.md).
+    let field = dupac_radio::channel::FieldSplit::Eval;
+    let episode = p.episode(false, field);
     let mut env = Env::new(&cfg, world.clone(), rsrp.clone())?;
-    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     if env.layout().len() != policy.obs_dim {
         bail!(
             "{}: the policy expects {} observations, this configuration gives {}",
@@ -153,7 +154,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
 
     // The shortest flyable path flown with A3, for comparison.
-    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planners.pairs, p)?;
+    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planners.pairs, p, field)?;
 
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
     let r0 = env_rsrp_at(rsrp.as_ref(), &world, p.source_m);

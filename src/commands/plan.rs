@@ -115,9 +115,11 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
     planner.with_coverage(cache.as_ref(), thresholds);
     let straight = dist(source, destination);
+    // Planned endpoints fly in the validation's realisations, as `dupac fly` flies a pair.
     let episode = Episode {
         source_m: source,
         destination_m: destination,
+        field: dupac_radio::channel::FieldSplit::Eval,
         shortest_m: shortest.length_m,
         guide: PathGuide::new(&shortest.waypoints_m).map(Arc::new),
     };
@@ -135,7 +137,6 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     }
 
     let mut env = Env::new(&cfg, world.clone(), cache.clone())?;
-    env.set_field_split(dupac_radio::channel::FieldSplit::Eval);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut traces = Vec::new();

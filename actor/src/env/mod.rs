@@ -87,11 +87,17 @@ pub struct Action {
     pub site: SiteId,
 }
 
-/// An episode's endpoints and its shortest flyable path length (for the time limit).
+/// An episode: its endpoints, its shortest flyable path length (for the time limit), the
+/// shadow-fading realisations it flies in, and its guide path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Episode {
     pub source_m: Point,
     pub destination_m: Point,
+    /// Which shadow-fading realisations (and measurement-error streams) the episode draws from
+    /// (docs/env.md "Channel"): training's for a training pool's pair, the validation's for a
+    /// validation pair or a pair of the user's file, the test's for a test pair. Part of the
+    /// episode, so that no caller can fly a held-out pair in a training field by forgetting it.
+    pub field: FieldSplit,
     /// Shortest flyable path length D (m): T = ceil(time_limit_factor · D / max_step_m).
     pub shortest_m: f64,
     /// The planned path from source to destination (the shortest, or the coverage-aware one
@@ -103,11 +109,17 @@ pub struct Episode {
 }
 
 impl Episode {
-    /// An episode without a planned path.
-    pub fn new(source_m: Point, destination_m: Point, shortest_m: f64) -> Episode {
+    /// An episode without a planned path, in `field`'s realisations.
+    pub fn new(
+        source_m: Point,
+        destination_m: Point,
+        shortest_m: f64,
+        field: FieldSplit,
+    ) -> Episode {
         Episode {
             source_m,
             destination_m,
+            field,
             shortest_m,
             guide: None,
         }
@@ -160,7 +172,7 @@ pub struct Env {
     measured_dbm: Vec<f64>,
     /// The episode's shadow-fading realisation (`radio.channel.model = "real"`).
     field: Option<Arc<ShadowField>>,
-    /// Which realisations episodes draw from.
+    /// Which realisations the current episode draws from ([`Episode::field`]).
     field_split: FieldSplit,
     /// The measurement error and layer-3 filter (`radio.channel`, operator knowledge).
     measurer: Option<Measurer>,
@@ -326,13 +338,6 @@ impl Env {
         &self.measured_dbm
     }
 
-    /// Draws the shadow-fading realisations of later episodes from `split` (training's by
-    /// default; evaluation flies pair `id`, its reset seed, in evaluation field `id mod
-    /// radio.channel.eval_fields`).
-    pub fn set_field_split(&mut self, split: FieldSplit) {
-        self.field_split = split;
-    }
-
     /// The current episode's shadow-fading realisation (none in the deterministic world).
     pub fn field(&self) -> Option<&Arc<ShadowField>> {
         self.field.as_ref()
@@ -421,6 +426,7 @@ impl Env {
             let fix = g.fix(self.position_m, 0.0, self.guide_window_m());
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
+        self.field_split = episode.field;
         self.episode = Some(episode);
         self.handovers.reset();
         self.substeps.clear();

@@ -9,7 +9,8 @@ use dupac_radio::channel::FieldSplit;
 
 const FLAT: fn(usize, Point) -> f64 = |s, _| if s == 0 { -75.0 } else { -78.0 };
 
-fn real_env(assoc: Association, split: FieldSplit) -> Env {
+/// An environment of the real channel and the field split its episodes fly in.
+fn real_env(assoc: Association, split: FieldSplit) -> (Env, FieldSplit) {
     let mut cfg = unguided();
     cfg.env.association = assoc;
     cfg.radio.channel.model = ChannelModel::Real;
@@ -20,18 +21,16 @@ fn real_env(assoc: Association, split: FieldSplit) -> Env {
         w.sites.clone(),
         &cfg.radio,
     ));
-    let mut e = Env::new(&cfg, w, Arc::new(Field(FLAT, 2))).expect("env");
-    e.set_field_split(split);
-    e
+    let e = Env::new(&cfg, w, Arc::new(Field(FLAT, 2))).expect("env");
+    (e, split)
 }
 
-/// Flies 40 steps north from (0, −60, 50) and returns every step's info.
-fn fly(e: &mut Env, seed: u64) -> Vec<dupac_actor::record::StepInfo> {
-    e.reset(
-        seed,
-        ep(Point::new(0.0, -60.0, 50.0), Point::new(0.0, 60.0, 50.0)),
-    )
-    .expect("reset");
+/// Flies 40 steps north from (0, −60, 50) in `split`'s realisations and returns every step's
+/// info.
+fn fly_in(e: &mut Env, split: FieldSplit, seed: u64) -> Vec<dupac_actor::record::StepInfo> {
+    let mut episode = ep(Point::new(0.0, -60.0, 50.0), Point::new(0.0, 60.0, 50.0));
+    episode.field = split;
+    e.reset(seed, episode).expect("reset");
     (0..40)
         .map(|_| e.step(&mv(0.0, 1.0, 0.0, 0)).expect("step").info)
         .collect()
@@ -39,8 +38,8 @@ fn fly(e: &mut Env, seed: u64) -> Vec<dupac_actor::record::StepInfo> {
 
 #[test]
 fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
-    let mut e = real_env(Association::A3, FieldSplit::Train);
-    let steps = fly(&mut e, 9);
+    let (mut e, split) = real_env(Association::A3, FieldSplit::Train);
+    let steps = fly_in(&mut e, split, 9);
     let field = e.field().expect("a real channel draws a field").clone();
     let w = e.world();
     let mut measured_differs = 0;
@@ -66,10 +65,10 @@ fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
     }
     assert!(measured_differs > 30, "measured ≠ true on most steps");
     // The same seed flies the same field and the same errors; evaluation draws other fields.
-    let mut again = real_env(Association::A3, FieldSplit::Train);
-    assert_eq!(fly(&mut again, 9), steps);
-    let mut eval = real_env(Association::A3, FieldSplit::Eval);
-    assert_ne!(fly(&mut eval, 9), steps);
+    let (mut again, split) = real_env(Association::A3, FieldSplit::Train);
+    assert_eq!(fly_in(&mut again, split, 9), steps);
+    let (mut eval, split) = real_env(Association::A3, FieldSplit::Eval);
+    assert_ne!(fly_in(&mut eval, split, 9), steps);
     // The observation carries the measured RSRP, not the true one.
     let o = e.observation();
     let r = e.layout().range(field::RSRP_ALL);
@@ -85,8 +84,8 @@ fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
 
 #[test]
 fn metrics_score_the_true_rsrp_and_records_keep_both() {
-    let mut e = real_env(Association::A3, FieldSplit::Eval);
-    let steps = fly(&mut e, 3);
+    let (mut e, split) = real_env(Association::A3, FieldSplit::Eval);
+    let steps = fly_in(&mut e, split, 3);
     let records: Vec<StepRecord> = steps
         .iter()
         .map(|s| StepRecord::from_info(s, 0.0))
@@ -142,7 +141,7 @@ fn metrics_score_the_true_rsrp_and_records_keep_both() {
 #[test]
 fn the_deterministic_world_measures_exactly() {
     let mut e = env_with(Association::A3, FLAT);
-    let steps = fly(&mut e, 9);
+    let steps = fly_in(&mut e, FieldSplit::Train, 9);
     assert!(e.field().is_none());
     for s in &steps {
         assert_eq!(s.serving_rsrp_dbm, FLAT(s.serving.index(), s.position_m));

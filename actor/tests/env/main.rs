@@ -105,7 +105,7 @@ fn env_with(assoc: Association, f: fn(usize, Point) -> f64) -> Env {
 fn ep(src: Point, dst: Point) -> Episode {
     let d =
         ((src[0] - dst[0]).powi(2) + (src[1] - dst[1]).powi(2) + (src[2] - dst[2]).powi(2)).sqrt();
-    Episode::new(src, dst, d)
+    Episode::new(src, dst, d, dupac_radio::channel::FieldSplit::Train)
 }
 
 fn mv(x: f64, y: f64, z: f64, s: u16) -> Action {

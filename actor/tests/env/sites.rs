@@ -369,19 +369,22 @@ fn the_handover_weight_scales_the_costs_and_is_observed() {
         cfg.env.reward.handover_weight = weight;
         cfg.env.reward.handover_weight_max = max;
         cfg.validate().expect("valid");
-        let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
-        e.set_field_split(split);
+        let e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+        (e, split)
+    };
+    let in_field = |split: FieldSplit| {
+        let mut e = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0));
+        e.field = split;
         e
     };
-    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0));
     let observed = |e: &Env| {
         let r = e.layout().range(field::HANDOVER_WEIGHT).expect("field");
         e.observation()[r.start]
     };
     // A handover to site 1 (mediocre, −95): Eq. (8) 10 − 0.95, plus w · (−2).
     for w in [0.0, 1.0, 3.0] {
-        let mut e = make(w, 0.0, FieldSplit::Eval);
-        e.reset(1, episode.clone()).expect("reset");
+        let (mut e, split) = make(w, 0.0, FieldSplit::Eval);
+        e.reset(1, in_field(split)).expect("reset");
         assert_eq!(e.handover_weight(), w);
         assert!((observed(&e) - (w as f32).ln_1p()).abs() < 1e-6);
         let r = e.step(&mv(0.0, 1.0, 0.0, 1)).expect("step").reward;
@@ -389,7 +392,8 @@ fn the_handover_weight_scales_the_costs_and_is_observed() {
     }
     // Training draws it per episode, uniformly in [0, 6], the same for one seed; evaluation
     // keeps the configured weight whatever the maximum.
-    let mut e = make(1.0, 6.0, FieldSplit::Train);
+    let (mut e, split) = make(1.0, 6.0, FieldSplit::Train);
+    let episode = in_field(split);
     let draws: Vec<f64> = (0..400u64)
         .map(|seed| {
             e.reset(seed, episode.clone()).expect("reset");
@@ -405,9 +409,9 @@ fn the_handover_weight_scales_the_costs_and_is_observed() {
     let again = e.handover_weight();
     e.reset(7, episode.clone()).expect("reset");
     assert_eq!(e.handover_weight(), again);
-    let mut e = make(1.0, 6.0, FieldSplit::Eval);
+    let (mut e, split) = make(1.0, 6.0, FieldSplit::Eval);
     for seed in 0..20 {
-        e.reset(seed, episode.clone()).expect("reset");
+        e.reset(seed, in_field(split)).expect("reset");
         assert_eq!(e.handover_weight(), 1.0);
     }
     // A draw needs the observation.

@@ -367,8 +367,7 @@ fn fly_one(
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    env.set_field_split(fs);
-    let episode = crate::scenario::episode(cfg, planners, p)?;
+    let episode = crate::scenario::episode(cfg, planners, p, fs)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
