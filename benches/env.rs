@@ -49,7 +49,7 @@ fn benches(c: &mut Criterion) {
     drop(planner);
 
     for (name, radio) in [("cache", true), ("exact", false)] {
-        let rsrp: Arc<dyn dupac_radio::cache::RsrpSource + Send + Sync> =
+        let rsrp: Arc<dyn dupac_radio::source::RsrpSource + Send + Sync> =
             if radio { cache.clone() } else { world.clone() };
         let mut env = Env::new(&cfg, world.clone(), rsrp).expect("env");
         let mut k = 0usize;

@@ -7,7 +7,8 @@ use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_mai
 use dupac_common::config::Config;
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
-use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
+use dupac_radio::cache::{GridSpec, RsrpCache};
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;

@@ -9,7 +9,7 @@ use dupac_actor::planner::Planner;
 use dupac_common::config::{Association, Config, RadioMode};
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
-use dupac_radio::cache::RsrpSource;
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
 use std::sync::Arc;

@@ -27,7 +27,7 @@ use dupac_common::msg::{
 use dupac_common::policy::PolicyWeights;
 use dupac_common::seed::stream_seed;
 use dupac_common::validate::{ChunkExpect, SiteSteps};
-use dupac_radio::cache::RsrpSource;
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use rayon::prelude::*;
 use std::sync::Arc;

@@ -1,7 +1,7 @@
 //! The per-site RSRP cache: a precomputed 3D grid of every site's RSRP over the flight area and
 //! altitude band, saved once, memory-mapped by every process, and queried by trilinear
 //! interpolation. [`RadioWorld`] is the exact mode (a ray cast per query) it is
-//! validated against; both implement [`RsrpSource`].
+//! validated against; both implement [`crate::source::RsrpSource`].
 //!
 //! File format (little-endian):
 //! ```text
@@ -21,6 +21,7 @@
 //! renamed, so a reader never sees a half-written cache).
 
 use crate::error::RadioError;
+use crate::source::RsrpSource;
 use crate::world::RadioWorld;
 use dupac_common::config::CacheConfig;
 use dupac_common::geometry::{Bounds2, Point};
@@ -36,37 +37,6 @@ pub const CACHE_MAGIC: &[u8; 8] = b"DUPACRC\x01";
 pub const CACHE_FORMAT_VERSION: u32 = 2;
 /// Alignment of the data block (bytes).
 const DATA_ALIGN: usize = 64;
-
-/// Anything that can tell the RSRP of every site at a point: exact ray casting or the cache.
-pub trait RsrpSource: Sync {
-    /// M, the number of sites.
-    fn num_sites(&self) -> usize;
-    /// RSRP (dBm) of every site at `p_m`, into `out[0..M]`.
-    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]);
-    /// Line of sight of every site at `p_m` as this source knows it, into `out[0..M]`: 1 (LoS)
-    /// or 0 (NLoS) where it is decided at `p_m`, a value between where the source interpolates
-    /// (the cache: between grid points, as its RSRP). Returns false, leaving `out` alone, when
-    /// the source does not know it (the caller casts the rays).
-    fn los_all(&self, _p_m: Point, _out: &mut [f64]) -> bool {
-        false
-    }
-}
-
-impl RsrpSource for RadioWorld {
-    fn num_sites(&self) -> usize {
-        RadioWorld::num_sites(self)
-    }
-    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
-        RadioWorld::rsrp_all_dbm(self, p_m, out)
-    }
-    /// A ray per site (exact).
-    fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {
-        for (i, o) in out.iter_mut().enumerate().take(self.sites.len()) {
-            *o = f64::from(u8::from(self.los(SiteId(i as u16), p_m)));
-        }
-        true
-    }
-}
 
 /// Largest RSRP cache built (bytes): 16 GiB, 4 × Manhattan at 2 m.
 pub const MAX_CACHE_BYTES: usize = 16 << 30;

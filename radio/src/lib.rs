@@ -23,4 +23,5 @@ pub mod link_calc;
 pub mod pathloss;
 pub mod shadow;
 pub mod sites;
+pub mod source;
 pub mod world;

@@ -15,7 +15,6 @@
 //! Z = √ρ·Z_shared + √(1 − ρ)·Z_own. The field does not vary with height: neither TR gives a
 //! vertical decorrelation distance for aerial UEs; σ does (Table B-3).
 
-use crate::cache::RsrpSource;
 use crate::pathloss::Scenario;
 use dupac_common::geometry::{Bounds2, Point};
 use rand::SeedableRng;
@@ -349,36 +348,5 @@ impl ShadowField {
         for (r, s) in rsrp_dbm.iter_mut().zip(scratch_db.iter()) {
             *r -= s;
         }
-    }
-}
-
-/// An RSRP source with a shadow-fading realisation on top: the true RSRP of an episode's field,
-/// for the metrics (SINR, hindsight) and for planners that know the true field
-/// (`radio.channel.knowledge = "true_field"`).
-pub struct ShadowedSource {
-    pub base: Arc<dyn RsrpSource + Send + Sync>,
-    pub field: Arc<ShadowField>,
-    /// Casts a ray per site where the base source does not know the line of sight.
-    pub world: Arc<crate::world::RadioWorld>,
-}
-
-impl RsrpSource for ShadowedSource {
-    fn num_sites(&self) -> usize {
-        self.base.num_sites()
-    }
-
-    fn rsrp_all_dbm(&self, p_m: Point, out: &mut [f64]) {
-        let m = self.base.num_sites();
-        self.base.rsrp_all_dbm(p_m, out);
-        let mut los = vec![0.0; m];
-        if !self.base.los_all(p_m, &mut los) {
-            RsrpSource::los_all(self.world.as_ref(), p_m, &mut los);
-        }
-        let mut sf = vec![0.0; m];
-        self.field.apply(p_m, &los, out, &mut sf);
-    }
-
-    fn los_all(&self, p_m: Point, out: &mut [f64]) -> bool {
-        self.base.los_all(p_m, out)
     }
 }

@@ -4,11 +4,12 @@
 use dupac_common::config::{CityKind, Config};
 use dupac_common::geometry::{Bounds2, Point};
 use dupac_common::ids::SiteId;
-use dupac_radio::cache::{GridSpec, Opened, RsrpCache, RsrpSource};
+use dupac_radio::cache::{GridSpec, Opened, RsrpCache};
 use dupac_radio::city::{Building, City};
 use dupac_radio::class::RsrpClass;
 use dupac_radio::coverage::{Server, compute_slice, summarise};
 use dupac_radio::sites::{Mount, Site, SiteKind, place_sites};
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 
 fn block(id: &str, x0: f64, y0: f64, x1: f64, y1: f64, h: f64) -> Building {

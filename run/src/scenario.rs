@@ -11,10 +11,11 @@ use dupac_actor::pairs::{
 };
 use dupac_actor::planner::Planner;
 use dupac_common::config::{Config, RadioMode};
-use dupac_radio::cache::{GridSpec, RsrpCache, RsrpSource};
+use dupac_radio::cache::{GridSpec, RsrpCache};
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::class::RsrpThresholds;
-use dupac_radio::shadow::ShadowedSource;
+use dupac_radio::source::RsrpSource;
+use dupac_radio::source::ShadowedSource;
 use dupac_radio::world::RadioWorld;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -53,7 +54,7 @@ pub fn true_source(
         Some(c) => Arc::new(ShadowedSource {
             base: rsrp.clone(),
             field: c.episode_field(split, seed),
-            world: world.clone(),
+            los: world.clone(),
         }),
         None => rsrp.clone(),
     }

@@ -4,7 +4,7 @@
 use dupac_actor::pairs::{Pair, training_pool};
 use dupac_actor::planner::Planner;
 use dupac_common::config::{CityKind, Config, RadioMode};
-use dupac_radio::cache::RsrpSource;
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use dupac_run::guide_cache::GuideCache;
 use dupac_run::scenario::guide_pairs_cached;

@@ -7,8 +7,8 @@ use dupac_common::config::Association;
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_radio::a3::{A3Params, A3State};
-use dupac_radio::cache::RsrpSource;
 use dupac_radio::class::RsrpClass;
+use dupac_radio::source::RsrpSource;
 
 /// Association state of one episode.
 #[derive(Debug, Clone)]

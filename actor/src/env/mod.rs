@@ -33,10 +33,10 @@ use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::ids::SiteId;
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS};
 use dupac_radio::a3::A3Params;
-use dupac_radio::cache::RsrpSource;
 use dupac_radio::channel::{FieldSplit, Measurer};
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::shadow::ShadowField;
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 

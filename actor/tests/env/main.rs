@@ -6,10 +6,10 @@ use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use dupac_common::obs::field;
-use dupac_radio::cache::RsrpSource;
 use dupac_radio::city::{Building, City};
 use dupac_radio::class::RsrpClass;
 use dupac_radio::sites::{Mount, Site, SiteKind};
+use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
