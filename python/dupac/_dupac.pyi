@@ -69,6 +69,17 @@ class Env:
     def last_steps(self) -> dict[str, npt.NDArray[Any]]: ...
     def observation(self) -> npt.NDArray[np.float32]: ...
 
+#: What a vector step returns: observations, rewards, terminated, truncated, the final
+#: observations and the final infos (a dict of arrays).
+VecStep = tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.bool_],
+    npt.NDArray[np.bool_],
+    npt.NDArray[np.float32],
+    dict[str, npt.NDArray[Any]],
+]
+
 class VecEnv:
     """N environments stepped together in Rust on a pool of threads, the GIL released."""
 
@@ -93,27 +104,9 @@ class VecEnv:
         reversed: Sequence[int] | None = None,
         mask: Sequence[bool] | None = None,
     ) -> npt.NDArray[np.float32]: ...
-    def step(
-        self, moves: npt.ArrayLike, sites: npt.ArrayLike
-    ) -> tuple[
-        npt.NDArray[np.float32],
-        npt.NDArray[np.float64],
-        npt.NDArray[np.bool_],
-        npt.NDArray[np.bool_],
-        npt.NDArray[np.float32],
-        dict[str, npt.NDArray[Any]],
-    ]: ...
+    def step(self, moves: npt.ArrayLike, sites: npt.ArrayLike) -> VecStep: ...
     def send(self, moves: npt.ArrayLike, sites: npt.ArrayLike) -> None: ...
-    def recv(
-        self,
-    ) -> tuple[
-        npt.NDArray[np.float32],
-        npt.NDArray[np.float64],
-        npt.NDArray[np.bool_],
-        npt.NDArray[np.bool_],
-        npt.NDArray[np.float32],
-        dict[str, npt.NDArray[Any]],
-    ]: ...
+    def recv(self) -> VecStep: ...
 
 class Policy:
     """A trained policy (``policy.bin``), acted deterministically."""
