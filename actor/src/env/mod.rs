@@ -411,6 +411,8 @@ impl Env {
             None => {}
         }
         self.seed = seed;
+        // First: the handover weight and the field both depend on the episode's split.
+        self.field_split = episode.field;
         self.set_handover_weight(seed);
         self.position_m = episode.source_m;
         self.velocity_per_max_step = Vector::zeros();
@@ -426,7 +428,6 @@ impl Env {
             let fix = g.fix(self.position_m, 0.0, self.guide_window_m());
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
-        self.field_split = episode.field;
         self.episode = Some(episode);
         self.handovers.reset();
         self.substeps.clear();
