@@ -1,13 +1,13 @@
 //! The run layer of DUPAC: what the commands share, above the simulation (`dupac-actor`), the
 //! learner and the network. Scenario setup ([`scenario`]: world, RSRP cache, pairs), the run
 //! directory and its metrics ([`run_dir`], [`metrics_table`]), local rollout workers as a
-//! trajectory source ([`local`]), the held-out evaluation ([`evaluate`]) and the one training
+//! trajectory source ([`local`]), evaluation ([`eval`]: during training, `dupac eval`, `dupac
+//! tune-a3`) and the one training
 //! loop ([`train_loop`]) that `dupac train --single-process` and `dupac learner` both run.
 
 pub mod a3_setting;
 pub mod error;
 pub mod eval;
-pub mod evaluate;
 pub mod export;
 pub mod flights;
 pub mod guide_cache;
@@ -19,4 +19,3 @@ pub mod run_dir;
 pub mod scenario;
 pub mod tensorboard;
 pub mod train_loop;
-pub mod tune_a3;

@@ -18,7 +18,7 @@ use dupac_run::eval::front::read_fronts;
 use dupac_run::eval::records::{read_records, read_split};
 use dupac_run::eval::report::write_tables;
 use dupac_run::eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
-use dupac_run::tune_a3::read_tuned;
+use dupac_run::eval::tune_a3::read_tuned;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

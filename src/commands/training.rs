@@ -12,7 +12,7 @@ use dupac_common::config::Config;
 use dupac_learner::learner::Learner;
 use dupac_learner::source::TrajectorySource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::evaluate::evaluate;
+use dupac_run::eval::held_out::evaluate;
 use dupac_run::local::LocalWorkers;
 use dupac_run::progress::progress_bar;
 use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};

@@ -8,11 +8,13 @@
 
 pub mod fly;
 pub mod front;
+pub mod held_out;
 pub mod method_data;
 pub mod records;
 pub mod report;
 pub mod stats;
 pub mod stats_tables;
+pub mod tune_a3;
 
 use crate::a3_setting::A3Setting;
 use crate::error::{Context, RunError};
