@@ -311,7 +311,7 @@ fn replay_associations(
 }
 
 /// The positions of every flight of `method` re-flown with A3 at each setting of the `dupac
-/// tune-a3` grid ([`A3Grid`]): each setting's per-flight metrics ([`super::front`]).
+/// tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)): each setting's per-flight metrics ([`super::front`]).
 fn a3_front(
     ctx: FlyCtx,
     method: &Method,

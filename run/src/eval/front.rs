@@ -1,7 +1,7 @@
 //! A3's front on the same flights (`dupac eval --a3-front`, docs/results.md "Fronts"): a
 //! learned site choice trades excellent time for handovers, and so does A3 through its offset,
 //! hysteresis and time-to-trigger, so one operating point of each is not a comparison. Every
-//! setting of the `dupac tune-a3` grid ([`A3Grid`]) re-flies the recorded positions of a
+//! setting of the `dupac tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)) re-flies the recorded positions of a
 //! learned-site policy (its own moves, as `LABEL+a3` does with `radio.a3`) and of every planner
 //! flown with A3 (its path), giving A3's front on exactly those flights; the report then
 //! compares a policy with A3 at the policy's own handover rate ([`matched`]).
