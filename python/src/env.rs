@@ -372,6 +372,15 @@ struct Row {
     distance_to_goal_m: f64,
 }
 
+/// One field of every environment's [`Row`] as a NumPy array.
+fn column<'py, T: numpy::Element>(
+    py: Python<'py>,
+    rows: &[Row],
+    f: impl Fn(&Row) -> T,
+) -> Bound<'py, PyArray1<T>> {
+    rows.iter().map(f).collect::<Vec<T>>().into_pyarray(py)
+}
+
 /// One decision of every environment: observations after any reset `[N × obs_dim]`, the last
 /// observations of the episodes that ended (zeros elsewhere) and a row per environment.
 struct Batch {
@@ -525,49 +534,26 @@ impl VecEnv {
     /// final_info)`, `final_info` a dict of arrays (rows where an episode ended).
     fn arrays<'py>(&self, py: Python<'py>, b: Batch) -> PyResult<StepArrays<'py>> {
         let (n, d) = (self.num_envs, self.obs_dim);
-        let col = |f: fn(&Row) -> f64| b.rows.iter().map(f).collect::<Vec<f64>>();
         let info = PyDict::new(py);
-        info.set_item(
-            "outcome",
-            b.rows
-                .iter()
-                .map(|r| r.outcome)
-                .collect::<Vec<i8>>()
-                .into_pyarray(py),
-        )?;
-        info.set_item(
-            "pair_id",
-            b.rows
-                .iter()
-                .map(|r| r.pair_id)
-                .collect::<Vec<u64>>()
-                .into_pyarray(py),
-        )?;
-        info.set_item("episode_return", col(|r| r.episode_return).into_pyarray(py))?;
-        info.set_item(
-            "episode_length",
-            b.rows
-                .iter()
-                .map(|r| r.episode_length)
-                .collect::<Vec<u32>>()
-                .into_pyarray(py),
-        )?;
+        info.set_item("outcome", column(py, &b.rows, |r| r.outcome))?;
+        info.set_item("pair_id", column(py, &b.rows, |r| r.pair_id))?;
+        info.set_item("episode_return", column(py, &b.rows, |r| r.episode_return))?;
+        info.set_item("episode_length", column(py, &b.rows, |r| r.episode_length))?;
         info.set_item(
             "distance_flown_m",
-            col(|r| r.distance_flown_m).into_pyarray(py),
+            column(py, &b.rows, |r| r.distance_flown_m),
         )?;
         info.set_item(
             "distance_to_goal_m",
-            col(|r| r.distance_to_goal_m).into_pyarray(py),
+            column(py, &b.rows, |r| r.distance_to_goal_m),
         )?;
-        let flags = |f: fn(&Row) -> bool| b.rows.iter().map(f).collect::<Vec<bool>>();
         Ok((
             Array2::from_shape_vec((n, d), b.obs)
                 .map_err(value_error)?
                 .into_pyarray(py),
-            col(|r| r.reward).into_pyarray(py),
-            flags(|r| r.terminated).into_pyarray(py),
-            flags(|r| r.truncated).into_pyarray(py),
+            column(py, &b.rows, |r| r.reward),
+            column(py, &b.rows, |r| r.terminated),
+            column(py, &b.rows, |r| r.truncated),
             Array2::from_shape_vec((n, d), b.final_obs)
                 .map_err(value_error)?
                 .into_pyarray(py),
