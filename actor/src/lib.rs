@@ -2,7 +2,7 @@
 //! planners (shortest flyable path, coverage-aware path) and the episode pairs.
 
 pub mod env;
-pub mod eval;
+pub mod link;
 pub mod metrics;
 pub mod pairs;
 pub mod pilot;

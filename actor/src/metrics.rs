@@ -370,3 +370,126 @@ pub fn put_domain(row: &mut BTreeMap<String, f64>, keys: &DomainKeys, d: &Domain
     put(keys.pct_site_regret_high, d.pct_site_regret_high);
     put(keys.pct_class_regret, d.pct_class_regret);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::{FlightRecord, StepRecord};
+    use dupac_common::geometry::Point;
+    use dupac_common::msg::Outcome;
+    use dupac_radio::class::RsrpClass;
+
+    fn step(x: f32, serving: u16, rsrp: f32, class: RsrpClass, sinr: f32) -> StepRecord {
+        StepRecord {
+            position_m: [x, 0.0, 50.0],
+            serving,
+            serving_rsrp_dbm: rsrp,
+            measured_serving_rsrp_dbm: rsrp,
+            best_site: serving,
+            best_rsrp_dbm: rsrp,
+            sinr_db: sinr,
+            class,
+            best_class: class,
+            los: true,
+            handover: false,
+            ping_pong: false,
+        }
+    }
+
+    /// A hand-built flight: 4 steps of 1 m then 1 step of 2 m (L = 6 m) over D = 5 m.
+    fn flight() -> FlightRecord {
+        use RsrpClass::*;
+        FlightRecord {
+            method: "m".into(),
+            seed: 0,
+            pair_id: 1,
+            bin_m: 200.0,
+            shortest_m: 5.0,
+            straight_m: 5.0,
+            outcome: Outcome::Goal,
+            source_m: Point::new(0.0, 0.0, 50.0),
+            destination_m: Point::new(5.0, 0.0, 50.0),
+            remaining_m: 0.5,
+            start_serving: 3,
+            steps: vec![
+                step(1.0, 3, -70.0, Excellent, 10.0),
+                step(2.0, 4, -85.0, Mediocre, -7.0),
+                step(3.0, 3, -75.0, Excellent, 3.0),
+                step(4.0, 3, -105.0, Poor, -10.0),
+                step(6.0, 5, -80.0, Excellent, 0.0),
+            ],
+        }
+    }
+
+    #[test]
+    fn class_fractions_distance_overhead_and_rsrp_of_a_hand_built_flight() {
+        let mut f = flight();
+        // Step 2 served at −85 dBm (mediocre) where site 7 gave −72 (excellent): 13 dB of site
+        // regret and class regret; step 4 at −105 where −103 was best: 2 dB, under the 3 dB
+        // threshold, no class regret (the best is poor too).
+        f.steps[1].best_site = 7;
+        f.steps[1].best_rsrp_dbm = -72.0;
+        f.steps[1].best_class = RsrpClass::Excellent;
+        f.steps[3].best_rsrp_dbm = -103.0;
+        let m = flight_metrics(&f, &rules(100, 0.0));
+        assert!((m.mean_site_regret_db - 15.0 / 5.0).abs() < 1e-9);
+        assert!((m.frac_site_regret_high - 0.2).abs() < 1e-9);
+        assert!((m.frac_class_regret - 0.2).abs() < 1e-9);
+        assert!((m.distance_m - 6.0).abs() < 1e-9);
+        assert!((m.overhead - 0.3).abs() < 1e-9, "(6 + 0.5) / 5 − 1");
+        assert_eq!(m.frac_class, [0.6, 0.2, 0.2]);
+        assert!((m.mean_rsrp_dbm - (-83.0)).abs() < 1e-9);
+        assert!((m.mean_sinr_db - (-0.8)).abs() < 1e-6);
+        assert!((m.frac_sinr_below_m6db - 0.4).abs() < 1e-9);
+        // 3 → 4 → 3 (back within 1 step: ping-pong) → 5.
+        assert_eq!((m.handovers, m.ping_pongs), (3, 1));
+        assert!((m.handovers_per_km - 500.0).abs() < 1e-9);
+    }
+
+    fn rules(ping_pong_window_steps: u32, interruption_steps: f64) -> MetricRules {
+        MetricRules {
+            ping_pong_window_steps,
+            site_regret_threshold_db: 3.0,
+            interruption_steps,
+        }
+    }
+
+    #[test]
+    fn handover_interruptions_are_taken_from_the_excellent_time() {
+        // Classes E M E P E, handovers at steps 2 (3 → 4), 3 (4 → 3) and 5 (3 → 5).
+        let f = flight();
+        // No interruption: the net excellent time is the excellent time.
+        let m = flight_metrics(&f, &rules(100, 0.0));
+        assert_eq!((m.frac_interrupted, m.frac_excellent_net), (0.0, 0.6));
+        // Half a step each: steps 2, 3 and 5 lose half; of them 3 and 5 are excellent.
+        let m = flight_metrics(&f, &rules(100, 0.5));
+        assert!((m.frac_interrupted - 1.5 / 5.0).abs() < 1e-12);
+        assert!((m.frac_excellent_net - 2.0 / 5.0).abs() < 1e-12);
+        // 1.5 steps: step 2's interruption is cut short by step 3's handover, which starts a new
+        // one (all of step 3, half of step 4); step 5's is cut at the flight's end: 1 + 1 + 0.5
+        // + 1 = 3.5 steps interrupted; of the excellent steps 1, 3 and 5 only step 1 is kept.
+        let m = flight_metrics(&f, &rules(100, 1.5));
+        assert!((m.frac_interrupted - 3.5 / 5.0).abs() < 1e-12, "{m:?}");
+        assert!((m.frac_excellent_net - 1.0 / 5.0).abs() < 1e-12, "{m:?}");
+        // The start site counts: from site 4, step 1 (site 3) is a handover too.
+        let mut g = flight();
+        g.start_serving = 4;
+        let m = flight_metrics(&g, &rules(100, 0.5));
+        assert_eq!(m.handovers, 4);
+        assert!((m.frac_excellent_net - 1.5 / 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn handovers_and_ping_pongs_follow_the_window() {
+        // 0 → 1 at step 1, 1 → 0 at step 3: a ping-pong if the window is ≥ 2 steps.
+        let s = [0, 1, 1, 0, 0, 2];
+        assert_eq!(count_handovers(&s, 2), (3, 1));
+        assert_eq!(count_handovers(&s, 1), (3, 0));
+        // A → B → C → B: returning to B is not back to the site of the *last* handover (C←B
+        // left B, so C → B is a ping-pong).
+        assert_eq!(count_handovers(&[0, 1, 2, 1], 5), (3, 1));
+        assert_eq!(count_handovers(&[0, 1, 2, 0], 5), (3, 0));
+        assert_eq!(count_handovers(&[7; 10], 5), (0, 0));
+        assert_eq!(count_handovers(&[], 5), (0, 0));
+    }
+}

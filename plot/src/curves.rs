@@ -4,8 +4,6 @@
 use super::{FONT, series_colour};
 use crate::error::{Context, Result};
 use dupac_common::metric;
-use dupac_run::metrics_table::MetricsTable;
-use dupac_run::run_dir::CurveRenderer;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -45,26 +43,27 @@ pub const PANELS: &[(&str, &str)] = &[
     (metric::SPS, "timesteps (decisions) per second"),
 ];
 
-/// The run directory's curve renderer for runs titled `title`.
-pub fn renderer(title: String) -> CurveRenderer {
-    Box::new(move |rows, path| Ok(render_curves(rows, &title, path)?))
-}
-
-/// Draws the panels of [`PANELS`] that have data into `path` (atomically).
-pub fn render_curves(rows: &MetricsTable, title: &str, path: &Path) -> Result<()> {
+/// Draws the panels of [`PANELS`] that have data into `path` (atomically). `points(key)`: the
+/// metric's (timesteps, value) points, in order (e.g. a run's `metrics.csv` columns
+/// `global_step` and `key`).
+pub fn render_curves(
+    points: &dyn Fn(&str) -> Vec<(f64, f64)>,
+    title: &str,
+    path: &Path,
+) -> Result<()> {
     crate::ensure_font()?;
-    crate::write_png_atomic(path, |tmp| draw(rows, title, tmp))
+    crate::write_png_atomic(path, |tmp| draw(points, title, tmp))
         .with_context(|| format!("cannot write learning curves {}", path.display()))
 }
 
-fn draw(rows: &MetricsTable, title: &str, tmp: &Path) -> Result<()> {
+fn draw(points: &dyn Fn(&str) -> Vec<(f64, f64)>, title: &str, tmp: &Path) -> Result<()> {
     let root = BitMapBackend::new(tmp, (1800, 1700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(50);
     head.draw_text(title, &(FONT, 26).into_font().color(&BLACK), (20, 12))?;
     let cells = body.split_evenly((4, 4));
     for (cell, (key, label)) in cells.iter().zip(PANELS) {
-        let pts = rows.points(metric::GLOBAL_STEP, key);
+        let pts = points(key);
         let x_max = pts.iter().map(|p| p.0).fold(1.0, f64::max);
         let (mut y_min, mut y_max) = pts
             .iter()

@@ -1,19 +1,19 @@
 //! The evaluation's figures (`dupac eval`): the paper's Fig. 3 (distance and overhead
 //! per bin) and Fig. 4 (RSRP and class fractions per bin), the Pareto plot of distance
 //! overhead against time in excellent RSRP, and example flights over the city. Drawn from the
-//! statistics of `dupac_run::eval::report`, thresholds from the configuration.
+//! statistics of `dupac_eval::report`, thresholds from the configuration.
 
 use super::plan::{FlightTrace, render_world_plan};
 use super::{CLASS_COLOURS, FONT, series_colour};
 use crate::error::{Context, Result};
-use dupac_actor::eval::MeanCi;
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
-use dupac_run::eval::front::{FrontFile, FrontMeasures, FrontRow, front_rows};
-use dupac_run::eval::records::RecordsFile;
-use dupac_run::eval::report::{MethodData, is_planner};
+use dupac_eval::front::{FrontFile, FrontMeasures, FrontRow, front_rows};
+use dupac_eval::interval::MeanCi;
+use dupac_eval::records::RecordsFile;
+use dupac_eval::report::{MethodData, is_planner};
 use plotters::prelude::*;
 use std::path::Path;
 

@@ -13,8 +13,8 @@ use dupac_learner::learner::{Learner, MetricsRow};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Draws the learning curves of a run's rows into a PNG (`dupac_plot::curves::renderer`, passed
-/// in by the binary: `dupac-plot` depends on this crate, not the other way).
+/// Draws the learning curves of a run's rows into a PNG (`dupac_plot::curves::render_curves`,
+/// passed in by the binary: neither crate depends on the other).
 pub type CurveRenderer = Box<dyn Fn(&MetricsTable, &Path) -> Result<(), BoxError>>;
 
 /// The checkpoint to resume from (`--resume [--checkpoint FILE]`), or an error when a run

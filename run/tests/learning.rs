@@ -15,7 +15,7 @@ use dupac_learner::learner::Learner;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::eval::held_out::evaluate;
+use dupac_run::held_out::evaluate;
 use dupac_run::local::LocalWorkers;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

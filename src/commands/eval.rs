@@ -5,20 +5,20 @@
 //! ping-pongs, SINR, a Pareto plot of distance overhead against time in excellent RSRP, CSVs of
 //! every figure, and `report.md` with the paper's numbers beside ours. `--report-only`
 //! recomputes the report from the saved step records without flying. Flying, records and
-//! statistics live in `dupac_run::eval`; the figures in `dupac_plot::eval`.
+//! statistics live in `dupac_eval`; the figures in `dupac_plot::eval`.
 
 use crate::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dupac_actor::pairs::Split;
+use dupac_eval::EvalPlan;
+use dupac_eval::fly::fly_all;
+use dupac_eval::front::read_fronts;
+use dupac_eval::records::{read_records, read_split};
+use dupac_eval::report::write_tables;
+use dupac_eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
+use dupac_eval::tune_a3::read_tuned;
 use dupac_plot::eval::{draw_examples, draw_fig3, draw_fig4, draw_fronts, draw_pareto};
-use dupac_run::eval::EvalPlan;
-use dupac_run::eval::fly::fly_all;
-use dupac_run::eval::front::read_fronts;
-use dupac_run::eval::records::{read_records, read_split};
-use dupac_run::eval::report::write_tables;
-use dupac_run::eval::stats::{Bootstrap, DEFAULT_RESAMPLES};
-use dupac_run::eval::tune_a3::read_tuned;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -9,13 +9,15 @@ use anyhow::Result;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
 use dupac_common::config::Config;
+use dupac_common::metric;
 use dupac_learner::learner::Learner;
 use dupac_learner::source::TrajectorySource;
+use dupac_plot::curves::render_curves;
 use dupac_radio::world::RadioWorld;
-use dupac_run::eval::held_out::evaluate;
+use dupac_run::held_out::evaluate;
 use dupac_run::local::LocalWorkers;
 use dupac_run::progress::progress_bar;
-use dupac_run::run_dir::{RunOutput, checkpoint_to_resume};
+use dupac_run::run_dir::{CurveRenderer, RunOutput, checkpoint_to_resume};
 use dupac_run::scenario::{
     SharedRsrp, guide_sets_cached, held_out_pairs, make_pool, spread, world_and_cache,
 };
@@ -80,7 +82,11 @@ impl Training {
             "{method}, seed {}: {}{how}",
             cfg.train.seed, world.city.name
         );
-        let out = RunOutput::open(&cfg, learner.update, dupac_plot::curves::renderer(title))?;
+        let curves: CurveRenderer = Box::new(move |rows, path| {
+            let points = |key: &str| rows.points(metric::GLOBAL_STEP, key);
+            Ok(render_curves(&points, &title, path)?)
+        });
+        let out = RunOutput::open(&cfg, learner.update, curves)?;
         Ok(Training {
             cfg,
             world,

@@ -1,5 +1,5 @@
 //! `dupac tune-a3`: the base method's A3 parameters tuned on the validation split
-//! (`dupac_run::eval::tune_a3`): the guide path of every validation pair flown with A3 once per
+//! (`dupac_eval::tune_a3`): the guide path of every validation pair flown with A3 once per
 //! setting of an offset × hysteresis × time-to-trigger grid; `OUT/a3_grid.csv` (every setting's
 //! excellent time, handovers, ping-pongs and low-SINR time) and `OUT/tuned_a3.toml` (the chosen
 //! setting as `[radio.a3]`, a configuration file of its own).
@@ -7,7 +7,7 @@
 use crate::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
-use dupac_run::eval::tune_a3::{A3Grid, choose, grid_csv, tune_a3, tuned_toml};
+use dupac_eval::tune_a3::{A3Grid, choose, grid_csv, tune_a3, tuned_toml};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

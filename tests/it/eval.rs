@@ -424,7 +424,7 @@ fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_fron
         ],
     );
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
-    let files = dupac_run::eval::records::read_records(&ev.join("records")).expect("records");
+    let files = dupac_eval::records::read_records(&ev.join("records")).expect("records");
     let mut flights = 0;
     for f in &files {
         for fl in &f.flights {

@@ -1,8 +1,8 @@
 //! An A3 setting (a3-Offset, Hysteresis, timeToTrigger: TS 36.331 §5.5.4.4, docs/spec/radio.md
 //! §4) and the grid of settings `dupac tune-a3` tries and `dupac eval --a3-front` re-flies.
 
-use crate::error::RunError;
 use dupac_common::config::A3Config;
+use dupac_run::error::RunError;
 use serde::{Deserialize, Serialize};
 
 /// TS 36.331 ReportConfigEUTRA timeToTrigger values (ms).

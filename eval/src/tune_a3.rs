@@ -11,10 +11,7 @@
 //! Deterministic: every flight is a function of the pair and the setting, the pairs are flown in
 //! parallel and gathered in order, so the same inputs give a byte-identical `a3_grid.csv`.
 
-use crate::error::{Context, RunError};
-use crate::eval::fly::flight_record;
-use crate::progress::progress_bar;
-use crate::scenario::{guide_pairs_cached, split_unguided, unguided, world_and_cache};
+use crate::fly::flight_record;
 use dupac_actor::env::Env;
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_actor::pairs::Split;
@@ -22,6 +19,9 @@ use dupac_actor::pilot::fly_waypoints;
 use dupac_common::config::{Association, Config};
 use dupac_common::msg::Outcome;
 use dupac_radio::channel::FieldSplit;
+use dupac_run::error::{Context, RunError};
+use dupac_run::progress::progress_bar;
+use dupac_run::scenario::{guide_pairs_cached, split_unguided, unguided, world_and_cache};
 use rayon::prelude::*;
 use serde::Deserialize;
 use std::fmt::Write as _;

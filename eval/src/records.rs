@@ -2,11 +2,11 @@
 //! the one codec with its own magic and version), every step of every flight, with what the
 //! metrics need from the configuration; the report is computed from these alone.
 
-use super::refused;
-use crate::error::{Context, RunError};
+use crate::refused;
 use dupac_actor::metrics::MetricRules;
 use dupac_actor::record::FlightRecord;
 use dupac_common::codec;
+use dupac_run::error::{Context, RunError};
 use std::path::{Path, PathBuf};
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
@@ -30,13 +30,13 @@ pub struct RecordsFile {
 pub fn write_records(dir: &Path, rec: &RecordsFile) -> Result<(), RunError> {
     let stem = format!("{}__seed{}", rec.method, rec.seed);
     let bytes = codec::encode(RECORDS_MAGIC, RECORDS_VERSION, rec, "eval records")?;
-    crate::run_dir::write_plain(&dir.join(format!("{stem}.bin")), &bytes)?;
+    dupac_run::run_dir::write_plain(&dir.join(format!("{stem}.bin")), &bytes)?;
     let (flights, steps) = records_csv(rec).context("encoding the records as CSV")?;
-    crate::run_dir::write_plain(
+    dupac_run::run_dir::write_plain(
         &dir.join(format!("{stem}.flights.csv.gz")),
         &gzip(&flights)?,
     )?;
-    crate::run_dir::write_plain(&dir.join(format!("{stem}.steps.csv.gz")), &gzip(&steps)?)
+    dupac_run::run_dir::write_plain(&dir.join(format!("{stem}.steps.csv.gz")), &gzip(&steps)?)
 }
 
 fn gzip(bytes: &[u8]) -> Result<Vec<u8>, RunError> {
@@ -192,7 +192,7 @@ pub const SPLIT_FILE: &str = "split.txt";
 /// Writes [`SPLIT_FILE`] into `dir` (atomically): `line` (`split: …`) and the pairs file.
 pub fn write_split(dir: &Path, line: &str, pairs_file: &Path) -> Result<(), RunError> {
     let text = format!("{line}\nfile: {}\n", pairs_file.display());
-    crate::run_dir::write_plain(&dir.join(SPLIT_FILE), text.as_bytes())
+    dupac_run::run_dir::write_plain(&dir.join(SPLIT_FILE), text.as_bytes())
 }
 
 /// The `split: …` line of [`SPLIT_FILE`] in `dir`; `None` when the records have none (an

@@ -9,13 +9,13 @@
 //! Files: `OUT/records/front/<method>__seed<k>.bin` (the one codec, its own magic and version),
 //! each setting's per-flight metrics; the report reads them with the records.
 
-use super::records::RecordsFile;
-use super::stats::{Grid, Headline, SeedFlights};
 use crate::a3_setting::A3Setting;
-use crate::error::{Context, RunError};
+use crate::records::RecordsFile;
+use crate::stats::{Grid, Headline, SeedFlights};
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;
+use dupac_run::error::{Context, RunError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -49,7 +49,7 @@ pub fn write_front(records_dir: &Path, f: &FrontFile) -> Result<(), RunError> {
     let dir = records_dir.join(FRONT_DIR);
     std::fs::create_dir_all(&dir).context_with(|| format!("creating {}", dir.display()))?;
     let bytes = codec::encode(FRONT_MAGIC, FRONT_VERSION, f, "A3 front")?;
-    crate::run_dir::write_plain(
+    dupac_run::run_dir::write_plain(
         &dir.join(format!("{}__seed{}.bin", f.method, f.seed)),
         &bytes,
     )
@@ -61,7 +61,7 @@ pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
     if !dir.is_dir() {
         return Ok(Vec::new());
     }
-    super::records::bin_files(&dir)?
+    crate::records::bin_files(&dir)?
         .iter()
         .map(|p| {
             let bytes = codec::read_limited(p, codec::MAX_BLOB_BYTES)?;

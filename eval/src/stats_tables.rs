@@ -1,16 +1,16 @@
 //! The report's seed-aware tables, from the records alone: `per_seed.csv` (each method's
 //! statistics per training seed), the bootstrap intervals of each method's headline statistics
 //! (columns of `summary.csv`), `paired.csv` (paired differences between the compared methods)
-//! and their sections of `report.md`. The statistics are [`super::stats`]'.
+//! and their sections of `report.md`. The statistics are [`crate::stats`]'.
 
-use super::method_data::{MethodData, gather, is_planner};
-use super::records::RecordsFile;
-use super::stats::{
+use crate::method_data::{MethodData, gather, is_planner};
+use crate::records::RecordsFile;
+use crate::stats::{
     BootCi, Bootstrap, Comparison, HEADLINES, Headline, grids, method_intervals, paired,
 };
-use crate::error::RunError;
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::msg::Outcome;
+use dupac_run::error::RunError;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -3,21 +3,22 @@
 //! intervals, per-km handovers and ping-pongs, SINR, site regret; `summary.csv`,
 //! `fig3_fig4_bins.csv`, `failures.csv` and `report.md` with the paper's numbers beside ours.
 //! The seed-aware statistics (bootstrap intervals over seeds and pairs, `per_seed.csv`,
-//! `paired.csv`) are [`super::stats_tables`]'.
+//! `paired.csv`) are [`crate::stats_tables`]'.
 
-use super::front::{self, FrontFile};
-use super::records::RecordsFile;
-use super::stats::Bootstrap;
-use super::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
-use crate::error::RunError;
-use dupac_actor::eval::{MeanCi, NOISE_PER_RE_DBM, Rate};
+use crate::front::{self, FrontFile};
+use crate::interval::{MeanCi, Rate};
+use crate::records::RecordsFile;
+use crate::stats::Bootstrap;
+use crate::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
+use dupac_actor::link::NOISE_PER_RE_DBM;
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::{Point, norm};
 use dupac_common::msg::Outcome;
+use dupac_run::error::RunError;
 use std::fmt::Write as _;
 use std::path::Path;
 
-pub use super::method_data::{MethodData, bins_of, gather, is_planner};
+pub use crate::method_data::{MethodData, bins_of, gather, is_planner};
 
 pub fn fmt_ci(c: MeanCi, scale: f64, digits: usize) -> String {
     if c.n == 0 {
@@ -47,10 +48,10 @@ pub fn fmt_rate(r: Rate) -> String {
 /// The report's tables into `out` (`summary.csv`, `per_seed.csv`, `paired.csv`,
 /// `fig3_fig4_bins.csv`, `failures.csv`, `report.md`, `dupac` and `base` being the labels
 /// compared with the paper's methods and with each other, `boot` the seed-aware intervals'
-/// bootstrap, `split` the `split: …` line of the records, [`super::records::read_split`], `None`
+/// bootstrap, `split` the `split: …` line of the records, [`crate::records::read_split`], `None`
 /// for records that have none); returns the methods' data (association replays `LABEL+…` left
 /// out: the figures show methods) and the distance bins, for the figures.
-/// With A3 fronts (`fronts`, [`super::front`]): `front.csv`, and each learned-site policy
+/// With A3 fronts (`fronts`, [`crate::front`]): `front.csv`, and each learned-site policy
 /// compared with A3 at its own handover rate (`LABEL+a3_matched` in `paired.csv` and the
 /// report). With `eval_fields` F (the real channel: pair `id` flies in field `id mod F`),
 /// `paired_by_field.csv`: every paired difference within each field.
@@ -68,18 +69,18 @@ pub fn write_tables(
     let matched = front::matched(files, fronts);
     if !fronts.is_empty() {
         front::write_front_csv(&out.join("front.csv"), &front::front_rows(fronts))?;
-        let grids = super::stats::grids(files);
+        let grids = crate::stats::grids(files);
         for m in &matched {
             let Some(g) = grids.iter().find(|g| g.label == m.label) else {
                 continue;
             };
             seed_stats.intervals.insert(
                 m.grid.label.clone(),
-                super::stats::method_intervals(&m.grid, &boot),
+                crate::stats::method_intervals(&m.grid, &boot),
             );
             seed_stats
                 .comparisons
-                .extend(super::stats::paired(g, &m.grid, &boot));
+                .extend(crate::stats::paired(g, &m.grid, &boot));
         }
     }
     write_per_seed(&out.join("per_seed.csv"), &seed_stats)?;
@@ -178,7 +179,7 @@ pub fn write_tables(
         .filter(|d| !d.label.contains('+'))
         .cloned()
         .collect();
-    crate::run_dir::write_plain(
+    dupac_run::run_dir::write_plain(
         &out.join("report.md"),
         report_md(
             &data,
@@ -210,7 +211,7 @@ pub fn write_tables(
                 m.alpha
             );
         }
-        crate::run_dir::write_plain(&out.join("matched.md"), md.as_bytes())?;
+        dupac_run::run_dir::write_plain(&out.join("matched.md"), md.as_bytes())?;
     }
     Ok((methods, bins))
 }
@@ -224,17 +225,17 @@ fn write_paired_by_field(
     st: &SeedStats,
     fields: u32,
 ) -> Result<(), RunError> {
-    let grids = super::stats::grids(files);
+    let grids = crate::stats::grids(files);
     let grid = |l: &str| grids.iter().find(|g| g.label == l);
     let f = u64::from(fields);
-    let rows: Vec<(String, String, u64, super::stats::Comparison)> = st
+    let rows: Vec<(String, String, u64, crate::stats::Comparison)> = st
         .comparisons
         .iter()
         .filter_map(|c| Some((grid(&c.a)?, grid(&c.b)?)))
         .flat_map(|(a, b)| {
             (0..f).filter_map(move |k| {
                 let keep = |id: u64| id % f == k;
-                let c = super::stats::paired(&a.restrict(keep), &b.restrict(keep), &st.boot)?;
+                let c = crate::stats::paired(&a.restrict(keep), &b.restrict(keep), &st.boot)?;
                 Some((a.label.clone(), b.label.clone(), k, c))
             })
         })

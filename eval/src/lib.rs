@@ -1,14 +1,18 @@
-//! Evaluation: every evaluation pair flown with trained policies (several training
-//! seeds per method) and with the planners (shortest path with A3 and with the best-RSRP
-//! oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a learned
-//! site choice's moves re-flown with A3, the oracle and the hindsight association ([`fly`]);
-//! the statistics and the report's tables from the records alone ([`report`]; seed-aware
-//! intervals, per-seed rows and paired differences: [`stats`], [`stats_tables`]). The figures
-//! are the binary's (`dupac eval`).
+//! DUPAC's evaluation, in one place: every evaluation pair flown with trained policies (several
+//! training seeds per method) and with the planners (shortest path with A3 and with the
+//! best-RSRP oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a
+//! learned site choice's moves re-flown with A3, the oracle and the hindsight association
+//! ([`fly`]); A3's settings tuned on the validation split ([`tune_a3`], [`a3_setting`]) and the
+//! fronts of excellent time against handovers ([`front`]); the statistics and the report's
+//! tables from the records alone ([`report`]; per-method data [`method_data`]; intervals
+//! [`interval`]; seed-aware bootstrap, per-seed rows and paired differences: [`stats`],
+//! [`stats_tables`]). What `plot` draws is this crate's data: records, fronts, per-method data.
+//! The figures are `dupac-plot`'s; training's periodic held-out check is `dupac_run::held_out`.
 
+pub mod a3_setting;
 pub mod fly;
 pub mod front;
-pub mod held_out;
+pub mod interval;
 pub mod method_data;
 pub mod records;
 pub mod report;
@@ -17,11 +21,11 @@ pub mod stats_tables;
 pub mod tune_a3;
 
 use crate::a3_setting::A3Setting;
-use crate::error::{Context, RunError};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::checkpoint::load_policy;
+use dupac_run::error::{Context, RunError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -30,7 +34,7 @@ const MAX_HANDOVER_WEIGHT: f64 = 100.0;
 
 /// A refusal with a formatted reason.
 macro_rules! refused {
-    ($($t:tt)*) => { $crate::error::RunError::Refused(format!($($t)*)) };
+    ($($t:tt)*) => { dupac_run::error::RunError::Refused(format!($($t)*)) };
 }
 pub(crate) use refused;
 

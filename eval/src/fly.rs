@@ -1,15 +1,12 @@
 //! Flying the evaluation: every method over every pair in parallel, each flight recorded;
 //! a learned site choice's moves re-flown with other associations (route against association).
 
-use super::front::{FrontFile, FrontPoint, write_front};
-use super::records::{RecordsFile, write_records, write_split};
-use super::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
 use crate::a3_setting::A3Grid;
-use crate::error::{Context, RunError};
-use crate::progress::progress_bar;
-use crate::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
+use crate::front::{FrontFile, FrontPoint, write_front};
+use crate::records::{RecordsFile, write_records, write_split};
+use crate::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
 use dupac_actor::env::Env;
-use dupac_actor::eval::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
+use dupac_actor::link::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
 use dupac_actor::metrics::{MetricRules, flight_metrics};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
@@ -21,6 +18,9 @@ use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
+use dupac_run::error::{Context, RunError};
+use dupac_run::progress::progress_bar;
+use dupac_run::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -54,8 +54,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     // The planner methods and the replays fly unguided (they observe nothing, their reward is
     // not reported); the pairs are guided once, as the first guided policy flies them (another
     // policy's guide, if different, is planned per flight: `scenario::episode`).
-    let unguided_cfg = crate::scenario::unguided(cfg);
-    let planners = crate::scenario::Planners::new(&unguided_cfg, &flown, &world, &rsrp, coverage);
+    let unguided_cfg = dupac_run::scenario::unguided(cfg);
+    let planners =
+        dupac_run::scenario::Planners::new(&unguided_cfg, &flown, &world, &rsrp, coverage);
     let planner = &planners.pairs;
     let guide_cfg = flown
         .iter()
@@ -87,7 +88,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                 .filter(|p| p.id % fp.len() as u64 == k as u64)
                 .cloned()
                 .collect();
-            crate::scenario::guide_pairs(guide_cfg, planners, &mut mine)?;
+            dupac_run::scenario::guide_pairs(guide_cfg, planners, &mut mine)?;
             for q in mine {
                 if let Some(p) = pairs.iter_mut().find(|p| p.id == q.id) {
                     *p = q;
@@ -292,7 +293,7 @@ fn replay_associations(
         .into_iter()
         .chain(hindsight)
         .map(|(kind, suffix)| {
-            let mut rcfg = crate::scenario::unguided(ctx.0);
+            let mut rcfg = dupac_run::scenario::unguided(ctx.0);
             rcfg.env.association = match kind {
                 Kind::Replay(a) => a,
                 _ => Association::Learned,
@@ -311,7 +312,7 @@ fn replay_associations(
 }
 
 /// The positions of every flight of `method` re-flown with A3 at each setting of the `dupac
-/// tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)): each setting's per-flight metrics ([`super::front`]).
+/// tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)): each setting's per-flight metrics ([`crate::front`]).
 fn a3_front(
     ctx: FlyCtx,
     method: &Method,
@@ -336,7 +337,7 @@ fn a3_front(
     let points = settings
         .iter()
         .map(|setting| {
-            let mut rcfg = crate::scenario::unguided(ctx.0);
+            let mut rcfg = dupac_run::scenario::unguided(ctx.0);
             rcfg.env.association = Association::A3;
             setting.apply(&mut rcfg.radio.a3);
             let v = refly(&rcfg, ctx, &replay, pairs, flights)?
@@ -367,7 +368,7 @@ fn fly_one(
     waypoints_m: Option<&[Point]>,
 ) -> Result<FlightRecord, RunError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let episode = crate::scenario::episode(cfg, planners, p, fs)?;
+    let episode = dupac_run::scenario::episode(cfg, planners, p, fs)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(_) => {
@@ -459,9 +460,9 @@ pub(crate) fn flight_record(
 
 /// The true RSRP pair `id` is flown in: field `id mod radio.channel.eval_fields` of `fs` (the
 /// validation's or the test split's realisations) under the real channel
-/// ([`crate::scenario::true_source`]).
+/// ([`dupac_run::scenario::true_source`]).
 fn true_rsrp(world: &Arc<RadioWorld>, rsrp: &SharedRsrp, fs: FieldSplit, id: u64) -> SharedRsrp {
-    crate::scenario::true_source(world, rsrp, fs, id)
+    dupac_run::scenario::true_source(world, rsrp, fs, id)
 }
 
 /// With `radio.channel.knowledge = "true_field"` under the real channel, one set of planners per
@@ -476,7 +477,7 @@ fn true_field_planners<'w>(
     rsrp: &SharedRsrp,
     fs: FieldSplit,
     coverage: bool,
-) -> Option<Vec<crate::scenario::Planners<'w>>> {
+) -> Option<Vec<dupac_run::scenario::Planners<'w>>> {
     let c = &cfg.radio.channel;
     if world.channel.is_none() || c.knowledge != Knowledge::TrueField {
         return None;
@@ -485,7 +486,7 @@ fn true_field_planners<'w>(
         (0..u64::from(c.eval_fields))
             .map(|k| {
                 let truth = true_rsrp(world, rsrp, fs, k);
-                crate::scenario::Planners::new(unguided_cfg, flown, world, &truth, coverage)
+                dupac_run::scenario::Planners::new(unguided_cfg, flown, world, &truth, coverage)
             })
             .collect(),
     )

@@ -2,8 +2,8 @@
 //! bin, all training seeds together ([`MethodData`], [`gather`]), with the rates and intervals
 //! of the main table.
 
-use super::records::RecordsFile;
-use dupac_actor::eval::{MeanCi, Rate, mean_ci95, wilson95};
+use crate::interval::{MeanCi, Rate, mean_ci95, wilson95};
+use crate::records::RecordsFile;
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::msg::Outcome;
 use std::collections::BTreeMap;

@@ -11,10 +11,10 @@
 //! of the resamples' statistics (linear interpolation between order statistics); a resample
 //! whose statistic is undefined (no successful flight drawn) is left out.
 
-use super::records::RecordsFile;
-use crate::error::RunError;
+use crate::records::RecordsFile;
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::msg::Outcome;
+use dupac_run::error::RunError;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;

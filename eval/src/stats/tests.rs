@@ -1,6 +1,6 @@
 use super::*;
-use crate::eval::stats_tables::{SeedStats, comparisons, write_paired, write_per_seed};
-use dupac_actor::eval::mean_ci95;
+use crate::interval::mean_ci95;
+use crate::stats_tables::{SeedStats, comparisons, write_paired, write_per_seed};
 use dupac_actor::record::{FlightRecord, StepRecord};
 use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpClass;
