@@ -29,6 +29,14 @@ use std::path::Path;
 
 pub use crate::a3_setting::{A3Grid, A3Setting, TTT_VALUES_MS};
 
+/// What [`tune_a3`] measured: one result per setting, and the validation pairs' file (the
+/// configured `pairs.eval_file`, its `{city}` resolved for this world).
+#[derive(Debug, Clone)]
+pub struct Tuning {
+    pub results: Vec<SettingResult>,
+    pub pairs_file: std::path::PathBuf,
+}
+
 /// One setting's measures over the validation flights.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SettingResult {
@@ -74,12 +82,7 @@ impl SettingResult {
 /// `env.observation.path_guide_clearance_m`) with every setting of `grid` and with the reference
 /// (`radio.a3`, added when the grid lacks it); one result per setting, in grid order, the
 /// reference last when it was added.
-pub fn tune_a3(
-    cfg: &Config,
-    grid: &A3Grid,
-    lambda: f64,
-    quiet: bool,
-) -> Result<Vec<SettingResult>, RunError> {
+pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<Tuning, RunError> {
     if !(lambda.is_finite() && lambda > 0.0) {
         return Err(RunError::Refused(format!(
             "--lambda {lambda}: must be a finite number > 0 (the coverage-aware guide path)"
@@ -97,6 +100,7 @@ pub fn tune_a3(
     let planner =
         dupac_actor::planner::Planner::new(&world.city, &flight_cfg.env, &flight_cfg.planner);
     let mut pairs = split_unguided(&flight_cfg, &planner, Split::Validation, quiet)?;
+    let pairs_file = Split::Validation.file(&cfg.pairs, &world.city);
     drop(planner);
     let mut guide_cfg = cfg.clone();
     guide_cfg.env.observation.path_guide = true;
@@ -145,14 +149,18 @@ pub fn tune_a3(
         })
         .collect::<Result<_, RunError>>()?;
     pb.finish_and_clear();
-    Ok(settings
+    let results = settings
         .iter()
         .enumerate()
         .map(|(k, s)| {
             let m: Vec<FlightMetrics> = metrics.iter().map(|row| row[k]).collect();
             SettingResult::of(*s, *s == reference, &m)
         })
-        .collect())
+        .collect();
+    Ok(Tuning {
+        results,
+        pairs_file,
+    })
 }
 
 /// The chosen setting: the most excellent time among the settings with no more ping-pongs per

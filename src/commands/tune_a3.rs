@@ -7,7 +7,7 @@
 use crate::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
-use dupac_eval::tune_a3::{A3Grid, choose, grid_csv, tune_a3, tuned_toml};
+use dupac_eval::tune_a3::{A3Grid, Tuning, choose, grid_csv, tune_a3, tuned_toml};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -51,11 +51,14 @@ pub fn run(global: &GlobalArgs, args: &TuneA3Args) -> Result<ExitCode> {
     // Illegal values are refused before the world is built.
     let n = grid.settings()?.len();
     eprintln!(
-        "tune-a3: {n} settings on the validation split ({}), guide path λ = {}",
-        cfg.pairs.eval_file.display(),
+        "tune-a3: {n} settings on the validation split, guide path λ = {}",
         args.lambda
     );
-    let results = tune_a3(&cfg, &grid, args.lambda, global.no_progress())?;
+    let Tuning {
+        results,
+        pairs_file,
+    } = tune_a3(&cfg, &grid, args.lambda, global.no_progress())?;
+    eprintln!("tune-a3: validation pairs {}", pairs_file.display());
     let chosen = choose(&results)?;
     let reference = results.iter().find(|r| r.reference).unwrap_or(chosen);
     std::fs::create_dir_all(&args.out)
@@ -65,7 +68,7 @@ pub fn run(global: &GlobalArgs, args: &TuneA3Args) -> Result<ExitCode> {
     let tuned_file = args.out.join("tuned_a3.toml");
     crate::io::write_atomic(
         &tuned_file,
-        tuned_toml(chosen, reference, &cfg.pairs.eval_file, args.lambda).as_bytes(),
+        tuned_toml(chosen, reference, &pairs_file, args.lambda).as_bytes(),
     )?;
     println!(
         "| setting (offset dB / hysteresis dB / TTT ms) | excellent (%) | handovers/km | ping-pongs/km | SINR < −6 dB (%) |"
