@@ -3,9 +3,10 @@
 The policy has CleanRL's Gaussian head for the move (state-independent log-std) and one more
 head, a categorical over the M sites: the learned association of the paper. An action's
 log-probability is the sum of the two heads', its entropy the sum of theirs; everything else is
-CleanRL's PPO (GAE, clipped surrogate and value loss, advantage normalisation, gradient norm
-clip, learning-rate annealing), read top to bottom. The environments are DUPAC's own vector env
-(:class:`dupac.gym.DupacVecEnv`, stepped in Rust on the host's cores).
+CleanRL's PPO (observation and reward normalisation, GAE, clipped surrogate and value loss,
+advantage normalisation, gradient norm clip, learning-rate annealing), read top to bottom. The
+environments are DUPAC's own vector env (:class:`dupac.gym.DupacVecEnv`, stepped in Rust on the
+host's cores).
 
 After training it flies every held-out pair of the scenario both ways with the deterministic
 policy (the mean move, the most probable site) and prints the success rate and the mean *site
@@ -32,6 +33,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 from torch.distributions.categorical import Categorical
+from gymnasium.wrappers.utils import RunningMeanStd
 from torch.distributions.normal import Normal
 
 import dupac
@@ -103,6 +105,21 @@ class Agent(nn.Module):
         self.actor_mean = layer_init(nn.Linear(64, 3), std=0.01)
         self.actor_logstd = nn.Parameter(torch.zeros(1, 3))
         self.site_logits = layer_init(nn.Linear(64, num_sites), std=0.01)
+        # The training observations' mean and variance (set at the end of `train`).
+        self.register_buffer("obs_mean", torch.zeros(obs_dim, dtype=torch.float64))
+        self.register_buffer("obs_var", torch.ones(obs_dim, dtype=torch.float64))
+
+    def normalize(self, obs: np.ndarray) -> torch.Tensor:
+        """Raw observations as the networks see them: by the training statistics, clipped."""
+        x = (torch.as_tensor(obs, dtype=torch.float64) - self.obs_mean) / torch.sqrt(self.obs_var + 1e-8)
+        return x.clamp(-10, 10).float()
+
+    def observe(self, obs: np.ndarray, rms: RunningMeanStd) -> torch.Tensor:
+        """Training: updates the statistics with a batch of raw observations, then normalises."""
+        rms.update(obs)
+        self.obs_mean.copy_(torch.as_tensor(rms.mean))
+        self.obs_var.copy_(torch.as_tensor(rms.var))
+        return self.normalize(obs)
 
     def get_value(self, x):
         return self.critic(x)
@@ -141,7 +158,10 @@ def train(args: Args, scenario: dupac.Scenario | None = None, log=print) -> Agen
     scenario = scenario or dupac.Scenario(set=args.set)
     envs = DupacVecEnv(args.num_envs, scenario, seed=args.seed)
     assert envs.learned, "the learned association (scenario association='learned') is needed"
-    # CleanRL's reward scaling: DUPAC's rewards are in dBm-weighted units (returns of −10³).
+    # CleanRL's normalisation: rewards by the running std of the discounted return (DUPAC's
+    # rewards are in dBm-weighted units: returns of −10³), clipped to ±10; observations by their
+    # running mean and std, clipped to ±10 (`Agent.normalize`: Gymnasium's observation wrappers
+    # refuse a same-step autoreset env, so the statistics live with the agent).
     envs = gymnasium.wrappers.vector.NormalizeReward(envs, gamma=args.gamma)
     envs = gymnasium.wrappers.vector.ClipReward(envs, -10.0, 10.0)
     obs_dim = envs.single_observation_space.shape[0]
@@ -161,8 +181,9 @@ def train(args: Args, scenario: dupac.Scenario | None = None, log=print) -> Agen
 
     global_step = 0
     start_time = time.time()
+    obs_rms = RunningMeanStd(shape=(obs_dim,))
     next_obs, _ = envs.reset(seed=args.seed)
-    next_obs = torch.Tensor(next_obs).to(device)
+    next_obs = agent.observe(next_obs, obs_rms)
     next_done = torch.zeros(args.num_envs).to(device)
 
     for iteration in range(1, args.num_iterations + 1):
@@ -186,7 +207,7 @@ def train(args: Args, scenario: dupac.Scenario | None = None, log=print) -> Agen
             # observation; the value bootstrap stops at the end as CleanRL's does.
             next_done = np.logical_or(terminations, truncations)
             rewards[step] = torch.tensor(reward).to(device).view(-1)
-            next_obs = torch.Tensor(next_obs).to(device)
+            next_obs = agent.observe(next_obs, obs_rms)
             next_done = torch.Tensor(next_done).to(device)
 
             if "final_info" in infos:
@@ -307,7 +328,7 @@ def evaluate(agent: Agent, scenario: dupac.Scenario, split: str = "eval") -> dic
             obs, _ = env.reset(seed=0, options={"pair": pair, "reversed": reverse})
             while True:
                 with torch.no_grad():
-                    move, site = agent.act_deterministic(torch.Tensor(obs).unsqueeze(0))
+                    move, site = agent.act_deterministic(agent.normalize(obs).unsqueeze(0))
                 action = to_env(move, site)
                 obs, _, terminated, truncated, info = env.step(
                     {"move": action["move"][0], "site": int(action["site"][0])}
