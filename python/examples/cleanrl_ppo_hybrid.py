@@ -53,7 +53,9 @@ class Args:
     num_steps: int = 128
     """decisions per environment per rollout"""
     anneal_lr: bool = True
-    gamma: float = 0.99
+    gamma: float = 0.95
+    """DUPAC's `ppo.gamma` (CleanRL's 0.99 learned no held-out flight on Midtown in 1 M decisions,
+    python/README.md "CleanRL")"""
     gae_lambda: float = 0.95
     num_minibatches: int = 4
     update_epochs: int = 10
