@@ -2,7 +2,6 @@
 //! planners (shortest flyable path, coverage-aware path) and the episode pairs.
 
 pub mod env;
-pub mod link;
 pub mod metrics;
 pub mod pairs;
 pub mod pilot;

@@ -72,7 +72,7 @@ pub struct StepRecord {
     /// The strongest site here and its RSRP.
     pub best_site: u16,
     pub best_rsrp_dbm: f32,
-    /// SINR of the serving site against all others ([`crate::link::sinr_db`]).
+    /// SINR of the serving site against all others (`dupac_eval::sinr::sinr_db`).
     pub sinr_db: f32,
     pub class: RsrpClass,
     /// Class of the best site's RSRP (class regret: best excellent, serving not).

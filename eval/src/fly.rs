@@ -3,10 +3,11 @@
 
 use crate::a3_setting::A3Grid;
 use crate::front::{FrontFile, FrontPoint, write_front};
+use crate::hindsight::hindsight_association;
 use crate::records::{RecordsFile, write_records, write_split};
+use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
 use crate::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
 use dupac_actor::env::Env;
-use dupac_actor::link::{NOISE_PER_RE_DBM, hindsight_association, sinr_db};
 use dupac_actor::metrics::{MetricRules, flight_metrics};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_actor::pilot::{fly_waypoints, replay_positions};

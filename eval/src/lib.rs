@@ -2,7 +2,7 @@
 //! training seeds per method) and with the planners (shortest path with A3 and with the
 //! best-RSRP oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a
 //! learned site choice's moves re-flown with A3, the oracle and the hindsight association
-//! ([`fly`]); A3's settings tuned on the validation split ([`tune_a3`], [`a3_setting`]) and the
+//! ([`fly`], [`hindsight`]; each step's SINR [`sinr`]); A3's settings tuned on the validation split ([`tune_a3`], [`a3_setting`]) and the
 //! fronts of excellent time against handovers ([`front`]); the statistics and the report's
 //! tables from the records alone ([`report`]; per-method data [`method_data`]; intervals
 //! [`interval`]; seed-aware bootstrap, per-seed rows and paired differences: [`stats`],
@@ -12,10 +12,12 @@
 pub mod a3_setting;
 pub mod fly;
 pub mod front;
+pub mod hindsight;
 pub mod interval;
 pub mod method_data;
 pub mod records;
 pub mod report;
+pub mod sinr;
 pub mod stats;
 pub mod stats_tables;
 pub mod tune_a3;

@@ -8,9 +8,9 @@
 use crate::front::{self, FrontFile};
 use crate::interval::{MeanCi, Rate};
 use crate::records::RecordsFile;
+use crate::sinr::NOISE_PER_RE_DBM;
 use crate::stats::Bootstrap;
 use crate::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
-use dupac_actor::link::NOISE_PER_RE_DBM;
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::{Point, norm};
 use dupac_common::msg::Outcome;

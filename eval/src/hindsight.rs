@@ -1,39 +1,13 @@
-//! The link of a recorded flight (spec/env.md "Metrics"; the records are [`crate::record`]):
-//! the SINR of a step from every site's RSRP, and the hindsight association of a route (the
-//! least site regret for a given handover cost, `dupac eval --hindsight`). Pure functions over
-//! plain data, used when flights are recorded and when `dupac-eval` re-flies their moves.
-
-/// Thermal noise per LTE resource element (dBm): −174 dBm/Hz + 10·log10(15 kHz) + a UE noise
-/// figure of 9 dB. RSRP is a per-resource-element power, so SINR from RSRPs uses this noise.
-pub const NOISE_PER_RE_DBM: f64 = -174.0 + 41.760_912_590_556_81 + 9.0;
-
-/// SINR (dB) of `serving` with every other site as a co-channel interferer at full load:
-/// S / (Σ_{j ≠ serving} I_j + N), all in linear mW from dBm. Sites with a NaN/−∞ RSRP add
-/// nothing.
-pub fn sinr_db(rsrp_all_dbm: &[f64], serving: usize, noise_dbm: f64) -> f64 {
-    let mw = |dbm: f64| {
-        if dbm.is_finite() {
-            10f64.powf(dbm / 10.0)
-        } else {
-            0.0
-        }
-    };
-    let s = rsrp_all_dbm.get(serving).copied().map(mw).unwrap_or(0.0);
-    let i: f64 = rsrp_all_dbm
-        .iter()
-        .enumerate()
-        .filter(|(j, _)| *j != serving)
-        .map(|(_, v)| mw(*v))
-        .sum();
-    10.0 * (s / (i + mw(noise_dbm))).log10()
-}
+//! The hindsight association of a recorded route (`dupac eval --hindsight`): the least site
+//! regret for a given cost per handover, knowing the whole route. A reference for what any
+//! association could keep on a policy's own moves, not a realisable rule.
 
 /// The hindsight association of a recorded route: the serving site of every step that minimises
 /// Σ_t (best RSRP_t − RSRP_t(site_t)) + `handover_cost_db` × handovers (dB·steps per handover,
 /// the site-regret and handover terms of the reward with κ_s = 1, `env.reward`), subject to a
 /// minimum time of stay: a handover at least `min_stay_steps` steps after the previous one (0:
 /// none; the ping-pong window + 1 forbids every ping-pong of
-/// [`crate::metrics::count_handovers`]). Exact dynamic programme over (site, steps since the
+/// [`dupac_actor::metrics::count_handovers`]). Exact dynamic programme over (site, steps since the
 /// last handover ≤ `min_stay_steps`), O(T · M · (min_stay_steps + 1)); ties keep the lower site
 /// index.
 /// `rsrp_dbm` is row-major, one row of the `m` sites' RSRP (dBm) per step; `start` is the site
@@ -64,7 +38,7 @@ pub fn hindsight_association(
         if r.is_finite() && best.is_finite() {
             (best - r).max(0.0)
         } else {
-            crate::env::MAX_REGRET_DB
+            dupac_actor::env::MAX_REGRET_DB
         }
     };
     for t in 0..t_len {
@@ -133,10 +107,11 @@ pub fn hindsight_association(
     }
     sites
 }
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::metrics::count_handovers;
+    use dupac_actor::metrics::count_handovers;
 
     /// Cost of `sites` under `hindsight_association`'s objective, or None when a handover comes
     /// sooner than `min_stay` steps after the previous one.
@@ -226,16 +201,5 @@ mod tests {
         let (handovers, ping_pongs) = count_handovers(&serving, window);
         assert!(handovers > 0);
         assert_eq!(ping_pongs, 0, "{serving:?}");
-    }
-
-    #[test]
-    fn sinr_of_equal_interferers_and_noise() {
-        // Serving −70 dBm, two interferers at −73 dBm (each half the power): SINR ≈ 0 dB.
-        let s = sinr_db(&[-70.0, -73.0103, -73.0103], 0, -200.0);
-        assert!(s.abs() < 1e-3, "{s}");
-        // Alone above the noise: RSRP − N.
-        let s = sinr_db(&[-100.0, f64::NEG_INFINITY], 0, NOISE_PER_RE_DBM);
-        assert!((s - (-100.0 - NOISE_PER_RE_DBM)).abs() < 1e-9);
-        assert!((NOISE_PER_RE_DBM - (-123.24)).abs() < 0.01);
     }
 }
