@@ -107,14 +107,15 @@ class Agent(nn.Module):
         self.actor_mean = layer_init(nn.Linear(64, 3), std=0.01)
         self.actor_logstd = nn.Parameter(torch.zeros(1, 3))
         self.site_logits = layer_init(nn.Linear(64, num_sites), std=0.01)
-        # The training observations' mean and variance (set at the end of `train`).
+        # The training observations' running mean and variance (updated by `observe` while
+        # training; evaluation normalises with them as they are).
         self.register_buffer("obs_mean", torch.zeros(obs_dim, dtype=torch.float64))
         self.register_buffer("obs_var", torch.ones(obs_dim, dtype=torch.float64))
 
     def normalize(self, obs: np.ndarray) -> torch.Tensor:
         """Raw observations as the networks see them: by the training statistics, clipped."""
-        x = (torch.as_tensor(obs, dtype=torch.float64) - self.obs_mean) / torch.sqrt(self.obs_var + 1e-8)
-        return x.clamp(-10, 10).float()
+        x = torch.as_tensor(obs, dtype=torch.float64)
+        return ((x - self.obs_mean) / torch.sqrt(self.obs_var + 1e-8)).clamp(-10, 10).float()
 
     def observe(self, obs: np.ndarray, rms: RunningMeanStd) -> torch.Tensor:
         """Training: updates the statistics with a batch of raw observations, then normalises."""
