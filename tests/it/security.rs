@@ -162,6 +162,10 @@ fn mutual_tls_and_access_control_admit_the_run_and_deny_the_rest() {
         "a monitor received a trajectory chunk"
     );
     // The weights queryable answers a flood at its rate (10/s, burst 20), not at the flood's.
+    // A query answered first (the client's session knows the queryable: see
+    // `Watcher::weights`), then two seconds for the bucket to refill.
+    monitor.weights();
+    std::thread::sleep(Duration::from_secs(2));
     let t0 = Instant::now();
     let mut replies = 0usize;
     let flood: Vec<_> = (0..100)

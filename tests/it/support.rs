@@ -522,21 +522,33 @@ impl Watcher {
         );
     }
 
+    /// The learner's weights by query, asked again (for up to 30 s) while no reply comes: a
+    /// client's query can end at once with none while its session has not yet learnt of the
+    /// queryable (zenoh issues 2516, 2767), as the actors' own joining query is retried.
     pub fn weights(&self) -> WeightsMsg {
-        let replies = self
-            .session
-            .get(self.keys.weights())
-            .timeout(Duration::from_secs(5))
-            .wait()
-            .expect("query");
-        let reply = replies.recv().expect("a weights reply");
-        let sample = reply.result().expect("ok reply");
-        decode_msg(
-            &sample.payload().to_bytes(),
-            dupac_common::msg::MsgLimits::both(1 << 26),
-            "weights",
-        )
-        .expect("weights decode")
+        let t0 = Instant::now();
+        loop {
+            let replies = self
+                .session
+                .get(self.keys.weights())
+                .timeout(Duration::from_secs(5))
+                .wait()
+                .expect("query");
+            if let Ok(reply) = replies.recv() {
+                let sample = reply.result().expect("ok reply");
+                return decode_msg(
+                    &sample.payload().to_bytes(),
+                    dupac_common::msg::MsgLimits::both(1 << 26),
+                    "weights",
+                )
+                .expect("weights decode");
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(30),
+                "no weights reply in 30 s"
+            );
+            std::thread::sleep(Duration::from_millis(200));
+        }
     }
 
     pub fn publish(&self, actor: u32, bytes: Vec<u8>) {
