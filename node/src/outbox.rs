@@ -77,10 +77,15 @@ impl ChunkOutbox {
     /// Acts with `key` from now on; `true` when that is a swap (other weights than before), which
     /// starts a new share.
     pub fn swap(&mut self, key: WeightsKey) -> bool {
+        self.swap_at(key, Instant::now())
+    }
+
+    /// [`ChunkOutbox::swap`] at `now`.
+    pub fn swap_at(&mut self, key: WeightsKey, now: Instant) -> bool {
         if self.acting() == Some(key) {
             return false;
         }
-        self.acting = Some((key, Instant::now()));
+        self.acting = Some((key, now));
         self.sent_of_share = 0;
         true
     }
@@ -94,9 +99,17 @@ impl ChunkOutbox {
     /// actor acts with, `resend_after` after the swap, its share was lost in transit, and a new
     /// share starts (`true`, once per `resend_after`).
     pub fn resend_if_lost(&mut self, learner_at: WeightsKey) -> bool {
+        self.resend_if_lost_at(learner_at, Instant::now())
+    }
+
+    /// [`ChunkOutbox::resend_if_lost`] at `now`.
+    pub fn resend_if_lost_at(&mut self, learner_at: WeightsKey, now: Instant) -> bool {
         match &mut self.acting {
-            Some((key, since)) if *key == learner_at && since.elapsed() > self.resend_after => {
-                *since = Instant::now();
+            Some((key, since))
+                if *key == learner_at
+                    && now.saturating_duration_since(*since) > self.resend_after =>
+            {
+                *since = now;
                 self.sent_of_share = 0;
                 true
             }
@@ -180,26 +193,37 @@ mod tests {
 
     #[test]
     fn a_lost_share_is_sent_again_once_per_period() {
-        let mut o = outbox(Duration::from_millis(30));
-        o.swap(key(1, 4));
+        let period = Duration::from_secs(5);
+        let mut o = outbox(period);
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        o.swap_at(key(1, 4), t0);
         o.wrap(Vec::new());
         o.wrap(Vec::new());
         assert!(o.at_cap(2));
         assert!(
-            !o.resend_if_lost(key(1, 4)),
+            !o.resend_if_lost_at(key(1, 4), at(4.9)),
             "too early: the learner may still be training"
         );
-        std::thread::sleep(Duration::from_millis(40));
         assert!(
-            !o.resend_if_lost(key(1, 5)),
+            !o.resend_if_lost_at(key(1, 5), at(5.1)),
             "the learner moved on: nothing was lost"
         );
         assert!(
-            !o.resend_if_lost(key(2, 4)),
+            !o.resend_if_lost_at(key(2, 4), at(5.1)),
             "another learner incarnation: not our share"
         );
-        assert!(o.resend_if_lost(key(1, 4)));
+        assert!(o.resend_if_lost_at(key(1, 4), at(5.1)));
         assert!(!o.at_cap(2), "a new share starts");
-        assert!(!o.resend_if_lost(key(1, 4)), "once per period");
+        assert!(!o.resend_if_lost_at(key(1, 4), at(10.0)), "once per period");
+        assert!(o.resend_if_lost_at(key(1, 4), at(10.2)));
+    }
+
+    /// The clock the actor uses: a share swapped in now is not re-sent at once.
+    #[test]
+    fn a_share_is_not_resent_before_its_period_on_the_real_clock() {
+        let mut o = outbox(Duration::from_secs(3600));
+        o.swap(key(1, 4));
+        assert!(!o.resend_if_lost(key(1, 4)));
     }
 }

@@ -116,28 +116,32 @@ impl PresenceLog {
 mod tests {
     use super::*;
 
-    fn wait() {
-        std::thread::sleep(Duration::from_millis(150));
-    }
-
     #[test]
     fn a_blip_shorter_than_the_grace_is_not_warned() {
-        let log = PresenceLog::new(Duration::from_millis(60));
+        let log = PresenceLog::new(Duration::from_secs(3600));
         log.left("a", "lost a".into());
+        let at = departed_at(&log, "a");
         assert!(log.back("a", "a"));
-        wait();
+        // The grace's timer fires after the return.
+        log.warn_if_still_gone("a", at, "lost a");
         assert!(
             !log.warned("a"),
             "a return within the grace leaves no warning"
         );
     }
 
+    /// When `id` departed (its pending departure's timer compares it).
+    fn departed_at(log: &PresenceLog, id: &str) -> Instant {
+        log.gone.lock().unwrap()[id].at
+    }
+
     #[test]
     fn a_departure_longer_than_the_grace_is_warned_once_then_its_return() {
-        let log = PresenceLog::new(Duration::from_millis(30));
+        // The grace's timer is called by hand: an hour's grace never fires in the test.
+        let log = PresenceLog::new(Duration::from_secs(3600));
         log.left("a", "lost a".into());
         assert!(!log.warned("a"), "not before the grace");
-        wait();
+        log.warn_if_still_gone("a", departed_at(&log, "a"), "lost a");
         assert!(log.warned("a"));
         // A second departure notice while gone changes nothing.
         log.left("a", "lost a".into());
@@ -147,16 +151,29 @@ mod tests {
     }
 
     #[test]
+    fn the_grace_timer_warns_a_departure_that_lasts() {
+        let log = PresenceLog::new(Duration::from_millis(30));
+        log.left("a", "lost a".into());
+        // The timer thread's turn may come late on a busy machine: 10 s is its bound.
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !log.warned("a") && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(log.warned("a"), "no warning 10 s after a 30 ms grace");
+    }
+
+    #[test]
     fn back_and_gone_again_is_a_new_departure() {
-        let log = PresenceLog::new(Duration::from_millis(80));
+        let log = PresenceLog::new(Duration::from_secs(3600));
         log.left("a", "lost a".into());
-        std::thread::sleep(Duration::from_millis(40));
+        let first = departed_at(&log, "a");
         log.back("a", "a");
+        std::thread::sleep(Duration::from_millis(2)); // a later instant for the second
         log.left("a", "lost a".into());
-        // The first departure's timer fires now: it must not warn the second one early.
-        std::thread::sleep(Duration::from_millis(50));
+        // The first departure's timer fires: it must not warn the second one early.
+        log.warn_if_still_gone("a", first, "lost a");
         assert!(!log.warned("a"));
-        wait();
+        log.warn_if_still_gone("a", departed_at(&log, "a"), "lost a");
         assert!(log.warned("a"));
     }
 

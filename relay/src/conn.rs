@@ -7,36 +7,19 @@
 use std::io;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::AtomicU64;
 
 use tokio::net::TcpStream;
 use tokio::sync::watch;
 
 use crate::fault::Control;
 use crate::link::{self, DelayDraw, Direction};
-use crate::stats::Counters;
+use crate::stats::{Connection, Counters, Ending, Side};
 use crate::{LinkImpairment, RelayConfig};
 
 /// What every connection shares: the configuration and the counters.
 pub(crate) struct Shared {
     pub(crate) cfg: RelayConfig,
     pub(crate) counters: Arc<Counters>,
-}
-
-/// Counts an open connection while it lives (also when the runtime drops its task).
-struct Active<'a>(&'a AtomicU64);
-
-impl<'a> Active<'a> {
-    fn new(counter: &'a AtomicU64) -> Active<'a> {
-        Counters::bump(counter);
-        Active(counter)
-    }
-}
-
-impl Drop for Active<'_> {
-    fn drop(&mut self) {
-        self.0.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
-    }
 }
 
 /// Aborts a socket: an RST instead of a FIN when it is closed.
@@ -59,25 +42,23 @@ enum End {
     Fault,
 }
 
-/// Relays the accepted `down` (from `peer`, the `id`-th connection, accepted in `epoch`) to the
-/// upstream until its end.
+/// Relays the accepted `down` (from `peer`, the `id`-th connection, accepted in `epoch`, counted
+/// as `conn`) to the upstream until its end.
 pub(crate) async fn serve(
     mut down: TcpStream,
     peer: SocketAddr,
-    id: u64,
-    epoch: u64,
+    (id, epoch, conn): (u64, u64, Connection),
     shared: Arc<Shared>,
     control: watch::Receiver<Control>,
 ) {
     let counters = &shared.counters;
-    let _active = Active::new(&counters.active);
     let cfg = &shared.cfg;
 
     let connected = tokio::select! {
         r = TcpStream::connect(cfg.upstream) => r,
         () = fault_since(control.clone(), epoch) => {
             tracing::debug!("relay: connection {id} from {peer} aborted by a fault while connecting");
-            Counters::bump(&counters.aborted_by_fault);
+            conn.end(Ending::AbortedByFault); // before the peer can see it
             abort(down);
             return;
         }
@@ -89,7 +70,7 @@ pub(crate) async fn serve(
                 "relay: connection {id} from {peer}: upstream {} unreachable: {e}",
                 cfg.upstream
             );
-            Counters::bump(&counters.failed);
+            conn.end(Ending::Failed);
             abort(down);
             return;
         }
@@ -98,27 +79,20 @@ pub(crate) async fn serve(
     let _ = down.set_nodelay(true);
     let _ = up.set_nodelay(true);
 
-    let direction = |imp: LinkImpairment, which: u64, dc| Direction {
+    let direction = |imp: LinkImpairment, which: u64, side| Direction {
         imp,
         read_chunk_bytes: cfg.read_chunk_bytes,
         max_queued_bytes: cfg.max_queued_bytes,
         delays: DelayDraw::new(&imp, cfg.seed, id.wrapping_mul(2).wrapping_add(which)),
-        counters: dc,
+        counters: counters.clone(),
+        side,
         control: control.clone(),
     };
     let end = {
         let (mut down_rd, mut down_wr) = down.split();
         let (mut up_rd, mut up_wr) = up.split();
-        let to_up = link::pipe(
-            &mut down_rd,
-            &mut up_wr,
-            direction(cfg.up, 0, counters.up.clone()),
-        );
-        let to_down = link::pipe(
-            &mut up_rd,
-            &mut down_wr,
-            direction(cfg.down, 1, counters.down.clone()),
-        );
+        let to_up = link::pipe(&mut down_rd, &mut up_wr, direction(cfg.up, 0, Side::Up));
+        let to_down = link::pipe(&mut up_rd, &mut down_wr, direction(cfg.down, 1, Side::Down));
         tokio::select! {
             r = async { tokio::try_join!(to_up, to_down) } => match r {
                 Ok(_) => End::Closed,
@@ -127,20 +101,21 @@ pub(crate) async fn serve(
             () = fault_since(control.clone(), epoch) => End::Fault,
         }
     };
+    // An abort is counted before the sockets go: a peer that sees it sees it counted.
     match end {
         End::Closed => {
             tracing::debug!("relay: connection {id} from {peer} closed");
-            Counters::bump(&counters.closed);
+            conn.end(Ending::Closed);
         }
         End::Failed(e) => {
             tracing::debug!("relay: connection {id} from {peer} failed: {e}");
-            Counters::bump(&counters.failed);
+            conn.end(Ending::Failed);
             abort(down);
             abort(up);
         }
         End::Fault => {
             tracing::debug!("relay: connection {id} from {peer} aborted by a fault");
-            Counters::bump(&counters.aborted_by_fault);
+            conn.end(Ending::AbortedByFault);
             abort(down);
             abort(up);
         }

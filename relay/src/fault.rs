@@ -121,24 +121,6 @@ pub enum RelayState {
     Partitioned,
 }
 
-impl RelayState {
-    pub(crate) fn to_u8(self) -> u8 {
-        match self {
-            RelayState::Forwarding => 0,
-            RelayState::Stalled => 1,
-            RelayState::Partitioned => 2,
-        }
-    }
-
-    pub(crate) fn from_u8(v: u8) -> RelayState {
-        match v {
-            1 => RelayState::Stalled,
-            2 => RelayState::Partitioned,
-            _ => RelayState::Forwarding,
-        }
-    }
-}
-
 /// What the connections obey at a moment: the state, and the abort epoch (the number of
 /// resets and partition starts so far; a connection accepted in an earlier epoch is aborted).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

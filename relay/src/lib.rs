@@ -34,7 +34,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::net::TcpListener;
-use tokio::sync::watch;
+use tokio::sync::{oneshot, watch};
 
 pub use fault::{Fault, FaultKind, RelayState};
 pub use link::LinkImpairment;
@@ -71,8 +71,12 @@ pub struct RelayConfig {
     pub up: LinkImpairment,
     /// The impairment of the bytes coming back (upstream → downstream peer).
     pub down: LinkImpairment,
-    /// The fault schedule, offsets from the relay's origin (its start).
+    /// The fault schedule, offsets from the relay's origin (its start, or the call of
+    /// [`Relay::begin_faults`] if `faults_held`).
     pub faults: Vec<Fault>,
+    /// Hold the fault schedule until [`Relay::begin_faults`] (the links' impairments apply from
+    /// the start): to fault a run once it has warmed up, however long that took.
+    pub faults_held: bool,
     /// Seed of the jitter draws (each connection and direction draws its own stream of it, in
     /// the order connections are accepted).
     pub seed: u64,
@@ -99,6 +103,7 @@ impl RelayConfig {
             up: LinkImpairment::NONE,
             down: LinkImpairment::NONE,
             faults: vec![],
+            faults_held: false,
             seed: 0,
             read_chunk_bytes: Self::DEFAULT_READ_CHUNK_BYTES,
             max_queued_bytes: Self::DEFAULT_MAX_QUEUED_BYTES,
@@ -117,6 +122,15 @@ impl RelayConfig {
     /// This with a fault schedule.
     pub fn with_faults(self, faults: Vec<Fault>) -> RelayConfig {
         RelayConfig { faults, ..self }
+    }
+
+    /// This with a fault schedule held until [`Relay::begin_faults`].
+    pub fn with_held_faults(self, faults: Vec<Fault>) -> RelayConfig {
+        RelayConfig {
+            faults,
+            faults_held: true,
+            ..self
+        }
     }
 
     /// Why it cannot run, if so.
@@ -154,13 +168,17 @@ impl RelayConfig {
 pub struct Relay {
     rt: Option<tokio::runtime::Runtime>,
     local_addr: SocketAddr,
-    origin: std::time::Instant,
+    /// The fault schedule's origin, once it has begun.
+    origin: std::sync::OnceLock<std::time::Instant>,
+    /// Begins a held schedule at the origin it is sent.
+    begin: std::sync::Mutex<Option<oneshot::Sender<std::time::Instant>>>,
     counters: Arc<Counters>,
 }
 
 impl Relay {
     /// Checks `cfg`, listens, and starts relaying on a runtime of its own; returns once it
-    /// listens. The fault schedule's origin is now.
+    /// listens. The fault schedule's origin is now, or (`faults_held`) the call of
+    /// [`Relay::begin_faults`].
     pub fn start(cfg: RelayConfig) -> Result<Relay, RelayError> {
         cfg.check()?;
         let rt = tokio::runtime::Builder::new_multi_thread()
@@ -182,11 +200,18 @@ impl Relay {
             TcpListener::from_std(std_listener).map_err(listen_err)?
         };
 
-        let origin = std::time::Instant::now();
         let schedule = FaultSchedule::new(cfg.faults.clone());
-        let initial = schedule.control_at(Duration::ZERO);
-        let counters = Arc::new(Counters::default());
-        counters.set_state(initial.state);
+        let held = cfg.faults_held;
+        // Held, the relay forwards (epoch 0) until the schedule begins.
+        let initial = if held {
+            Control {
+                state: RelayState::Forwarding,
+                epoch: 0,
+            }
+        } else {
+            schedule.control_at(Duration::ZERO)
+        };
+        let counters = Arc::new(Counters::new(initial.state));
         let (control_tx, control_rx) = watch::channel(initial);
         tracing::info!(
             "relay: {local_addr} → {}, up: {}, down: {}, faults: {}",
@@ -207,18 +232,49 @@ impl Relay {
             cfg,
             counters: counters.clone(),
         });
-        rt.spawn(run_schedule(
-            schedule,
-            tokio::time::Instant::from_std(origin),
-            control_tx,
-            counters.clone(),
-        ));
+        let (begin_tx, begin_rx) = oneshot::channel();
+        let origin = std::sync::OnceLock::new();
+        let begin = if held {
+            Some(begin_tx)
+        } else {
+            let now = std::time::Instant::now();
+            let _ = origin.set(now);
+            let _ = begin_tx.send(now);
+            None
+        };
+        let schedule_counters = counters.clone();
+        rt.spawn(async move {
+            match begin_rx.await {
+                Ok(at) => {
+                    let at = tokio::time::Instant::from_std(at);
+                    run_schedule(schedule, at, control_tx, schedule_counters).await;
+                }
+                // The relay is going away before its schedule began: keep the channel open
+                // while the connections' tasks are dropped.
+                Err(_) => std::future::pending::<()>().await,
+            }
+        });
         rt.spawn(accept_loop(listener, shared, control_rx));
         Ok(Relay {
             rt: Some(rt),
             local_addr,
             origin,
+            begin: std::sync::Mutex::new(begin),
             counters,
+        })
+    }
+
+    /// Begins a held fault schedule now and returns its origin; the origin it already has
+    /// otherwise (a schedule that was not held began at the relay's start).
+    pub fn begin_faults(&self) -> std::time::Instant {
+        *self.origin.get_or_init(|| {
+            let now = std::time::Instant::now();
+            let sender = self.begin.lock().unwrap_or_else(|p| p.into_inner()).take();
+            if let Some(tx) = sender {
+                let _ = tx.send(now);
+            }
+            tracing::info!("relay: fault schedule begins");
+            now
         })
     }
 
@@ -227,9 +283,9 @@ impl Relay {
         self.local_addr
     }
 
-    /// The fault schedule's origin: the moment it started.
-    pub fn origin(&self) -> std::time::Instant {
-        self.origin
+    /// The fault schedule's origin: the moment it began (`None` while it is held).
+    pub fn origin(&self) -> Option<std::time::Instant> {
+        self.origin.get().copied()
     }
 
     /// The counters now.
@@ -285,8 +341,11 @@ async fn run_schedule(
         if now.state != before.state {
             tracing::info!("relay: {:?} → {:?}", before.state, now.state);
         }
-        counters.set_state(now.state);
-        control.send_replace(now);
+        // In one update with the state: whoever reads the state finds the connections told,
+        // and whoever sees a connection obey it finds the state.
+        counters.set_state_telling(now.state, || {
+            control.send_replace(now);
+        });
         previous = Some(t);
         match schedule.next_boundary_after(t) {
             Some(b) => tokio::time::sleep_until(origin + b).await,
@@ -317,19 +376,18 @@ async fn accept_loop(
         let now = *control.borrow();
         if now.state == RelayState::Partitioned {
             tracing::debug!("relay: connection from {peer} refused: partitioned");
-            Counters::bump(&shared.counters.refused);
+            shared.counters.refused();
             conn::abort(stream);
             continue;
         }
-        Counters::bump(&shared.counters.accepted);
+        let conn = shared.counters.accept();
         let id = next_id;
         next_id += 1;
         tracing::debug!("relay: connection {id} from {peer}");
         tokio::spawn(conn::serve(
             stream,
             peer,
-            id,
-            now.epoch,
+            (id, now.epoch, conn),
             shared.clone(),
             control.clone(),
         ));

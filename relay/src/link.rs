@@ -25,7 +25,7 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, watch};
 use tokio::time::Instant;
 
 use crate::fault::{Control, RelayState};
-use crate::stats::DirectionCounters;
+use crate::stats::{Counters, Side};
 
 /// The impairment of one direction: a one-way delay with jitter and an optional rate cap.
 /// The default impairs nothing.
@@ -186,7 +186,8 @@ pub(crate) struct Direction {
     pub(crate) read_chunk_bytes: usize,
     pub(crate) max_queued_bytes: usize,
     pub(crate) delays: DelayDraw,
-    pub(crate) counters: Arc<DirectionCounters>,
+    pub(crate) counters: Arc<Counters>,
+    pub(crate) side: Side,
     pub(crate) control: watch::Receiver<Control>,
 }
 
@@ -196,12 +197,13 @@ struct Chunk {
     data: Vec<u8>,
     release: Instant,
     _permit: OwnedSemaphorePermit,
-    counters: Arc<DirectionCounters>,
+    counters: Arc<Counters>,
+    side: Side,
 }
 
 impl Drop for Chunk {
     fn drop(&mut self) {
-        self.counters.sub_queued(self.data.len());
+        self.counters.sub_queued(self.side, self.data.len());
     }
 }
 
@@ -218,6 +220,7 @@ where
         max_queued_bytes,
         delays,
         counters,
+        side,
         mut control,
     } = dir;
     let queue_bound = Arc::new(Semaphore::new(max_queued_bytes));
@@ -242,12 +245,13 @@ where
                 .split(n + CHUNK_OVERHEAD_BYTES)
                 .expect("the permit covers a full read");
             drop(permit);
-            counters.add_read(n);
+            counters.add_read(side, n);
             let chunk = Chunk {
                 data: buf[..n].to_vec(),
                 release,
                 _permit: kept,
                 counters: counters.clone(),
+                side,
             };
             if tx.send(chunk).is_err() {
                 return Ok(()); // the writer has ended (with an error, which the join reports)
@@ -284,7 +288,7 @@ where
                     tokio::time::sleep_until(b.reserve(piece.len(), Instant::now())).await;
                 }
                 wr.write_all(piece).await?;
-                counters.add_forwarded(piece.len());
+                counters.add_forwarded(side, piece.len());
             }
         }
         Ok(())

@@ -127,10 +127,6 @@ fn eventually(relay: &Relay, done: impl Fn(&RelayStats) -> bool) -> RelayStats {
     }
 }
 
-fn sleep_until(t: Instant) {
-    thread::sleep(t.saturating_duration_since(Instant::now()));
-}
-
 fn ms(v: u64) -> Duration {
     Duration::from_millis(v)
 }
@@ -148,9 +144,11 @@ fn round_trip_takes_both_delays() {
         let rtt = t0.elapsed();
         assert!(rtt >= ms(100), "round trip {rtt:?} under 2 × 50 ms");
     }
-    // The relay counts a write after it returns, which the peer may see first.
-    let s = eventually(&relay, |s| s.down.bytes_forwarded == 30);
-    assert_eq!(s.up.bytes_forwarded, 30);
+    // The relay counts a write after it returns, which the peer may see first (both ways).
+    let s = eventually(&relay, |s| {
+        s.down.bytes_forwarded == 30 && s.up.bytes_forwarded == 30
+    });
+    assert_eq!((s.up.bytes_forwarded, s.down.bytes_forwarded), (30, 30));
     assert_eq!(s.connections_accepted, 1);
 }
 
@@ -207,10 +205,11 @@ fn rate_cap_bounds_throughput() {
 #[test]
 fn queue_is_bounded_while_stalled() {
     let (sink, received) = sink_server();
+    // 2 s: the relay must fill its queue within the stall (milliseconds on loopback).
     let cfg = RelayConfig {
         read_chunk_bytes: 16 * 1024,
         max_queued_bytes: 256 * 1024,
-        ..RelayConfig::new(any_port(), sink).with_faults(vec![Fault::stall(0, 800)])
+        ..RelayConfig::new(any_port(), sink).with_faults(vec![Fault::stall(0, 2000)])
     };
     let relay = start(cfg);
     let total = 8 * 1024 * 1024;
@@ -223,11 +222,15 @@ fn queue_is_bounded_while_stalled() {
             c.shutdown(Shutdown::Write).unwrap();
         })
     };
-    sleep_until(relay.origin() + ms(500));
-    let s = relay.stats();
-    assert_eq!(s.state, RelayState::Stalled);
+    // The reader stops once a further read (16 KiB + overhead) would pass the bound: it has
+    // read at least the bound less two reads' worth. Wait for that, in the stall.
+    let full = 256 * 1024 - 2 * (16 * 1024 + 1024);
+    let s = eventually(&relay, |s| {
+        s.up.bytes_read >= full || s.state != RelayState::Stalled
+    });
+    assert_eq!(s.state, RelayState::Stalled, "{s:?}");
     assert_eq!(s.up.bytes_forwarded, 0);
-    assert!(s.up.bytes_read > 0, "the relay read nothing: {s:?}");
+    assert!(s.up.bytes_read >= full, "the relay read too little: {s:?}");
     assert!(
         s.up.bytes_queued <= 256 * 1024 && s.up.bytes_read <= 256 * 1024,
         "the relay held more than its bound: {s:?}"
@@ -236,21 +239,24 @@ fn queue_is_bounded_while_stalled() {
     let (got, _) = received.recv_timeout(Duration::from_secs(8)).unwrap();
     assert_eq!(got.len(), total);
     assert!(got == data, "bytes changed on the way");
-    assert_eq!(relay.stats().up.bytes_queued, 0);
+    let s = eventually(&relay, |s| s.up.bytes_queued == 0);
+    assert_eq!(s.up.bytes_queued, 0);
 }
 
-/// Bytes sent during a stall arrive only after it ends, all of them.
+/// Bytes sent during a stall arrive only after it ends, all of them. The schedule begins once
+/// the connection has made its first round trip (a busy machine may take long to get there).
 #[test]
 fn stall_holds_bytes_until_it_ends() {
     let echo = echo_server();
-    let relay =
-        start(RelayConfig::new(any_port(), echo.addr).with_faults(vec![Fault::stall(300, 500)]));
-    let origin = relay.origin();
+    let relay = start(
+        RelayConfig::new(any_port(), echo.addr).with_held_faults(vec![Fault::stall(100, 500)]),
+    );
     let mut c = connect(&relay);
     c.write_all(b"before").unwrap();
     assert_eq!(read_n(&mut c, 6), b"before");
-    sleep_until(origin + ms(400));
-    assert_eq!(relay.state(), RelayState::Stalled);
+    let origin = relay.begin_faults();
+    let s = eventually(&relay, |s| s.state != RelayState::Forwarding);
+    assert_eq!(s.state, RelayState::Stalled);
     let data: Vec<u8> = (0..100_000u32).map(|i| (i % 241) as u8).collect();
     let mut reader = c.try_clone().unwrap();
     let n = data.len();
@@ -265,8 +271,8 @@ fn stall_holds_bytes_until_it_ends() {
     c.write_all(&data).unwrap();
     let (got, first_at) = got.join().unwrap();
     assert!(
-        first_at >= origin + ms(800),
-        "a byte came back {:?} after the origin, before the stall's end at 800 ms",
+        first_at >= origin + ms(600),
+        "a byte came back {:?} after the origin, before the stall's end at 600 ms",
         first_at - origin
     );
     assert!(got == data, "bytes lost or changed across the stall");
@@ -277,15 +283,16 @@ fn stall_holds_bytes_until_it_ends() {
 #[test]
 fn reset_closes_open_connections() {
     let echo = echo_server();
-    let relay = start(RelayConfig::new(any_port(), echo.addr).with_faults(vec![Fault::reset(300)]));
-    let origin = relay.origin();
+    let relay =
+        start(RelayConfig::new(any_port(), echo.addr).with_held_faults(vec![Fault::reset(100)]));
     let mut c = connect(&relay);
     c.write_all(b"ping").unwrap();
     assert_eq!(read_n(&mut c, 4), b"ping");
+    let origin = relay.begin_faults();
     assert!(is_closed(&mut c), "the connection outlived the reset");
     let closed_at = origin.elapsed();
     assert!(
-        closed_at >= ms(300),
+        closed_at >= ms(100),
         "closed at {closed_at:?}, before the reset"
     );
     assert_eq!(relay.stats().connections_aborted_by_fault, 1);
@@ -300,39 +307,63 @@ fn reset_closes_open_connections() {
 #[test]
 fn partition_cuts_and_heals() {
     let echo = echo_server();
+    // 1.5 s: the connection attempted during it must reach the relay within it (milliseconds
+    // on loopback; the test waits for the partition's state before it connects).
     let relay = start(
-        RelayConfig::new(any_port(), echo.addr).with_faults(vec![Fault::partition(300, 500)]),
+        RelayConfig::new(any_port(), echo.addr).with_held_faults(vec![Fault::partition(100, 1500)]),
     );
-    let origin = relay.origin();
     let mut before = connect(&relay);
     before.write_all(b"ping").unwrap();
     assert_eq!(read_n(&mut before, 4), b"ping");
+    let origin = relay.begin_faults();
 
     // The open connection is cut at the start.
     assert!(
         is_closed(&mut before),
         "the connection outlived the partition"
     );
-    assert!(origin.elapsed() >= ms(300));
+    assert!(origin.elapsed() >= ms(100));
 
     // During it: a new connection gets nowhere, and the upstream never sees it.
-    sleep_until(origin + ms(400));
-    assert_eq!(relay.state(), RelayState::Partitioned);
+    let s = eventually(&relay, |s| s.state != RelayState::Forwarding);
+    assert_eq!(s.state, RelayState::Partitioned);
     let mut during = connect(&relay);
     let _ = during.write_all(b"lost?");
     assert!(is_closed(&mut during), "data came through the partition");
+    let s = relay.stats();
+    assert!(s.connections_refused >= 1, "{s:?}");
     assert_eq!(echo.accepted.load(Ordering::SeqCst), 1);
 
     // After it: connections work again.
-    sleep_until(origin + ms(850));
-    assert_eq!(relay.state(), RelayState::Forwarding);
+    let s = eventually(&relay, |s| s.state == RelayState::Forwarding);
+    assert_eq!(s.state, RelayState::Forwarding);
+    assert!(origin.elapsed() >= ms(1600));
     let mut after = connect(&relay);
     after.write_all(b"healed").unwrap();
     assert_eq!(read_n(&mut after, 6), b"healed");
     let s = relay.stats();
     assert_eq!(s.connections_aborted_by_fault, 1);
-    assert!(s.connections_refused >= 1);
     assert_eq!(echo.accepted.load(Ordering::SeqCst), 2);
+}
+
+/// A held schedule does nothing until it begins, then counts from its beginning.
+#[test]
+fn a_held_schedule_waits_for_its_beginning() {
+    let echo = echo_server();
+    let relay = start(
+        RelayConfig::new(any_port(), echo.addr).with_held_faults(vec![Fault::partition(0, 60_000)]),
+    );
+    thread::sleep(ms(200));
+    assert_eq!(relay.origin(), None);
+    assert_eq!(relay.state(), RelayState::Forwarding);
+    let mut c = connect(&relay);
+    c.write_all(b"held").unwrap();
+    assert_eq!(read_n(&mut c, 4), b"held");
+    let origin = relay.begin_faults();
+    assert_eq!(relay.origin(), Some(origin));
+    assert!(is_closed(&mut c), "the connection outlived the partition");
+    assert_eq!(relay.state(), RelayState::Partitioned);
+    assert_eq!(relay.begin_faults(), origin, "a second call begins nothing");
 }
 
 /// A normal close travels through with its delay, and the relay counts it as closed.
@@ -347,7 +378,9 @@ fn end_of_stream_is_forwarded() {
     let mut all = vec![];
     c.read_to_end(&mut all).unwrap();
     assert_eq!(all, b"bye");
-    let s = eventually(&relay, |s| s.connections_closed > 0);
+    // The client sees the end of the stream before the relay's task ends the connection: wait
+    // for it to leave the active count (one update with its ending), then read how it ended.
+    let s = eventually(&relay, |s| s.connections_active == 0);
     assert_eq!((s.connections_closed, s.connections_active), (1, 0));
     assert_eq!(s.connections_failed, 0);
 }
