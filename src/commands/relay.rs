@@ -9,7 +9,8 @@ use clap::Args;
 use dupac_relay::{LinkImpairment, Relay, RelayConfig, parse_faults, parse_link};
 use std::net::SocketAddr;
 use std::process::ExitCode;
-use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 #[derive(Args, Debug)]
@@ -32,6 +33,10 @@ pub struct RelayArgs {
     /// Faults from the relay's start, e.g. `stall@10s+3s,reset@40s,partition@60s+20s`.
     #[arg(long, value_name = "SPEC", default_value = "none")]
     pub faults: String,
+    /// Hold the fault schedule until the relay receives SIGUSR1 (`kill -USR1 PID`): its offsets
+    /// then count from the signal, to fault a run once it has warmed up however long that took.
+    #[arg(long)]
+    pub faults_on_signal: bool,
     /// Seed of the jitter.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -59,6 +64,12 @@ pub fn run(args: &RelayArgs) -> Result<ExitCode> {
     cfg.faults =
         parse_faults(&args.faults).with_context(|| format!("--faults {:?}", args.faults))?;
     cfg.seed = args.seed;
+    cfg.faults_held = args.faults_on_signal;
+    let begin = Arc::new(AtomicBool::new(false));
+    if args.faults_on_signal {
+        signal_hook::flag::register(signal_hook::consts::SIGUSR1, begin.clone())
+            .context("installing the SIGUSR1 handler")?;
+    }
     let relay = Relay::start(cfg)?;
     eprintln!(
         "relay {} → {} (up: {}, down: {}, faults: {})",
@@ -68,9 +79,19 @@ pub fn run(args: &RelayArgs) -> Result<ExitCode> {
         args.down.as_deref().unwrap_or(&args.link),
         args.faults
     );
+    if args.faults_on_signal {
+        eprintln!(
+            "relay: the fault schedule waits for SIGUSR1 (kill -USR1 {})",
+            std::process::id()
+        );
+    }
     let mut last = Instant::now();
     while !stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(100));
+        if begin.load(Ordering::Relaxed) && relay.origin().is_none() {
+            relay.begin_faults();
+            eprintln!("relay: the fault schedule begins");
+        }
         if args.report_every_s > 0.0 && last.elapsed().as_secs_f64() >= args.report_every_s {
             eprintln!("{}", line(&relay.stats()));
             last = Instant::now();

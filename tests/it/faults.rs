@@ -562,15 +562,15 @@ fn training_through_a_bad_wan_finishes_with_every_update() {
     learner.extend_from_slice(&client);
     p.spawn_warnings("learner", &learner);
     let wan = "delay=50ms,jitter=20ms,rate=10mbit";
+    // From the SIGUSR1 the relays get once both actors train (a busy machine takes long to
+    // get there; a schedule counted from the relays' start would cut the warm-up instead).
     let faults = [
-        "stall@6s+3s,reset@12s,partition@18s+12s".to_string(),
-        "reset@9s".to_string(),
+        "stall@1s+3s,reset@7s,partition@13s+12s".to_string(),
+        "reset@4s".to_string(),
     ];
     let relays: Vec<String> = (0..2)
         .map(|_| format!("127.0.0.1:{}", free_port()))
         .collect();
-    // The fault schedules count from each relay's start: the partition begins 18 s after this.
-    let relays_started = Instant::now();
     for (k, (relay, faults)) in relays.iter().zip(&faults).enumerate() {
         let name = format!("relay{}", k + 1);
         p.spawn(
@@ -585,6 +585,7 @@ fn training_through_a_bad_wan_finishes_with_every_update() {
                 wan,
                 "--faults",
                 faults,
+                "--faults-on-signal",
             ],
         );
         let id = (k + 1).to_string();
@@ -607,10 +608,14 @@ fn training_through_a_bad_wan_finishes_with_every_update() {
     w.wait_for(&p, "both actors trained through the relays", 120, |s| {
         s.update >= 3 && alive_with_chunks(s, 1, 0) && alive_with_chunks(s, 2, 0)
     });
-    // Actor 1 is cut off (its relay started before it: the partition ends 30 s after the
-    // relay's start at the latest), then back. The reset at 12 s makes it leave briefly too:
-    // look for its absence once the partition has begun.
-    std::thread::sleep(Duration::from_secs(18).saturating_sub(relays_started.elapsed()));
+    for relay in ["relay1", "relay2"] {
+        p.signal(relay, "-USR1");
+    }
+    let faults_sent = Instant::now();
+    // Actor 1 is cut off, then back. The reset at 7 s makes it leave briefly too: look for its
+    // absence once the partition has begun (13 s after the relay's next look at its signal
+    // flag, within 0.1 s of the signal).
+    std::thread::sleep(Duration::from_secs(14).saturating_sub(faults_sent.elapsed()));
     let during = w.wait_for(&p, "actor 1 seen gone during the partition", 90, |s| {
         s.actors
             .iter()

@@ -394,14 +394,19 @@ impl Procs {
             .1
     }
 
-    /// Sends a signal and waits for the process to exit (at most 30 s).
-    pub fn signal_and_wait(&mut self, name: &str, sig: &str) -> std::process::ExitStatus {
+    /// Sends a signal (`-INT`, `-USR1`, …).
+    pub fn signal(&mut self, name: &str, sig: &str) {
         let pid = self.child(name).id().to_string();
         let st = Command::new("kill")
             .args([sig, &pid])
             .status()
             .expect("kill");
-        assert!(st.success());
+        assert!(st.success(), "kill {sig} {name}");
+    }
+
+    /// Sends a signal and waits for the process to exit (at most 30 s).
+    pub fn signal_and_wait(&mut self, name: &str, sig: &str) -> std::process::ExitStatus {
+        self.signal(name, sig);
         self.wait_exit(name, 30)
     }
 
