@@ -30,7 +30,8 @@ pub struct RelayArgs {
     /// Impairment from the upstream only (replaces `--link` for that direction).
     #[arg(long, value_name = "SPEC")]
     pub down: Option<String>,
-    /// Faults from the relay's start, e.g. `stall@10s+3s,reset@40s,partition@60s+20s`.
+    /// Faults from the relay's start (from SIGUSR1 with `--faults-on-signal`), e.g.
+    /// `stall@10s+3s,reset@40s,partition@60s+20s`.
     #[arg(long, value_name = "SPEC", default_value = "none")]
     pub faults: String,
     /// Hold the fault schedule until the relay receives SIGUSR1 (`kill -USR1 PID`): its offsets
