@@ -41,6 +41,28 @@ pub mod site_feature {
     pub fn ping_pong(cfg: &crate::config::ObservationConfig) -> Option<usize> {
         cfg.site_ping_pong.then_some(super::SITE_FEATURES)
     }
+
+    /// With `env.observation.site_lookahead_m`, after the ping-pong flag: one value per distance
+    /// ahead, the site's predicted RSRP minus the predicted best there (/ 10 dB, clipped to
+    /// [−6, 0]).
+    pub fn lookahead(cfg: &crate::config::ObservationConfig) -> std::ops::Range<usize> {
+        let start = super::SITE_FEATURES + usize::from(cfg.site_ping_pong);
+        start..start + cfg.site_lookahead_m.len()
+    }
+
+    /// With `env.observation.site_lookahead_stay`, after the look-ahead distances: how far ahead
+    /// the site stays within `site_stay_within_db` of the predicted best (fraction of
+    /// `env.predictive.horizon_m`, in [0, 1]).
+    pub fn stay(cfg: &crate::config::ObservationConfig) -> Option<usize> {
+        cfg.site_lookahead_stay.then_some(lookahead(cfg).end)
+    }
+
+    /// With `env.observation.site_predictive_choice`, last: 1 for the predictive association's
+    /// choice, else 0.
+    pub fn predictive_choice(cfg: &crate::config::ObservationConfig) -> Option<usize> {
+        cfg.site_predictive_choice
+            .then_some(lookahead(cfg).end + usize::from(cfg.site_lookahead_stay))
+    }
 }
 
 /// Number of features per site in the `site_features` field without `site_ping_pong`.
@@ -48,7 +70,11 @@ pub const SITE_FEATURES: usize = 10;
 
 /// Features per site in the `site_features` field under `cfg`.
 pub fn site_features_per_site(cfg: &ObservationConfig) -> usize {
-    SITE_FEATURES + usize::from(cfg.site_ping_pong)
+    SITE_FEATURES
+        + usize::from(cfg.site_ping_pong)
+        + cfg.site_lookahead_m.len()
+        + usize::from(cfg.site_lookahead_stay)
+        + usize::from(cfg.site_predictive_choice)
 }
 
 /// Directions of the obstacle-sensor fan: the 26 non-zero vectors of {−1, 0, 1}³ (unnormalised),

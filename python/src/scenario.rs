@@ -194,6 +194,7 @@ impl Scenario {
             Association::Learned => "learned",
             Association::A3 => "a3",
             Association::BestRsrp => "best_rsrp",
+            Association::Predictive => "predictive",
         }
     }
 

@@ -1,11 +1,17 @@
-//! The base method: 3GPP event-A3 handover with time-to-trigger, step-based version of
-//! spec/radio.md §4 (TS 36.331 §5.5.4.4 with all Of*/Oc* = 0, decision D15).
+//! The base method: 3GPP event-A3 handover with time-to-trigger (spec/radio.md §4, TS 36.331
+//! §5.5.4.4 with all Of*/Oc* = 0, decision D15), evaluated as a UE does.
 //!
-//! Each step, for each neighbour n ≠ s: `M_n − Hys > M_s + Off` (strict) increments `cnt[n]`,
-//! otherwise resets it; when some `cnt[n] ≥ TTT_steps` the UAV hands over, at this step, to the
-//! triggered neighbour with the highest measurement, and all counters are reset. Measurements
-//! are the deterministic per-site RSRP (dBm) of each GBS's best sector, optionally smoothed by
-//! the L3 filter `F = (1 − a) F + a M`, `a = 1/2^(k/4)`.
+//! The UE's measurement changes only when a new one arrives: once per measurement period under
+//! the real channel (`radio.channel.measurement_period_ms`, 200 ms: 4 steps of 48 ms), every
+//! step in the deterministic world. A3's own layer-3 filter `F = (1 − a) F + a M` (when
+//! `radio.a3.l3_filter_k` is set, a = 1/2^(k/4) per 200 ms adapted to the period, TS 36.331
+//! §5.5.3.2) runs once per new measurement. For each neighbour n ≠ s the entering condition
+//! `F_n − Hys > F_s + Off` (strict) starts the neighbour's timeToTrigger timer at the step it
+//! first holds and a step where it fails stops it; the UAV hands over at the first step at which
+//! some timer has run for at least TTT — on the clock, as ns-3's `LteUeRrc` does (a timer
+//! expires between measurements; the next measurement can stop it). So a TTT shorter than the
+//! period only delays the handover: what it sees is one report. The handover goes to the
+//! triggered neighbour with the highest value, and all timers stop.
 
 use dupac_common::config::A3Config;
 use dupac_common::ids::SiteId;
@@ -25,39 +31,47 @@ pub struct A3Params {
     pub offset_db: f64,
     /// Hysteresis `Hys` (dB), default 1.
     pub hysteresis_db: f64,
-    /// timeToTrigger in simulator steps, `max(1, ⌈TTT/Δt⌉)` (4 for 160 ms at Δt = 48 ms).
+    /// timeToTrigger in whole simulator steps, `⌈TTT/Δt⌉` (4 for 160 ms at Δt = 48 ms, 0 for
+    /// TTT = 0): a timer that has run this many steps has run at least TTT.
     pub ttt_steps: u32,
-    /// Optional L3 filter coefficient k (`a = 1/2^(k/4)`); `None` = no filter (default).
+    /// Optional L3 filter coefficient k of A3's own filter (`a = 1/2^(k/4)` per 200 ms);
+    /// `None` = A3 compares the measurements as the UAV holds them (default).
     pub l3_filter_k: Option<u32>,
+    /// The measurement period (s) the filter's coefficient is adapted to: the channel's period,
+    /// or one step where every step is measured.
+    pub measurement_period_s: f64,
 }
 
 impl A3Params {
-    /// Converts the config (spec/radio.md §4): `ttt_steps = max(1, ⌈time_to_trigger_ms / 1000
-    /// / dt_s⌉)`, `dt_s` the simulator step in seconds. A quotient within a relative 1e−9 of an
-    /// integer counts as that integer (160 ms / 40 ms = 4, not 5; 160 ms / 48 ms → 4).
-    /// A non-finite or non-positive `dt_s`, or a non-finite TTT, gives 1 step; huge quotients
-    /// saturate at `u32::MAX`.
-    pub fn from_config(cfg: &A3Config, dt_s: f64) -> Self {
+    /// Converts the config (spec/radio.md §4): `ttt_steps = ⌈time_to_trigger_ms / 1000 /
+    /// dt_s⌉`, `dt_s` the simulator step in seconds; `measurement_period_s` the period of the
+    /// UAV's measurements (s). A quotient within a relative 1e−9 of an integer counts as that
+    /// integer (160 ms / 40 ms = 4, not 5; 160 ms / 48 ms → 4). A non-finite or non-positive
+    /// `dt_s`, or a non-finite TTT, gives 0 steps; huge quotients saturate at `u32::MAX`.
+    pub fn from_config(cfg: &A3Config, dt_s: f64, measurement_period_s: f64) -> Self {
         Self {
             offset_db: cfg.offset_db,
             hysteresis_db: cfg.hysteresis_db,
             ttt_steps: ttt_steps(cfg.time_to_trigger_ms, dt_s),
             l3_filter_k: cfg.l3_filter_k,
+            measurement_period_s,
         }
     }
 
-    /// L3 filter weight `a = 1/2^(k/4)` of the newest measurement (spec/radio.md §4), `None`
-    /// when no filter is configured. k = 4 gives 0.5, k = 0 gives 1 (no smoothing).
+    /// A3's own L3 filter weight a of the newest measurement (TS 36.331 §5.5.3.2: 1/2^(k/4) per
+    /// 200 ms, adapted to the measurement period, [`crate::channel::l3_coefficient`]), `None`
+    /// when A3 has no filter of its own. k = 4 at 200 ms gives 0.5, k = 0 gives 1 (no
+    /// smoothing).
     pub fn l3_filter_weight(&self) -> Option<f64> {
         self.l3_filter_k
-            .map(|k| 1.0 / 2f64.powf(f64::from(k) / 4.0))
+            .map(|k| crate::channel::l3_coefficient(k, self.measurement_period_s))
     }
 }
 
-/// `max(1, ⌈ttt_ms / 1000 / dt_s⌉)` with the float-noise guard of [`A3Params::from_config`].
+/// `⌈ttt_ms / 1000 / dt_s⌉` with the float-noise guard of [`A3Params::from_config`].
 fn ttt_steps(ttt_ms: f64, dt_s: f64) -> u32 {
     if !(dt_s.is_finite() && dt_s > 0.0 && ttt_ms.is_finite()) {
-        return 1;
+        return 0;
     }
     let x = ttt_ms / 1000.0 / dt_s;
     let r = x.round();
@@ -67,7 +81,7 @@ fn ttt_steps(ttt_ms: f64, dt_s: f64) -> u32 {
         x.ceil()
     };
     // `as` saturates (negative → 0, huge → u32::MAX).
-    (steps as u32).max(1)
+    steps as u32
 }
 
 /// A handover decided by [`A3State::step`] (spec/radio.md §4 item 3).
@@ -79,7 +93,7 @@ pub struct Handover {
     pub to: SiteId,
 }
 
-/// A3 state of one UAV: serving GBS, per-neighbour TTT counters and the L3 filter state
+/// A3 state of one UAV: serving GBS, per-neighbour timeToTrigger timers and the L3 filter state
 /// (spec/radio.md §4). Buffers are allocated at construction; [`A3State::step`] does not
 /// allocate unless the number of sites changes.
 #[derive(Debug, Clone)]
@@ -88,7 +102,8 @@ pub struct A3State {
     /// L3 filter weight a, `None` without filter.
     filter_a: Option<f64>,
     serving: usize,
-    /// `cnt[n]`, consecutive steps with the entering condition; always 0 for the serving site.
+    /// `cnt[n]`, consecutive steps with the entering condition, counting the step it first held
+    /// (a timer that has run `cnt − 1` steps); always 0 for the serving site.
     counters: Vec<u32>,
     /// Filtered measurements F (dBm), only used with the L3 filter.
     filtered: Vec<f64>,
@@ -160,27 +175,29 @@ impl A3State {
         site_id(self.serving)
     }
 
-    /// TTT counters `cnt[n]` per site, in steps (spec/radio.md §4 item 2); the serving site's
-    /// entry is always 0.
+    /// TTT counters `cnt[n]` per site: the steps the entering condition has held, counting the
+    /// step it first held (spec/radio.md §4 item 2); the serving site's entry is always 0.
     pub fn counters(&self) -> &[u32] {
         &self.counters
     }
 
-    /// One measurement step (spec/radio.md §4 items 2–3) with `rsrp_dbm` = RSRP (dBm) of every
-    /// site's best sector, indexed by [`SiteId`].
+    /// One step (spec/radio.md §4 items 2–3) with `rsrp_dbm` = what the UAV holds of every
+    /// site's RSRP (dBm, best sector), indexed by [`SiteId`]; `fresh` = a new measurement
+    /// arrived at this step (between measurements the UAV holds the last one).
     ///
-    /// With an L3 filter each measurement first updates `F = (1 − a) F + a M` (a filter that holds
-    /// no finite value restarts from the next finite measurement) and F is used below. For each
-    /// neighbour n ≠ s: `F_n − Hys > F_s + Off` (strict) → `cnt[n] += 1`, else `cnt[n] = 0`. If
-    /// some `cnt[n] ≥ ttt_steps`, the serving site changes to the triggered neighbour with the
-    /// highest (filtered) measurement (lowest index on ties), effective now, and every counter is
-    /// reset; the handover is returned.
+    /// With A3's own L3 filter a fresh measurement first updates `F = (1 − a) F + a M` (a filter
+    /// that holds no finite value restarts from the next finite measurement) and F is used
+    /// below; a step without a fresh measurement leaves F as it is. For each neighbour n ≠ s:
+    /// `F_n − Hys > F_s + Off` (strict) → `cnt[n] += 1`, else `cnt[n] = 0`. If some
+    /// `cnt[n] > ttt_steps` (its timer has run `cnt − 1 ≥ ⌈TTT/Δt⌉` steps), the serving site
+    /// changes to the triggered neighbour with the highest (filtered) measurement (lowest index
+    /// on ties), effective now, and every counter is reset; the handover is returned.
     ///
     /// NaN measurements count as −∞. If the slice length differs from the previous one, the
     /// buffers are resized once (new sites start with counter 0 and, with a filter, with this
     /// measurement); a serving site missing from a shorter slice is measured as −∞, so any
     /// neighbour with a finite measurement triggers. Entries beyond 65 536 sites are ignored.
-    pub fn step(&mut self, rsrp_dbm: &[f64]) -> Option<Handover> {
+    pub fn step(&mut self, rsrp_dbm: &[f64], fresh: bool) -> Option<Handover> {
         let n = rsrp_dbm.len().min(MAX_SITES);
         let meas = &rsrp_dbm[..n];
         if self.counters.len() != n {
@@ -193,7 +210,7 @@ impl A3State {
                 self.filtered
                     .extend(meas[old..].iter().map(|&v| sanitize(v)));
             }
-            for (f, &m) in self.filtered.iter_mut().zip(meas) {
+            for (f, &m) in self.filtered.iter_mut().zip(meas).filter(|_| fresh) {
                 let m = sanitize(m);
                 *f = if f.is_finite() {
                     (1.0 - a) * *f + a * m
@@ -227,7 +244,7 @@ impl A3State {
             } else {
                 *cnt = 0;
             }
-            if *cnt >= ttt && target.is_none_or(|(_, best)| v > best) {
+            if *cnt > ttt && target.is_none_or(|(_, best)| v > best) {
                 target = Some((i, v));
             }
         }
@@ -245,12 +262,15 @@ impl A3State {
 mod tests {
     use super::*;
 
-    fn params(ttt_steps: u32) -> A3Params {
+    /// Hands over at the `trigger_at`-th consecutive step with the entering condition (a TTT of
+    /// `trigger_at − 1` steps); measurements every 200 ms for the filter's coefficient.
+    fn params(trigger_at: u32) -> A3Params {
         A3Params {
             offset_db: 3.0,
             hysteresis_db: 1.0,
-            ttt_steps,
+            ttt_steps: trigger_at - 1,
             l3_filter_k: None,
+            measurement_period_s: 0.2,
         }
     }
 
@@ -263,30 +283,31 @@ mod tests {
 
     #[test]
     fn ttt_step_conversion() {
+        let steps = |ttt_ms: f64, dt_s: f64| A3Params::from_config(&cfg(ttt_ms), dt_s, 0.2).ttt_steps;
         // 0.16 / 0.048 = 3.33 → 4
-        assert_eq!(A3Params::from_config(&cfg(160.0), 0.048).ttt_steps, 4);
+        assert_eq!(steps(160.0, 0.048), 4);
         // 0.16 / 0.04 = 4 (not 5 from float noise)
-        assert_eq!(A3Params::from_config(&cfg(160.0), 0.04).ttt_steps, 4);
+        assert_eq!(steps(160.0, 0.04), 4);
         // 0.16 / 1 = 0.16 → 1
-        assert_eq!(A3Params::from_config(&cfg(160.0), 1.0).ttt_steps, 1);
-        // TTT = 0 → max(1, 0) = 1
-        assert_eq!(A3Params::from_config(&cfg(0.0), 0.048).ttt_steps, 1);
+        assert_eq!(steps(160.0, 1.0), 1);
+        // TTT = 0 → 0: the step the condition first holds
+        assert_eq!(steps(0.0, 0.048), 0);
         // 1.1 / 0.1 = 11.000000000000002 in f64 → 11, not 12
-        assert_eq!(A3Params::from_config(&cfg(1100.0), 0.1).ttt_steps, 11);
+        assert_eq!(steps(1100.0, 0.1), 11);
         // 0.1 / 0.04 = 2.5 → 3;  0.16 / 0.05 = 3.1999999999999997 → 4;  1.28 / 0.064 = 20
-        assert_eq!(A3Params::from_config(&cfg(100.0), 0.04).ttt_steps, 3);
-        assert_eq!(A3Params::from_config(&cfg(160.0), 0.05).ttt_steps, 4);
-        assert_eq!(A3Params::from_config(&cfg(1280.0), 0.064).ttt_steps, 20);
-        // bad Δt → 1
-        assert_eq!(A3Params::from_config(&cfg(160.0), 0.0).ttt_steps, 1);
-        assert_eq!(A3Params::from_config(&cfg(160.0), f64::NAN).ttt_steps, 1);
-        let p = A3Params::from_config(&A3Config::default(), 0.048);
-        assert_eq!(p, params(4));
+        assert_eq!(steps(100.0, 0.04), 3);
+        assert_eq!(steps(160.0, 0.05), 4);
+        assert_eq!(steps(1280.0, 0.064), 20);
+        // bad Δt → 0
+        assert_eq!(steps(160.0, 0.0), 0);
+        assert_eq!(steps(160.0, f64::NAN), 0);
+        let p = A3Params::from_config(&A3Config::default(), 0.048, 0.2);
+        assert_eq!(p, params(5));
     }
 
     #[test]
     fn l3_weight() {
-        // a = 1/2^(k/4): k=4 → 0.5, k=8 → 0.25, k=0 → 1
+        // a = 1/2^(k/4) per 200 ms: k=4 → 0.5, k=8 → 0.25, k=0 → 1
         let mut p = params(1);
         assert_eq!(p.l3_filter_weight(), None);
         p.l3_filter_k = Some(4);
@@ -295,6 +316,71 @@ mod tests {
         assert_eq!(p.l3_filter_weight(), Some(0.25));
         p.l3_filter_k = Some(0);
         assert_eq!(p.l3_filter_weight(), Some(1.0));
+        // per 400 ms at k = 4: 1 − (1 − 0.5)² = 0.75
+        p.l3_filter_k = Some(4);
+        p.measurement_period_s = 0.4;
+        assert!((p.l3_filter_weight().expect("a filter") - 0.75).abs() < 1e-12);
+    }
+
+    /// Steps (0-based) at which A3 hands over from site 0 to site 1 on a hand-made series: one
+    /// measurement every 4 steps of 50 ms (a 200 ms period); site 1 is 10 dB above the serving
+    /// site from the measurement at step 0 and `then_dbm` from the measurement at step 4.
+    fn handover_step(ttt_ms: f64, then_dbm: f64) -> Option<u32> {
+        let a3 = A3Config {
+            time_to_trigger_ms: ttt_ms,
+            ..A3Config::default()
+        };
+        let p = A3Params::from_config(&a3, 0.05, 0.2);
+        let mut s = A3State::new(p, &[-80.0, -90.0]);
+        (0..12).find(|&t| {
+            let m = if t < 4 { [-80.0, -70.0] } else { [-80.0, then_dbm] };
+            s.step(&m, t % 4 == 0).is_some()
+        })
+    }
+
+    #[test]
+    fn ttt_runs_on_the_clock_between_measurements() {
+        // The measurement at step 4 ends the entering condition (−78 − 1 > −77 is false): a TTT
+        // shorter than the period expires before it, at the first step ≥ TTT after the
+        // condition first held (40 ms → step 1, 64–100 ms → 2, 128 ms → 3); 160 ms and longer
+        // would expire at or after step 4, which the new measurement stops.
+        for (ttt, at) in [
+            (0.0, Some(0)),
+            (40.0, Some(1)),
+            (64.0, Some(2)),
+            (80.0, Some(2)),
+            (100.0, Some(2)),
+            (128.0, Some(3)),
+            (160.0, None),
+            (256.0, None),
+            (320.0, None),
+        ] {
+            assert_eq!(handover_step(ttt, -78.0), at, "TTT {ttt} ms");
+        }
+        // When the measurement at step 4 still meets the condition, the timer runs on: 160 ms at
+        // step 4, 256 ms (5.12 steps) at step 6, 320 ms (6.4) at step 7, 640 ms at step 13 —
+        // past the series.
+        for (ttt, at) in [(160.0, Some(4)), (256.0, Some(6)), (320.0, Some(7)), (640.0, None)] {
+            assert_eq!(handover_step(ttt, -70.0), at, "TTT {ttt} ms");
+        }
+    }
+
+    #[test]
+    fn a3_filters_once_per_measurement() {
+        // k = 4 at a 200 ms period (a = 0.5), F = [−80, −85]. The neighbour jumps to −70 at the
+        // measurement of step 0 and is held for the period's 4 steps: F1 = −77.5 (−78.5 > −77
+        // fails) and stays there until the next measurement, F2 = −73.75 at step 4, which
+        // meets the condition; TTT 0 hands over there. Filtering each held step again would
+        // reach −73.75 at step 1.
+        let a3 = A3Config {
+            time_to_trigger_ms: 0.0,
+            l3_filter_k: Some(4),
+            ..A3Config::default()
+        };
+        let p = A3Params::from_config(&a3, 0.05, 0.2);
+        let mut s = A3State::new(p, &[-80.0, -85.0]);
+        let at = (0..8).find(|&t| s.step(&[-80.0, -70.0], t % 4 == 0).is_some());
+        assert_eq!(at, Some(4));
     }
 
     #[test]
@@ -315,7 +401,7 @@ mod tests {
         let mut e = A3State::new(params(4), &[]);
         assert_eq!(e.serving(), SiteId(0));
         assert!(e.counters().is_empty());
-        assert_eq!(e.step(&[]), None);
+        assert_eq!(e.step(&[], true), None);
     }
 
     #[test]
@@ -323,16 +409,16 @@ mod tests {
         // Neighbour 3.9 dB better: −76.1 − 1 > −80 + 3 ⇔ −77.1 > −77 is false.
         let mut s = A3State::new(params(1), &[-80.0, -90.0]);
         for _ in 0..20 {
-            assert_eq!(s.step(&[-80.0, -76.1]), None);
+            assert_eq!(s.step(&[-80.0, -76.1], true), None);
             assert_eq!(s.counters(), &[0, 0]);
         }
         // Exactly 4 dB: −77 > −77 is false (strict).
         for _ in 0..20 {
-            assert_eq!(s.step(&[-80.0, -76.0]), None);
+            assert_eq!(s.step(&[-80.0, -76.0], true), None);
         }
         // 4.1 dB with TTT = 1 step: −76.9 > −77 → immediate handover.
         assert_eq!(
-            s.step(&[-80.0, -75.9]),
+            s.step(&[-80.0, -75.9], true),
             Some(Handover {
                 from: SiteId(0),
                 to: SiteId(1)
@@ -346,20 +432,20 @@ mod tests {
         let mut s = A3State::new(params(4), &[-80.0, -90.0]);
         let good = [-80.0, -70.0]; // −71 > −77
         let dip = [-80.0, -77.0]; // −78 > −77 false
-        assert_eq!(s.step(&good), None);
+        assert_eq!(s.step(&good, true), None);
         assert_eq!(s.counters(), &[0, 1]);
-        assert_eq!(s.step(&good), None);
-        assert_eq!(s.step(&good), None);
+        assert_eq!(s.step(&good, true), None);
+        assert_eq!(s.step(&good, true), None);
         assert_eq!(s.counters(), &[0, 3]);
-        assert_eq!(s.step(&dip), None);
+        assert_eq!(s.step(&dip, true), None);
         assert_eq!(s.counters(), &[0, 0]);
-        assert_eq!(s.step(&good), None);
-        assert_eq!(s.step(&good), None);
-        assert_eq!(s.step(&good), None);
+        assert_eq!(s.step(&good, true), None);
+        assert_eq!(s.step(&good, true), None);
+        assert_eq!(s.step(&good, true), None);
         assert_eq!(s.serving(), SiteId(0));
         // 4th consecutive step → handover, effective now
         assert_eq!(
-            s.step(&good),
+            s.step(&good, true),
             Some(Handover {
                 from: SiteId(0),
                 to: SiteId(1)
@@ -368,7 +454,7 @@ mod tests {
         assert_eq!(s.serving(), SiteId(1));
         assert_eq!(s.counters(), &[0, 0]);
         // new serving 1 at −70: site 0 at −80 does not trigger back
-        assert_eq!(s.step(&good), None);
+        assert_eq!(s.step(&good, true), None);
         assert_eq!(s.counters(), &[0, 0]);
     }
 
@@ -376,10 +462,10 @@ mod tests {
     fn highest_rsrp_wins_among_triggered() {
         // Sites 1 and 2 both trigger from the first step; site 3 is better but starts late.
         let mut s = A3State::new(params(2), &[-80.0, -90.0, -90.0, -90.0]);
-        assert_eq!(s.step(&[-80.0, -72.0, -70.0, -90.0]), None);
+        assert_eq!(s.step(&[-80.0, -72.0, -70.0, -90.0], true), None);
         assert_eq!(s.counters(), &[0, 1, 1, 0]);
         // step 2: cnt = [0, 2, 2, 1]; site 3 (−60) not yet at TTT → highest triggered is 2
-        let ho = s.step(&[-80.0, -72.0, -70.0, -60.0]);
+        let ho = s.step(&[-80.0, -72.0, -70.0, -60.0], true);
         assert_eq!(
             ho,
             Some(Handover {
@@ -395,7 +481,7 @@ mod tests {
     #[test]
     fn tie_between_triggered_goes_to_lowest_index() {
         let mut s = A3State::new(params(1), &[-80.0, -90.0, -90.0]);
-        let ho = s.step(&[-80.0, -70.0, -70.0]);
+        let ho = s.step(&[-80.0, -70.0, -70.0], true);
         assert_eq!(ho.map(|h| h.to), Some(SiteId(1)));
     }
 
@@ -403,18 +489,18 @@ mod tests {
     fn counters_restart_after_handover() {
         let mut s = A3State::new(params(2), &[-80.0, -90.0, -90.0]);
         // site 2 counts one step, then site 1 hands over at step 2 while site 2 keeps triggering
-        assert_eq!(s.step(&[-80.0, -70.0, -75.0]), None);
+        assert_eq!(s.step(&[-80.0, -70.0, -75.0], true), None);
         assert_eq!(s.counters(), &[0, 1, 1]);
         assert_eq!(
-            s.step(&[-80.0, -70.0, -75.0]).map(|h| h.to),
+            s.step(&[-80.0, -70.0, -75.0], true).map(|h| h.to),
             Some(SiteId(1))
         );
         assert_eq!(s.counters(), &[0, 0, 0]);
         // site 2 now needs M2 − 1 > −70 + 3: at −60 it counts from 0 again
-        assert_eq!(s.step(&[-80.0, -70.0, -60.0]), None);
+        assert_eq!(s.step(&[-80.0, -70.0, -60.0], true), None);
         assert_eq!(s.counters(), &[0, 0, 1]);
         assert_eq!(
-            s.step(&[-80.0, -70.0, -60.0]).map(|h| h.to),
+            s.step(&[-80.0, -70.0, -60.0], true).map(|h| h.to),
             Some(SiteId(2))
         );
     }
@@ -424,7 +510,7 @@ mod tests {
         // Serving −80, neighbour jumps −85 → −70 at step 1, TTT = 4 steps.
         let seq = [-80.0, -70.0];
         let mut plain = A3State::new(params(4), &[-80.0, -85.0]);
-        let plain_at = (1..=20).find(|_| plain.step(&seq).is_some());
+        let plain_at = (1..=20).find(|_| plain.step(&seq, true).is_some());
         // unfiltered: triggers at steps 1..4 → handover at step 4
         assert_eq!(plain_at, Some(4));
 
@@ -434,9 +520,9 @@ mod tests {
         let mut p = params(4);
         p.l3_filter_k = Some(4);
         let mut filt = A3State::new(p, &[-80.0, -85.0]);
-        assert_eq!(filt.step(&seq), None);
+        assert_eq!(filt.step(&seq, true), None);
         assert_eq!(filt.counters(), &[0, 0]);
-        let filt_at = (2..=20).find(|_| filt.step(&seq).is_some());
+        let filt_at = (2..=20).find(|_| filt.step(&seq, true).is_some());
         assert_eq!(filt_at, Some(5));
     }
 
@@ -444,16 +530,16 @@ mod tests {
     fn nan_and_length_changes_do_not_panic() {
         let mut s = A3State::new(params(1), &[-80.0, -90.0]);
         // NaN neighbour never triggers
-        assert_eq!(s.step(&[-80.0, f64::NAN]), None);
+        assert_eq!(s.step(&[-80.0, f64::NAN], true), None);
         // a longer slice: site 2 appears and triggers
         assert_eq!(
-            s.step(&[-80.0, -90.0, -70.0]).map(|h| h.to),
+            s.step(&[-80.0, -90.0, -70.0], true).map(|h| h.to),
             Some(SiteId(2))
         );
         assert_eq!(s.counters().len(), 3);
         // a shorter slice without the serving site 2: serving = −∞, site 0 takes over
         assert_eq!(
-            s.step(&[-95.0, -99.0]),
+            s.step(&[-95.0, -99.0], true),
             Some(Handover {
                 from: SiteId(2),
                 to: SiteId(0)
@@ -462,17 +548,17 @@ mod tests {
         assert_eq!(s.counters().len(), 2);
         // NaN serving counts as −∞
         let mut s = A3State::new(params(1), &[-80.0, -90.0]);
-        assert_eq!(s.step(&[f64::NAN, -90.0]).map(|h| h.to), Some(SiteId(1)));
+        assert_eq!(s.step(&[f64::NAN, -90.0], true).map(|h| h.to), Some(SiteId(1)));
         // the same with an L3 filter
         let mut p = params(1);
         p.l3_filter_k = Some(4);
         let mut s = A3State::new(p, &[-80.0, f64::NAN]);
-        assert_eq!(s.step(&[-80.0, f64::NAN]), None);
+        assert_eq!(s.step(&[-80.0, f64::NAN], true), None);
         // filter of site 1 restarts from the first finite value: F1 = −60 → triggers
-        assert_eq!(s.step(&[-80.0, -60.0]).map(|h| h.to), Some(SiteId(1)));
+        assert_eq!(s.step(&[-80.0, -60.0], true).map(|h| h.to), Some(SiteId(1)));
         // two new sites appear (filters start at their measurement); both trigger, −40 wins
         assert_eq!(
-            s.step(&[-80.0, -60.0, -50.0, -40.0]).map(|h| h.to),
+            s.step(&[-80.0, -60.0, -50.0, -40.0], true).map(|h| h.to),
             Some(SiteId(3))
         );
     }
@@ -480,11 +566,11 @@ mod tests {
     #[test]
     fn reset_restarts_the_episode() {
         let mut s = A3State::new(params(4), &[-80.0, -90.0]);
-        s.step(&[-80.0, -70.0]);
+        s.step(&[-80.0, -70.0], true);
         assert_eq!(s.counters(), &[0, 1]);
         s.reset(&[-90.0, -80.0, -85.0]);
         assert_eq!(s.serving(), SiteId(1));
         assert_eq!(s.counters(), &[0, 0, 0]);
-        assert_eq!(s.params().ttt_steps, 4);
+        assert_eq!(s.params().ttt_steps, 3);
     }
 }

@@ -157,6 +157,10 @@ pub struct Measurer {
     /// Steps in the current period so far.
     in_period: u32,
     started: bool,
+    /// Whether the last [`Measurer::measure`] delivered a new measurement.
+    fresh: bool,
+    /// The last measurement before the layer-3 filter, M_n (dBm).
+    raw_dbm: Vec<f64>,
 }
 
 impl Measurer {
@@ -175,7 +179,21 @@ impl Measurer {
             sum_dbm: vec![0.0; n_sites],
             in_period: 0,
             started: false,
+            fresh: false,
+            raw_dbm: vec![f64::NEG_INFINITY; n_sites],
         }
+    }
+
+    /// Whether the last [`Measurer::measure`] delivered a new measurement (the first step of an
+    /// episode and the end of every period); between, the UAV holds the last one.
+    pub fn fresh(&self) -> bool {
+        self.fresh
+    }
+
+    /// The last measurement before the layer-3 filter, M_n (dBm; mean over the period plus the
+    /// error): what a filter of another coefficient (A3's own, `radio.a3.l3_filter_k`) takes.
+    pub fn raw_dbm(&self) -> &[f64] {
+        &self.raw_dbm
     }
 
     /// The filter coefficient per measurement period.
@@ -209,14 +227,22 @@ impl Measurer {
             *s += t;
         }
         self.in_period += 1;
-        if self.started && self.in_period < self.period_steps {
+        self.fresh = !(self.started && self.in_period < self.period_steps);
+        if !self.fresh {
             out.copy_from_slice(&self.filtered_dbm);
             return;
         }
         let n = f64::from(self.in_period);
-        for ((s, f), o) in self.sum_dbm.iter_mut().zip(&mut self.filtered_dbm).zip(out) {
+        for (((s, f), o), r) in self
+            .sum_dbm
+            .iter_mut()
+            .zip(&mut self.filtered_dbm)
+            .zip(out)
+            .zip(&mut self.raw_dbm)
+        {
             let e: f64 = StandardNormal.sample(&mut self.rng);
             let m = *s / n + self.sigma_db * e;
+            *r = m;
             *f = if self.started && f.is_finite() && m.is_finite() {
                 (1.0 - self.a) * *f + self.a * m
             } else {

@@ -99,6 +99,8 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     let learned = policy.n_sites > 0;
     cfg.env.association = if learned {
         Association::Learned
+    } else if cfg.env.association == Association::Predictive {
+        Association::Predictive
     } else {
         Association::A3
     };

@@ -16,6 +16,8 @@ pub enum AssociationArg {
     Learned,
     /// The paper's base method: A3 handover chooses it.
     A3,
+    /// The predictive association (`env.predictive`): planned on the map along the route ahead.
+    Predictive,
 }
 
 /// The compute device of the learner.
@@ -33,7 +35,8 @@ pub enum DeviceArg {
 #[derive(Args, Debug, Clone)]
 #[command(next_help_heading = "Training run")]
 pub struct RunArgs {
-    /// `learned` (DUPAC) or `a3` (base method); default `env.association`.
+    /// `learned` (DUPAC), `a3` (base method) or `predictive` (the base method's move with the
+    /// predictive association); default `env.association`.
     #[arg(long, value_enum)]
     pub association: Option<AssociationArg>,
     /// Output directory (default `train.out_dir`).
@@ -97,6 +100,7 @@ pub fn resolve_config(
         cfg.env.association = match a {
             AssociationArg::Learned => Association::Learned,
             AssociationArg::A3 => Association::A3,
+            AssociationArg::Predictive => Association::Predictive,
         };
     }
     if let Some(out) = out {

@@ -128,6 +128,9 @@ impl Env {
             let fix = g.fix(to, self.path_s_m, window_m);
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
+        if let Some((g, _)) = &self.route {
+            self.route_s_m = g.fix(to, self.route_s_m, window_m).s_m;
+        }
         match self.cfg.reward.progress {
             Progress::Straight => d_prev - self.distance_to_goal_m,
             Progress::Path => path_prev - self.path_to_go_m,

@@ -19,6 +19,8 @@ mod decision;
 mod guide;
 mod observe;
 mod reward;
+mod route_ahead;
+mod serving_plan;
 
 use crate::metrics::HandoverCounter;
 use crate::record::StepInfo;
@@ -27,8 +29,10 @@ pub use association::{Associator, argmax};
 pub use guide::{GuideFix, PathGuide};
 use observe::Slots;
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
+pub use route_ahead::{Ahead, RouteMap};
+pub use serving_plan::serving_plan;
 
-use dupac_common::config::{Association, Config, EnvConfig};
+use dupac_common::config::{Association, Config, EnvConfig, WeightDraw};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::ids::SiteId;
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS};
@@ -178,6 +182,23 @@ pub struct Env {
     measurer: Option<Measurer>,
     /// Scratch: every site's line of sight and shadow fading at the UAV.
     los_scratch: Vec<f64>,
+    /// With a route prediction (`EnvConfig::predicts_route`): the route (the episode's planned
+    /// path, or the straight line to the destination) and the operator's map along it.
+    route: Option<(Arc<PathGuide>, RouteMap)>,
+    /// The UAV's tracked place on the route (arc length, m).
+    route_s_m: f64,
+    /// Scratch: every site's map RSRP at the UAV (dBm, without shadowing), then its measured −
+    /// map offset (dB).
+    map_offset_db: Vec<f64>,
+    /// Each site's shadowing decorrelation distance (m, TR 38.901 Table 7.5-6) in line of sight
+    /// and out of it.
+    decorrelation_m: [Vec<f64>; 2],
+    /// Scratch: the decorrelation distance of each site at the UAV (m).
+    decorrelation_scratch_m: Vec<f64>,
+    /// The prediction of the route ahead at the current step.
+    ahead: Ahead,
+    /// The predictive association's choice, kept from one decision to the next.
+    predictive_site: SiteId,
     shadow_scratch_db: Vec<f64>,
     step: u32,
     time_limit: u32,
@@ -227,7 +248,21 @@ impl Env {
             *d = v / norm(v);
         }
         let dt = env.dt_s();
-        let a3 = A3Params::from_config(&cfg.radio.a3, dt);
+        let measurer = cfg.radio.channel.measured().then(|| {
+            let c = &cfg.radio.channel;
+            Measurer::new(
+                m,
+                c.measurement_sigma_db,
+                c.l3_filter_k,
+                dt,
+                c.measurement_period_ms / 1000.0,
+            )
+        });
+        // The period of what the UAV measures: the channel's, or every step.
+        let period_s = measurer
+            .as_ref()
+            .map_or(dt, |m| f64::from(m.period_steps()) * dt);
+        let a3 = A3Params::from_config(&cfg.radio.a3, dt, period_s);
         let ping_pong_steps = (env.ping_pong_window_s / dt).ceil().max(1.0) as u32;
         let obs = vec![0.0; layout.len()];
         Ok(Env {
@@ -249,16 +284,23 @@ impl Env {
             measured_dbm: vec![f64::NEG_INFINITY; m],
             field: None,
             field_split: FieldSplit::Train,
-            measurer: cfg.radio.channel.measured().then(|| {
-                let c = &cfg.radio.channel;
-                Measurer::new(
-                    m,
-                    c.measurement_sigma_db,
-                    c.l3_filter_k,
-                    dt,
-                    c.measurement_period_ms / 1000.0,
-                )
+            measurer,
+            route: None,
+            route_s_m: 0.0,
+            map_offset_db: vec![f64::NEG_INFINITY; m],
+            decorrelation_m: [true, false].map(|los| {
+                world
+                    .sites
+                    .iter()
+                    .map(|s| dupac_radio::shadow::decorrelation_m(s.kind.scenario(), los))
+                    .collect()
             }),
+            decorrelation_scratch_m: vec![0.0; m],
+            ahead: Ahead::new(
+                m,
+                env.route_prediction().map_or(1.0, |p| p.sample_m),
+            ),
+            predictive_site: SiteId(0),
             los_scratch: vec![0.0; m],
             shadow_scratch_db: vec![0.0; m],
             step: 0,
@@ -300,7 +342,9 @@ impl Env {
     pub fn policy_shape(&self) -> (usize, usize) {
         let n_sites = match self.cfg.association {
             dupac_common::config::Association::Learned => self.num_sites(),
-            dupac_common::config::Association::A3 | dupac_common::config::Association::BestRsrp => {
+            dupac_common::config::Association::A3
+            | dupac_common::config::Association::BestRsrp
+            | dupac_common::config::Association::Predictive => {
                 0
             }
         };
@@ -428,6 +472,18 @@ impl Env {
             let fix = g.fix(self.position_m, 0.0, self.guide_window_m());
             (self.path_s_m, self.path_to_go_m) = (fix.s_m, fix.to_go_m);
         }
+        self.route = self.cfg.route_prediction().map(|p| {
+            let g = episode.guide.clone().unwrap_or_else(|| {
+                let straight = [episode.source_m, episode.destination_m];
+                Arc::new(PathGuide::new(&straight).expect("checked finite endpoints"))
+            });
+            let map = RouteMap::new(&g, self.rsrp.as_ref(), p.sample_m);
+            (g, map)
+        });
+        self.route_s_m = match &self.route {
+            Some((g, _)) => g.fix(self.position_m, 0.0, self.guide_window_m()).s_m,
+            None => 0.0,
+        };
         self.episode = Some(episode);
         self.handovers.reset();
         self.substeps.clear();
@@ -445,19 +501,25 @@ impl Env {
         self.associator = assoc;
         self.serving = first;
         self.start_serving = first;
+        self.predictive_site = first;
         self.write_observation();
         Ok(&self.obs)
     }
 
-    /// The episode's handover weight w: drawn uniformly from [0, `env.reward.handover_weight_max`]
-    /// by the episode's seed in training (a stream of its own), `env.reward.handover_weight`
-    /// otherwise; the episode's handover and ping-pong rewards are the configured ones times w.
+    /// The episode's handover weight w: drawn from [0, `env.reward.handover_weight_max`] by the
+    /// episode's seed in training (a stream of its own; uniform in w, or in ln(1 + w) with
+    /// `env.reward.handover_weight_draw = "log"`), `env.reward.handover_weight` otherwise; the
+    /// episode's handover and ping-pong rewards are the configured ones times w.
     fn set_handover_weight(&mut self, seed: u64) {
         let r = &self.cfg.reward;
         self.handover_weight =
             if r.handover_weight_max > 0.0 && self.field_split == FieldSplit::Train {
                 let u = dupac_common::seed::stream_seed(seed, HANDOVER_WEIGHT_DOMAIN, 0) >> 11;
-                r.handover_weight_max * (u as f64 / (1u64 << 53) as f64)
+                let u = u as f64 / (1u64 << 53) as f64;
+                match r.handover_weight_draw {
+                    WeightDraw::Uniform => r.handover_weight_max * u,
+                    WeightDraw::Log => (u * r.handover_weight_max.ln_1p()).exp_m1(),
+                }
             } else {
                 r.handover_weight
             };

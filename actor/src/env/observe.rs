@@ -206,6 +206,24 @@ impl Env {
         let serving = self.serving.index();
         let per_site = site_features_per_site(o);
         let ping_pong_at = site_feature::ping_pong(o);
+        let lookahead_at = site_feature::lookahead(o);
+        let stay_at = site_feature::stay(o);
+        let choice = site_feature::predictive_choice(o).map(|i| {
+            let cost = o.site_prediction.handover_cost_db_m * self.handover_weight;
+            (i, self.ahead.choice(self.serving, cost).index())
+        });
+        // The predicted RSRP of every site, and the predicted best, at each look-ahead distance.
+        let n_sites = self.world.sites.len();
+        let mut ahead_dbm = vec![f64::NEG_INFINITY; n_sites * o.site_lookahead_m.len()];
+        let mut ahead_best = vec![RSRP_FLOOR_DBM; o.site_lookahead_m.len()];
+        for ((row, best), &d) in ahead_dbm
+            .chunks_mut(n_sites.max(1))
+            .zip(&mut ahead_best)
+            .zip(&o.site_lookahead_m)
+        {
+            self.ahead.at(d, row);
+            *best = row.iter().copied().fold(RSRP_FLOOR_DBM, f64::max);
+        }
         let mut los = vec![0.0; self.world.sites.len()];
         if o.site_los == SiteLos::Ray || !self.rsrp.los_all(p, &mut los) {
             for (k, l) in los.iter_mut().enumerate() {
@@ -239,6 +257,17 @@ impl Env {
                     .handovers
                     .would_ping_pong(serving as u16, k as u16, self.step + 1);
                 f[i] = f32::from(u8::from(pp));
+            }
+            for (j, i) in lookahead_at.clone().enumerate() {
+                let v = ahead_dbm[j * n_sites + k].max(RSRP_FLOOR_DBM);
+                f[i] = ((v - ahead_best[j]) / 10.0).clamp(-6.0, 0.0) as f32;
+            }
+            if let Some(i) = stay_at {
+                let h = o.site_prediction.horizon_m;
+                f[i] = (self.ahead.stay_m(k, o.site_stay_within_db) / h).clamp(0.0, 1.0) as f32;
+            }
+            if let Some((i, c)) = choice {
+                f[i] = f32::from(u8::from(k == c));
             }
         }
     }

@@ -14,6 +14,7 @@ use dupac_radio::world::RadioWorld;
 use std::sync::Arc;
 
 mod channel;
+mod lookahead;
 mod sites;
 
 /// A scripted RSRP field: site `s` gives `f(s, p)`.
@@ -300,8 +301,9 @@ fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
     )
     .expect("reset");
     assert_eq!(e.serving(), SiteId(0));
-    // TTT 160 ms at Δt = 1 m / 20.83 m/s = 48 ms → 4 steps. y = 5 is reached on step 5; the
-    // condition holds on steps 5, 6, 7, 8 → handover on step 8.
+    // TTT 160 ms at Δt = 1 m / 20.83 m/s = 48 ms → 4 steps. y = 5 is reached on step 5, where
+    // the condition first holds (the deterministic world measures every step); the timer has
+    // run 4 steps (192 ms ≥ 160 ms) on step 9 → handover on step 9.
     let mut handover_step = None;
     for i in 1..=12 {
         // The action asks for site 0 every time; A3 ignores it.
@@ -311,7 +313,7 @@ fn a3_hands_over_after_time_to_trigger_and_ignores_the_action() {
             assert_eq!(s.info.serving, SiteId(1));
         }
     }
-    assert_eq!(handover_step, Some(8));
+    assert_eq!(handover_step, Some(9));
     // The oracle switches at once.
     let mut e = env_with(Association::BestRsrp, f);
     e.reset(

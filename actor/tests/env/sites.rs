@@ -425,3 +425,34 @@ fn the_handover_weight_scales_the_costs_and_is_observed() {
         "{err}"
     );
 }
+
+/// `env.reward.handover_weight_draw = "log"`: training draws ln(1 + w) uniformly from
+/// [0, ln(1 + handover_weight_max)], so a wide range keeps its share of small weights.
+#[test]
+fn a_log_draw_is_uniform_in_the_observed_weight() {
+    use dupac_common::config::WeightDraw;
+    use dupac_radio::channel::FieldSplit;
+    let mut cfg = unguided();
+    cfg.env.association = Association::Learned;
+    cfg.env.observation.handover_weight = true;
+    cfg.env.reward.handover_weight_max = 30.0;
+    cfg.env.reward.handover_weight_draw = WeightDraw::Log;
+    cfg.validate().expect("valid");
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    let episode = ep(Point::new(0.0, 0.0, 50.0), Point::new(0.0, 100.0, 50.0));
+    assert_eq!(episode.field, FieldSplit::Train);
+    let logs: Vec<f64> = (0..2000u64)
+        .map(|seed| {
+            e.reset(seed, episode.clone()).expect("reset");
+            let w = e.handover_weight();
+            assert!((0.0..=30.0).contains(&w), "{w}");
+            w.ln_1p()
+        })
+        .collect();
+    let top = 31f64.ln();
+    let mean = logs.iter().sum::<f64>() / logs.len() as f64;
+    assert!((mean - top / 2.0).abs() < 0.05 * top, "mean ln(1 + w) {mean}");
+    // A uniform draw in w would put 10 % of the episodes at w ≤ 3; this one puts 40 %.
+    let low = logs.iter().filter(|&&l| l <= 4f64.ln()).count() as f64 / logs.len() as f64;
+    assert!((low - 4f64.ln() / top).abs() < 0.04, "share at w ≤ 3: {low}");
+}

@@ -77,6 +77,11 @@ pub enum Association {
     A3,
     /// Oracle (evaluation only): always the strongest site.
     BestRsrp,
+    /// A rule from what an operator and the UAV know (`env.predictive`, docs/env.md
+    /// "Predictive association"): every decision, the serving sequence over the planned route
+    /// ahead that keeps the most map-predicted RSRP for its handovers, by dynamic programming;
+    /// the first choice is kept until the next decision.
+    Predictive,
 }
 /// Where the environment gets RSRP from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
@@ -124,10 +129,15 @@ pub struct RewardConfig {
     /// excellent time against handovers at flight time, without retraining (docs/env.md
     /// "Handover weight").
     pub handover_weight: f64,
-    /// Training draws each episode's handover weight w uniformly from [0, this] (0, the default:
-    /// every episode has `handover_weight`). Needs `env.observation.handover_weight`: a policy
-    /// must see the cost it is charged.
+    /// Training draws each episode's handover weight w from [0, this] (0, the default:
+    /// every episode has `handover_weight`), as `handover_weight_draw` says. Needs
+    /// `env.observation.handover_weight`: a policy must see the cost it is charged.
     pub handover_weight_max: f64,
+    /// How training draws w from [0, `handover_weight_max`]: `uniform` in w (the default), or
+    /// `log` — uniform in ln(1 + w), the value the policy observes, so that a wide range (the
+    /// low handover rates need w ≫ 6) keeps as many episodes at w ≤ 3 as at the top
+    /// (docs/env.md "Handover weight").
+    pub handover_weight_draw: WeightDraw,
     /// κ_s, reward per dB of *site regret* per step: −κ_s · (best RSRP − serving RSRP), ≤ 0.
     /// Eq. (8) is indifferent among sites that are all excellent, yet serving from a weaker one
     /// costs SINR against the stronger interferer; this term prefers the stronger site
@@ -148,6 +158,19 @@ pub struct RewardConfig {
     /// Over an episode that reaches the goal, `straight` sums to the straight-line distance and
     /// `path` to about the planned path's length.
     pub progress: Progress,
+}
+
+/// How training draws each episode's handover weight ([`RewardConfig::handover_weight_draw`]).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema, Default,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum WeightDraw {
+    /// Uniform in w.
+    #[default]
+    Uniform,
+    /// Uniform in ln(1 + w).
+    Log,
 }
 
 /// The distance whose decrease is the progress Δd of Eq. (8) ([`RewardConfig::progress`]).
@@ -176,6 +199,7 @@ impl Default for RewardConfig {
             ping_pong_reward: -8.0,
             handover_weight: 1.0,
             handover_weight_max: 0.0,
+            handover_weight_draw: WeightDraw::Uniform,
             site_regret_weight: 1.0,
             route_connectivity_weight: 0.5,
             progress: Progress::Path,
@@ -237,6 +261,29 @@ pub struct ObservationConfig {
     /// ([`crate::obs::site_feature::ping_pong`]). On by default; needed by
     /// `env.reward.ping_pong_reward`.
     pub site_ping_pong: bool,
+    /// Look-ahead site features (with `site_features`, after `site_ping_pong`): at each of these
+    /// distances (m) along the planned path ahead of the UAV's place on it, the site's predicted
+    /// RSRP minus the predicted best (/ 10 dB, clipped to [−6, 0]). The prediction is the
+    /// operator's map (RSRP without shadowing) sampled along the path every
+    /// `env.predictive.sample_m`, plus the site's measured − map offset at the UAV fading with the
+    /// distance ahead at the shadowing's decorrelation distance (TR 38.901 Table 7.5-6).
+    /// Empty (the default): none. Needs the episode's planned path. A departure (map knowledge
+    /// of the route ahead; docs/env.md "Look-ahead").
+    pub site_lookahead_m: Vec<f64>,
+    /// One more site feature (after the look-ahead distances): how far ahead along the planned
+    /// path the site is predicted to stay within `site_stay_within_db` of the predicted best, as a
+    /// fraction of `env.predictive.horizon_m` (0: not within it here; 1: the whole horizon).
+    pub site_lookahead_stay: bool,
+    /// The margin of `site_lookahead_stay` (dB).
+    pub site_stay_within_db: f64,
+    /// One more site feature (last): 1 for the site the predictive association would serve
+    /// next (its plan at `site_prediction.handover_cost_db_m` times the episode's handover
+    /// weight), else 0.
+    pub site_predictive_choice: bool,
+    /// The route prediction the look-ahead features read (the settings of `env.predictive`,
+    /// recorded here so that a policy is flown with the prediction it was trained on whatever
+    /// `env.predictive` says; `env.predictive` is the predictive association's).
+    pub site_prediction: PredictiveConfig,
     /// Observe the episode's planned path (`path_guide`, 4 values after the goal fields): the
     /// unit direction to the point `path_lookahead_m` further along the planned path
     /// (`path_guide_lambda`) than the UAV's tracked place on it, and the path distance still to
@@ -282,6 +329,32 @@ impl EnvConfig {
     pub fn needs_path(&self) -> bool {
         self.observation.path_guide || self.reward.progress == Progress::Path
     }
+
+    /// The route prediction the environment makes, if any: the predictive association's
+    /// (`env.predictive`), or the look-ahead site features' (`env.observation.site_prediction`)
+    /// under the learned association (the only one whose site features are written). Both read
+    /// the planned path when the episode has one, the straight line to the destination
+    /// otherwise.
+    pub fn route_prediction(&self) -> Option<&PredictiveConfig> {
+        let o = &self.observation;
+        match self.association {
+            Association::Predictive => Some(&self.predictive),
+            Association::Learned
+                if o.site_features
+                    && (!o.site_lookahead_m.is_empty()
+                        || o.site_lookahead_stay
+                        || o.site_predictive_choice) =>
+            {
+                Some(&o.site_prediction)
+            }
+            _ => None,
+        }
+    }
+
+    /// Whether the environment predicts the route ahead ([`EnvConfig::route_prediction`]).
+    pub fn predicts_route(&self) -> bool {
+        self.route_prediction().is_some()
+    }
 }
 
 impl Default for ObservationConfig {
@@ -301,6 +374,11 @@ impl Default for ObservationConfig {
             rsrp_scale_db: 30.0,
             site_features: true,
             site_ping_pong: true,
+            site_lookahead_m: Vec::new(),
+            site_lookahead_stay: false,
+            site_stay_within_db: 3.0,
+            site_predictive_choice: false,
+            site_prediction: PredictiveConfig::default(),
             path_guide: true,
             path_lookahead_m: 10.0,
             path_guide_lambda: 1.0,
@@ -370,6 +448,55 @@ pub struct EnvConfig {
     pub reward: RewardConfig,
     /// What the policy observes.
     pub observation: ObservationConfig,
+    /// The predictive association and the look-ahead site features' route prediction.
+    pub predictive: PredictiveConfig,
+}
+
+/// A route prediction and plan (docs/env.md "Predictive association"): `[env.predictive]` for the
+/// predictive association (`env.association = "predictive"`), `[env.observation.site_prediction]`
+/// for the look-ahead site features.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct PredictiveConfig {
+    /// How far along the planned route ahead the rule plans (m; default 200).
+    pub horizon_m: f64,
+    /// Spacing of the route samples the prediction is made at (m; default 10).
+    pub sample_m: f64,
+    /// C, the cost of a handover in site regret (dB·m: a handover pays when it gains 1 dB over
+    /// C metres of route, the hindsight association's dB·steps at 1 m steps); default 60. The
+    /// look-ahead feature `site_predictive_choice` uses C times the episode's handover weight.
+    pub handover_cost_db_m: f64,
+}
+
+impl Default for PredictiveConfig {
+    fn default() -> Self {
+        Self {
+            horizon_m: 200.0,
+            sample_m: 10.0,
+            handover_cost_db_m: 60.0,
+        }
+    }
+}
+
+impl PredictiveConfig {
+    /// Checks the section at `key` (`env.predictive` or `env.observation.site_prediction`).
+    pub fn validate(&self, key: &str) -> Result<(), ConfigError> {
+        within(&format!("{key}.sample_m"), self.sample_m, 0.5, 100.0, "m")?;
+        within(&format!("{key}.horizon_m"), self.horizon_m, 0.0, 2_000.0, "m")?;
+        if self.horizon_m < self.sample_m {
+            return Err(bad(
+                &format!("{key}.horizon_m"),
+                format!("must be at least {key}.sample_m"),
+            ));
+        }
+        within(
+            &format!("{key}.handover_cost_db_m"),
+            self.handover_cost_db_m,
+            0.0,
+            1.0e6,
+            "dB·m",
+        )
+    }
 }
 
 impl Default for EnvConfig {
@@ -392,6 +519,7 @@ impl Default for EnvConfig {
             site_regret_threshold_db: 3.0,
             reward: RewardConfig::default(),
             observation: ObservationConfig::default(),
+            predictive: PredictiveConfig::default(),
         }
     }
 }
@@ -546,6 +674,7 @@ impl EnvConfig {
             ));
         }
         e.observation.validate()?;
+        e.predictive.validate("env.predictive")?;
         if e.radio_mode == RadioMode::Cache && (c.z_min_m > e.z_min_m || c.z_max_m < e.z_max_m) {
             return Err(bad(
                 "cache.z_min_m",
@@ -579,6 +708,31 @@ impl ObservationConfig {
                 "is a site feature (on by default): set env.observation.site_features to true too, or this to false (and env.reward.ping_pong_reward to 0)",
             ));
         }
+        if (!o.site_lookahead_m.is_empty() || o.site_lookahead_stay || o.site_predictive_choice)
+            && !o.site_features
+        {
+            return Err(bad(
+                "env.observation.site_lookahead_m",
+                "look-ahead features (site_lookahead_m, site_lookahead_stay, site_predictive_choice) are site features: set env.observation.site_features to true",
+            ));
+        }
+        if o.site_lookahead_m.len() > 16 {
+            return Err(bad(
+                "env.observation.site_lookahead_m",
+                "at most 16 distances",
+            ));
+        }
+        for &d in &o.site_lookahead_m {
+            within("env.observation.site_lookahead_m", d, 0.0, 2_000.0, "m")?;
+        }
+        o.site_prediction.validate("env.observation.site_prediction")?;
+        within(
+            "env.observation.site_stay_within_db",
+            o.site_stay_within_db,
+            0.0,
+            60.0,
+            "dB",
+        )?;
         positive("env.observation.path_lookahead_m", o.path_lookahead_m)?;
         within(
             "env.observation.path_guide_lambda",
