@@ -21,7 +21,8 @@ use std::collections::BTreeMap;
 /// 9: that observation without `site_trend`.
 /// 10: stats and control messages in JSON ([`crate::jsonmsg`]), not in this binary codec.
 /// 11: the handover weight in that observation (`env.observation.handover_weight`).
-pub const SCHEMA_VERSION: u32 = 11;
+/// 12: that observation as TOML text, with the look-ahead keys (`env.observation.site_lookahead_m`).
+pub const SCHEMA_VERSION: u32 = 12;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

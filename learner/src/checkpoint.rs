@@ -22,12 +22,15 @@ use crate::model::ActorCritic;
 const CHECKPOINT_MAGIC: &[u8; 8] = b"DUPACCKP";
 /// The one format of checkpoint files this build reads and writes: the policy records its
 /// observation ([`PolicyWeights::observation`]: the path guide's keys and clearance, the source
-/// of the sites' line of sight, the handover weight). A file of another format is refused
-/// ([`CheckpointError::Format`]).
-const CHECKPOINT_VERSION: u32 = 8;
+/// of the sites' line of sight, the handover weight, the look-ahead keys) as TOML text. A file
+/// of another format is refused ([`CheckpointError::Format`]).
+const CHECKPOINT_VERSION: u32 = 9;
 const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
-/// The one format of policy files this build reads and writes (as [`CHECKPOINT_VERSION`]).
-const POLICY_VERSION: u32 = 8;
+/// The format of policy files this build writes (as [`CHECKPOINT_VERSION`]); it also reads
+/// format 8 ([`dupac_common::policy::format8`], the observation without the look-ahead keys).
+const POLICY_VERSION: u32 = 9;
+/// The last commit that writes format 8 checkpoints (resumed only by its binary).
+const FORMAT8_COMMIT: &str = "fbff04a";
 /// The last commit that reads and writes format 7: its binary flies the policies trained on the
 /// Midtown without its southern strip (docs/archive.md).
 const FORMAT7_COMMIT: &str = "68cf06d";
@@ -47,7 +50,7 @@ pub enum CheckpointError {
     #[error("{path}: {message}")]
     Invalid { path: String, message: String },
     /// A file of another format than this build's.
-    #[error("{path}: {kind} file format {got}; this build reads format {want} only: {what_to_do}")]
+    #[error("{path}: {kind} file format {got}; this build writes format {want}: {what_to_do}")]
     Format {
         path: String,
         kind: &'static str,
@@ -195,6 +198,10 @@ fn other_format(e: CodecError, kind: &'static str) -> CheckpointError {
             what_to_do: if got >= want {
                 "it was written by a newer DUPAC: read it with that one, or retrain it (dupac train)"
                     .into()
+            } else if got == 8 && kind == "checkpoint" {
+                format!(
+                    "retrain it (dupac train), or resume it with the DUPAC of commit {FORMAT8_COMMIT}, the last that writes format 8 (its policy file flies with this build)"
+                )
             } else if got == 7 {
                 format!(
                     "retrain it (dupac train), or fly or resume it with the DUPAC of commit {FORMAT7_COMMIT}, the last that reads format 7 (docs/archive.md)"
@@ -220,8 +227,20 @@ pub fn load_policy(path: &Path) -> Result<PolicyWeights, CheckpointError> {
     let policy: PolicyWeights = if bytes.starts_with(CHECKPOINT_MAGIC) {
         decode_checkpoint(&bytes, &what)?.meta.policy
     } else {
-        codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what)
-            .map_err(|e| other_format(e, "policy"))?
+        match codec::decode(POLICY_MAGIC, POLICY_VERSION, &bytes, MAX_FILE_BYTES, &what) {
+            Err(CodecError::Version { got: 8, .. }) => {
+                codec::decode::<dupac_common::policy::format8::PolicyWeightsV8>(
+                    POLICY_MAGIC,
+                    8,
+                    &bytes,
+                    MAX_FILE_BYTES,
+                    &what,
+                )
+                .map_err(|e| other_format(e, "policy"))?
+                .into()
+            }
+            r => r.map_err(|e| other_format(e, "policy"))?,
+        }
     };
     policy
         .validate()
@@ -274,6 +293,32 @@ mod tests {
         assert_eq!(load_policy(&path).expect("load"), p);
     }
 
+    /// A policy file of format 8 (the observation field by field, before the look-ahead keys):
+    /// the committed results' policies still load, with the keys format 8 did not have at their
+    /// defaults, and fly with the observation they were trained on.
+    #[test]
+    fn a_format_8_policy_still_loads() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../results/complete/real/dupac_s1/policy.bin");
+        let bytes = std::fs::read(&path).expect("the committed policy");
+        assert_eq!(&bytes[8..12], &8u32.to_le_bytes(), "a format-8 file");
+        let p = load_policy(&path).expect("format 8 loads");
+        let o = p.observation.as_ref().expect("recorded");
+        assert!(o.handover_weight && o.site_features && o.site_ping_pong && o.path_guide);
+        assert!(o.site_lookahead_m.is_empty() && !o.site_predictive_choice);
+        let per = dupac_common::obs::site_features_per_site(o);
+        assert_eq!(p.site_head.as_ref().map(|h| h.features), Some(per));
+        // Saved again, it is a format-9 file that reads back the same.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let again = dir.path().join("policy.bin");
+        save_policy(&again, &p).expect("save");
+        assert_eq!(
+            &std::fs::read(&again).expect("read")[8..12],
+            &9u32.to_le_bytes()
+        );
+        assert_eq!(load_policy(&again).expect("load"), p);
+    }
+
     /// A file of another format than this build's: refused naming the file, its format and
     /// today's, and what to do (the conversion's commit for an older policy).
     #[test]
@@ -292,7 +337,7 @@ mod tests {
             assert!(
                 e.contains(&path.display().to_string())
                     && e.contains(&format!("{kind} file format {got}"))
-                    && e.contains(&format!("reads format {POLICY_VERSION} only"))
+                    && e.contains(&format!("writes format {POLICY_VERSION}"))
                     && e.contains("retrain it (dupac train)"),
                 "{e}"
             );

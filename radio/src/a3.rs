@@ -283,7 +283,8 @@ mod tests {
 
     #[test]
     fn ttt_step_conversion() {
-        let steps = |ttt_ms: f64, dt_s: f64| A3Params::from_config(&cfg(ttt_ms), dt_s, 0.2).ttt_steps;
+        let steps =
+            |ttt_ms: f64, dt_s: f64| A3Params::from_config(&cfg(ttt_ms), dt_s, 0.2).ttt_steps;
         // 0.16 / 0.048 = 3.33 → 4
         assert_eq!(steps(160.0, 0.048), 4);
         // 0.16 / 0.04 = 4 (not 5 from float noise)
@@ -333,7 +334,11 @@ mod tests {
         let p = A3Params::from_config(&a3, 0.05, 0.2);
         let mut s = A3State::new(p, &[-80.0, -90.0]);
         (0..12).find(|&t| {
-            let m = if t < 4 { [-80.0, -70.0] } else { [-80.0, then_dbm] };
+            let m = if t < 4 {
+                [-80.0, -70.0]
+            } else {
+                [-80.0, then_dbm]
+            };
             s.step(&m, t % 4 == 0).is_some()
         })
     }
@@ -360,7 +365,12 @@ mod tests {
         // When the measurement at step 4 still meets the condition, the timer runs on: 160 ms at
         // step 4, 256 ms (5.12 steps) at step 6, 320 ms (6.4) at step 7, 640 ms at step 13 —
         // past the series.
-        for (ttt, at) in [(160.0, Some(4)), (256.0, Some(6)), (320.0, Some(7)), (640.0, None)] {
+        for (ttt, at) in [
+            (160.0, Some(4)),
+            (256.0, Some(6)),
+            (320.0, Some(7)),
+            (640.0, None),
+        ] {
             assert_eq!(handover_step(ttt, -70.0), at, "TTT {ttt} ms");
         }
     }
@@ -548,7 +558,10 @@ mod tests {
         assert_eq!(s.counters().len(), 2);
         // NaN serving counts as −∞
         let mut s = A3State::new(params(1), &[-80.0, -90.0]);
-        assert_eq!(s.step(&[f64::NAN, -90.0], true).map(|h| h.to), Some(SiteId(1)));
+        assert_eq!(
+            s.step(&[f64::NAN, -90.0], true).map(|h| h.to),
+            Some(SiteId(1))
+        );
         // the same with an L3 filter
         let mut p = params(1);
         p.l3_filter_k = Some(4);

@@ -296,10 +296,7 @@ impl Env {
                     .collect()
             }),
             decorrelation_scratch_m: vec![0.0; m],
-            ahead: Ahead::new(
-                m,
-                env.route_prediction().map_or(1.0, |p| p.sample_m),
-            ),
+            ahead: Ahead::new(m, env.route_prediction().map_or(1.0, |p| p.sample_m)),
             predictive_site: SiteId(0),
             los_scratch: vec![0.0; m],
             shadow_scratch_db: vec![0.0; m],
@@ -344,9 +341,7 @@ impl Env {
             dupac_common::config::Association::Learned => self.num_sites(),
             dupac_common::config::Association::A3
             | dupac_common::config::Association::BestRsrp
-            | dupac_common::config::Association::Predictive => {
-                0
-            }
+            | dupac_common::config::Association::Predictive => 0,
         };
         (self.layout.len(), n_sites)
     }

@@ -228,7 +228,10 @@ mod tests {
         assert_eq!(ahead.len(), 21);
         let mut out = [0.0; 2];
         ahead.at(30.0, &mut out);
-        assert!((out[0] + 75.0).abs() < 1e-9 && (out[1] + 75.0).abs() < 1e-9, "{out:?}");
+        assert!(
+            (out[0] + 75.0).abs() < 1e-9 && (out[1] + 75.0).abs() < 1e-9,
+            "{out:?}"
+        );
         ahead.at(5.0, &mut out); // between rows: x = 25
         assert!((out[0] + 72.5).abs() < 1e-9, "{out:?}");
         // Beyond the route's end (s = 200) the end's values.
@@ -261,7 +264,13 @@ mod tests {
         // over 6 rows (64 sequences), for several costs and places on the route.
         let map = RouteMap::new(&route(), &Ramp, 10.0);
         let mut ahead = Ahead::new(2, 10.0);
-        for (s, cost) in [(0.0, 0.0), (10.0, 50.0), (20.0, 100.0), (30.0, 400.0), (40.0, 50.0)] {
+        for (s, cost) in [
+            (0.0, 0.0),
+            (10.0, 50.0),
+            (20.0, 100.0),
+            (30.0, 400.0),
+            (40.0, 50.0),
+        ] {
             ahead.predict(&map, s, 50.0, &[0.0, 0.0], &[50.0, 50.0]);
             let rows = ahead.rows_dbm();
             let t = ahead.len();

@@ -9,7 +9,11 @@ use dupac_common::obs::{site_feature, site_features_per_site};
 /// −80 dBm); west of x = 0 they stay at −70 and −90 dBm.
 const CROSSING: fn(usize, Point) -> f64 = |s, p| {
     let x = p[0].max(0.0);
-    if s == 0 { -70.0 - 0.2 * x } else { -90.0 + 0.2 * x }
+    if s == 0 {
+        -70.0 - 0.2 * x
+    } else {
+        -90.0 + 0.2 * x
+    }
 };
 
 /// An L-shaped planned path: 100 m north along x = 0, then 100 m east along y = 0, at 80 m
@@ -41,7 +45,10 @@ fn lookahead_cfg() -> Config {
 
 /// The site features of site `k` in the current observation.
 fn features(e: &Env, k: usize) -> Vec<f32> {
-    let r = e.layout().range(field::SITE_FEATURES).expect("site features");
+    let r = e
+        .layout()
+        .range(field::SITE_FEATURES)
+        .expect("site features");
     let per = site_features_per_site(&e.config().observation);
     e.observation()[r][k * per..(k + 1) * per].to_vec()
 }
@@ -57,7 +64,12 @@ fn lookahead_features_read_the_map_along_the_planned_route() {
     // 10, 30 and 60 m ahead the route still runs north along x = 0: site 1 is 20 dB below the
     // best (−2 on the feature's 10 dB scale), site 0 is the best (0).
     for j in 0..3 {
-        assert_eq!(f0[ahead.start + j], 0.0, "site 0 at {}", o.site_lookahead_m[j]);
+        assert_eq!(
+            f0[ahead.start + j],
+            0.0,
+            "site 0 at {}",
+            o.site_lookahead_m[j]
+        );
         assert!((f1[ahead.start + j] + 2.0).abs() < 1e-6, "{f1:?}");
     }
     // 120 m ahead the route has turned east to x = 20: −74 against −86 dBm.
@@ -98,7 +110,11 @@ fn the_predictive_association_hands_over_once_near_the_crossing() {
     cfg.env.observation.site_lookahead_stay = false;
     cfg.env.observation.site_predictive_choice = false;
     let mut e = Env::new(&cfg, world(), Arc::new(Field(CROSSING, 2))).expect("env");
-    assert_eq!(e.policy_shape().1, 0, "the site is not the policy's to choose");
+    assert_eq!(
+        e.policy_shape().1,
+        0,
+        "the site is not the policy's to choose"
+    );
     e.reset(1, guided(&l_route())).expect("reset");
     let mut handovers = Vec::new();
     for t in 0..200 {

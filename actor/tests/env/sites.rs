@@ -451,8 +451,14 @@ fn a_log_draw_is_uniform_in_the_observed_weight() {
         .collect();
     let top = 31f64.ln();
     let mean = logs.iter().sum::<f64>() / logs.len() as f64;
-    assert!((mean - top / 2.0).abs() < 0.05 * top, "mean ln(1 + w) {mean}");
+    assert!(
+        (mean - top / 2.0).abs() < 0.05 * top,
+        "mean ln(1 + w) {mean}"
+    );
     // A uniform draw in w would put 10 % of the episodes at w ≤ 3; this one puts 40 %.
     let low = logs.iter().filter(|&&l| l <= 4f64.ln()).count() as f64 / logs.len() as f64;
-    assert!((low - 4f64.ln() / top).abs() < 0.04, "share at w ≤ 3: {low}");
+    assert!(
+        (low - 4f64.ln() / top).abs() < 0.04,
+        "share at w ≤ 3: {low}"
+    );
 }

@@ -482,7 +482,13 @@ impl PredictiveConfig {
     /// Checks the section at `key` (`env.predictive` or `env.observation.site_prediction`).
     pub fn validate(&self, key: &str) -> Result<(), ConfigError> {
         within(&format!("{key}.sample_m"), self.sample_m, 0.5, 100.0, "m")?;
-        within(&format!("{key}.horizon_m"), self.horizon_m, 0.0, 2_000.0, "m")?;
+        within(
+            &format!("{key}.horizon_m"),
+            self.horizon_m,
+            0.0,
+            2_000.0,
+            "m",
+        )?;
         if self.horizon_m < self.sample_m {
             return Err(bad(
                 &format!("{key}.horizon_m"),
@@ -725,7 +731,8 @@ impl ObservationConfig {
         for &d in &o.site_lookahead_m {
             within("env.observation.site_lookahead_m", d, 0.0, 2_000.0, "m")?;
         }
-        o.site_prediction.validate("env.observation.site_prediction")?;
+        o.site_prediction
+            .validate("env.observation.site_prediction")?;
         within(
             "env.observation.site_stay_within_db",
             o.site_stay_within_db,

@@ -18,6 +18,7 @@
 //!   (the tail of the observation, fixed scales) and an embedding `tanh(E·h)` of the actor's last
 //!   hidden activation `h`, so permuting the sites permutes the logits.
 
+pub mod format8;
 pub mod mlp;
 
 use crate::config::{Config, ObservationConfig};
@@ -145,8 +146,37 @@ pub struct PolicyWeights {
     /// of one length and the scales of its values (sensor range, RSRP centre) are not visible in
     /// the weights' shapes. The learner always records it; `None` only in a policy built in
     /// code without one, which is checked by its length alone and is not flown
-    /// ([`PolicyWeights::configure`]).
+    /// ([`PolicyWeights::configure`]). Encoded as TOML text, so that a key added later with a
+    /// default does not change the format ([`format8`] reads the files that recorded it field
+    /// by field).
+    #[serde(with = "observation_toml")]
     pub observation: Option<ObservationConfig>,
+}
+
+/// [`PolicyWeights::observation`] as TOML text.
+mod observation_toml {
+    use crate::config::ObservationConfig;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(
+        o: &Option<ObservationConfig>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        o.as_ref()
+            .map(toml::to_string)
+            .transpose()
+            .map_err(serde::ser::Error::custom)?
+            .serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<ObservationConfig>, D::Error> {
+        Option::<String>::deserialize(d)?
+            .map(|t| toml::from_str(&t))
+            .transpose()
+            .map_err(|e| serde::de::Error::custom(format!("the recorded observation: {e}")))
+    }
 }
 
 /// The `env.observation` keys on which `a` and `b` differ, each as `key: a vs b` (empty when
