@@ -30,7 +30,7 @@ const POLICY_MAGIC: &[u8; 8] = b"DUPACPOL";
 /// format 8 ([`dupac_common::policy::format8`], the observation without the look-ahead keys).
 const POLICY_VERSION: u32 = 9;
 /// The last commit that writes format 8 checkpoints (resumed only by its binary).
-const FORMAT8_COMMIT: &str = "fbff04a";
+const FORMAT8_COMMIT: &str = "3963455";
 /// The last commit that reads and writes format 7: its binary flies the policies trained on the
 /// Midtown without its southern strip (docs/archive.md).
 const FORMAT7_COMMIT: &str = "68cf06d";
