@@ -111,7 +111,7 @@ impl Env {
         let before = self.serving;
         let site = if matches!(self.associator, Associator::Predictive) {
             // Planned at each decision's first step, kept until the next.
-            if (self.step.max(1) - 1) % self.cfg.action_repeat.max(1) == 0 {
+            if (self.step.max(1) - 1).is_multiple_of(self.cfg.action_repeat.max(1)) {
                 self.predictive_site = self
                     .ahead
                     .choice(before, self.cfg.predictive.handover_cost_db_m);

@@ -168,7 +168,8 @@ impl Ahead {
     /// row's distance when it never does.
     pub fn stay_m(&self, k: usize, within_db: f64) -> f64 {
         for (j, row) in self.rows_dbm.chunks(self.m.max(1)).enumerate() {
-            if !(row[k] >= self.best_dbm[j] - within_db) {
+            // A site that cannot be predicted (NaN) is not within reach either.
+            if row[k].is_nan() || row[k] < self.best_dbm[j] - within_db {
                 return j as f64 * self.sample_m;
             }
         }
