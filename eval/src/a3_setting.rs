@@ -1,5 +1,6 @@
-//! An A3 setting (a3-Offset, Hysteresis, timeToTrigger: TS 36.331 §5.5.4.4, docs/spec/radio.md
-//! §4) and the grid of settings `dupac tune-a3` tries and `dupac eval --a3-front` re-flies.
+//! An A3 setting (a3-Offset, Hysteresis, timeToTrigger: TS 36.331 §5.5.4.4, and A3's own
+//! layer-3 filterCoefficient: §5.5.3.2; docs/spec/radio.md §4) and the grid of settings
+//! `dupac tune-a3` tries and `dupac eval --a3-front` re-flies.
 
 use dupac_common::config::A3Config;
 use dupac_run::error::RunError;
@@ -11,6 +12,9 @@ pub const TTT_VALUES_MS: [f64; 16] = [
     2560.0, 5120.0,
 ];
 
+/// TS 36.331 FilterCoefficient values k (fc0 … fc9, fc11, fc13, fc15, fc17, fc19).
+pub const FILTER_K_VALUES: [u32; 15] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 13, 15, 17, 19];
+
 /// One A3 setting (TS 36.331 §5.5.4.4; all Of*/Oc* = 0): what `tuned_a3.toml` holds.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -21,24 +25,49 @@ pub struct A3Setting {
     pub hysteresis_db: f64,
     /// timeToTrigger (ms): one of [`TTT_VALUES_MS`].
     pub time_to_trigger_ms: f64,
+    /// A3's own layer-3 filter coefficient k (one of [`FILTER_K_VALUES`]): A3 filters the UAV's
+    /// unfiltered measurements with it (`radio.a3.l3_filter_k`); `None`: A3 compares what the
+    /// UAV holds (the channel's filter, `radio.channel.l3_filter_k`, under the real channel;
+    /// none in the deterministic world).
+    #[serde(default)]
+    pub l3_filter_k: Option<u32>,
 }
 
 impl A3Setting {
-    /// The setting of `a3` (its L3 filter aside).
+    /// The setting of `a3`.
     pub fn of(a3: &A3Config) -> A3Setting {
         A3Setting {
             offset_db: a3.offset_db,
             hysteresis_db: a3.hysteresis_db,
             time_to_trigger_ms: a3.time_to_trigger_ms,
+            l3_filter_k: a3.l3_filter_k,
         }
     }
 
-    /// Sets `a3`'s offset, hysteresis and time-to-trigger to this setting's (the L3 filter,
-    /// `radio.a3.l3_filter_k`, stays as configured).
+    /// Sets `a3` to this setting.
     pub fn apply(&self, a3: &mut A3Config) {
         a3.offset_db = self.offset_db;
         a3.hysteresis_db = self.hysteresis_db;
         a3.time_to_trigger_ms = self.time_to_trigger_ms;
+        a3.l3_filter_k = self.l3_filter_k;
+    }
+
+    /// The entering margin offset + hysteresis (dB): with every Of*/Oc* = 0 the handover
+    /// condition `M_n − Hys > M_s + Off` depends on nothing else of the two.
+    pub fn margin_db(&self) -> f64 {
+        self.offset_db + self.hysteresis_db
+    }
+
+    /// `offset / hysteresis / TTT` (and `/ kK` with A3's own filter), as the tables write it.
+    pub fn label(&self) -> String {
+        let mut s = format!(
+            "{} / {} / {} ms",
+            self.offset_db, self.hysteresis_db, self.time_to_trigger_ms
+        );
+        if let Some(k) = self.l3_filter_k {
+            s.push_str(&format!(" / k{k}"));
+        }
+        s
     }
 
     /// Whether TS 36.331 can signal it (docs/spec/radio.md §4); the error names the value.
@@ -68,56 +97,94 @@ impl A3Setting {
                 self.time_to_trigger_ms
             ));
         }
+        if let Some(k) = self.l3_filter_k
+            && !FILTER_K_VALUES.contains(&k)
+        {
+            return Err(format!(
+                "filterCoefficient k = {k}: TS 36.331 allows {FILTER_K_VALUES:?}"
+            ));
+        }
         Ok(())
     }
 }
 
-/// The grid of settings tried: every offset × hysteresis × time-to-trigger.
+/// The grid of settings tried: every offset × hysteresis × time-to-trigger × A3 filter.
 #[derive(Debug, Clone, PartialEq)]
 pub struct A3Grid {
     pub offsets_db: Vec<f64>,
     pub hysteresis_db: Vec<f64>,
     pub ttt_ms: Vec<f64>,
+    /// A3's own filter coefficients (`None`: what the UAV holds).
+    pub l3_filter_k: Vec<Option<u32>>,
 }
 
 impl Default for A3Grid {
-    /// Offset {0, 1, 2, 3, 4} dB × hysteresis {0, 0.5, 1, 2} dB × TTT {0, 40, 80, 160, 320} ms.
+    /// TS 36.331's useful range: offset 0, 1, …, 15 dB at hysteresis 0 (the handover depends on
+    /// their sum only, [`A3Setting::margin_db`], and 15 dB is the offset's largest value) ×
+    /// TTT {0, 80, 160, 320, 640, 1280} ms × A3's filter k ∈ {0, 4, 8}.
     fn default() -> Self {
         A3Grid {
-            offsets_db: vec![0.0, 1.0, 2.0, 3.0, 4.0],
-            hysteresis_db: vec![0.0, 0.5, 1.0, 2.0],
-            ttt_ms: vec![0.0, 40.0, 80.0, 160.0, 320.0],
+            offsets_db: (0..=15).map(f64::from).collect(),
+            hysteresis_db: vec![0.0],
+            ttt_ms: vec![0.0, 80.0, 160.0, 320.0, 640.0, 1280.0],
+            l3_filter_k: vec![Some(0), Some(4), Some(8)],
         }
     }
 }
 
 impl A3Grid {
-    /// Every setting, offset outermost, TTT innermost, duplicates dropped; refused (naming the
-    /// flag) when a list is empty or a value is not TS 36.331's.
+    /// Every setting, offset outermost, the filter innermost, duplicates dropped; refused
+    /// (naming the flag and the value) when a list is empty or a value is not TS 36.331's.
     pub fn settings(&self) -> Result<Vec<A3Setting>, RunError> {
-        for (flag, v) in [
-            ("--offset-db", &self.offsets_db),
-            ("--hysteresis-db", &self.hysteresis_db),
-            ("--ttt-ms", &self.ttt_ms),
-        ] {
-            if v.is_empty() {
+        let base = A3Setting {
+            offset_db: 0.0,
+            hysteresis_db: 0.0,
+            time_to_trigger_ms: 0.0,
+            l3_filter_k: None,
+        };
+        // Each flag's values, each in a setting that is legal but for it.
+        let check = |flag: &str, n: usize, at: &dyn Fn(usize) -> A3Setting| {
+            if n == 0 {
                 return Err(RunError::Refused(format!("{flag}: no values")));
             }
-        }
+            (0..n).try_for_each(|i| {
+                at(i)
+                    .check_legal()
+                    .map_err(|e| RunError::Refused(format!("{flag}: {e}")))
+            })
+        };
+        check("--offset-db", self.offsets_db.len(), &|i| A3Setting {
+            offset_db: self.offsets_db[i],
+            ..base
+        })?;
+        check("--hysteresis-db", self.hysteresis_db.len(), &|i| {
+            A3Setting {
+                hysteresis_db: self.hysteresis_db[i],
+                ..base
+            }
+        })?;
+        check("--ttt-ms", self.ttt_ms.len(), &|i| A3Setting {
+            time_to_trigger_ms: self.ttt_ms[i],
+            ..base
+        })?;
+        check("--l3-filter-k", self.l3_filter_k.len(), &|i| A3Setting {
+            l3_filter_k: self.l3_filter_k[i],
+            ..base
+        })?;
         let mut out: Vec<A3Setting> = Vec::new();
         for &offset_db in &self.offsets_db {
             for &hysteresis_db in &self.hysteresis_db {
                 for &time_to_trigger_ms in &self.ttt_ms {
-                    let s = A3Setting {
-                        offset_db,
-                        hysteresis_db,
-                        time_to_trigger_ms,
-                    };
-                    s.check_legal().map_err(|e| {
-                        RunError::Refused(format!("--offset-db/--hysteresis-db/--ttt-ms: {e}"))
-                    })?;
-                    if !out.contains(&s) {
-                        out.push(s);
+                    for &l3_filter_k in &self.l3_filter_k {
+                        let s = A3Setting {
+                            offset_db,
+                            hysteresis_db,
+                            time_to_trigger_ms,
+                            l3_filter_k,
+                        };
+                        if !out.contains(&s) {
+                            out.push(s);
+                        }
                     }
                 }
             }

@@ -1,27 +1,23 @@
-//! Flying the evaluation: every method over every pair in parallel, each flight recorded;
-//! a learned site choice's moves re-flown with other associations (route against association).
+//! Flying the evaluation: every method over every pair in parallel, each flight recorded; a
+//! learned site choice's moves re-flown with other associations and the fronts of every rule
+//! ([`crate::refly`]: route against association).
 
-use crate::a3_setting::A3Grid;
-use crate::front::{FrontFile, FrontPoint, write_front};
-use crate::hindsight::hindsight_association;
+use crate::flight::{fly_one, true_rsrp};
+use crate::front::write_front;
 use crate::records::{RecordsFile, write_records, write_split};
-use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
-use crate::{EvalPlan, Hindsight, Kind, Method, methods, parse_hindsight, refused, select};
+use crate::refly::{Fronts, fronts_of, replay_associations};
+use crate::{EvalPlan, Kind, methods, parse_hindsight, refused, select};
 use dupac_actor::env::Env;
-use dupac_actor::metrics::{MetricRules, flight_metrics};
+use dupac_actor::metrics::MetricRules;
 use dupac_actor::pairs::{Pair, Split};
-use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
-use dupac_actor::rollout::fly_policy;
+use dupac_actor::record::FlightRecord;
 use dupac_common::config::{Association, Config, Knowledge};
 use dupac_common::geometry::Point;
-use dupac_common::ids::SiteId;
-use dupac_common::msg::Outcome;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
 use dupac_run::error::{Context, RunError};
 use dupac_run::progress::progress_bar;
-use dupac_run::scenario::{Planners, SharedRsrp, read_eval_pairs, world_and_cache};
+use dupac_run::scenario::{SharedRsrp, read_eval_pairs, world_and_cache};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -41,6 +37,28 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .iter()
         .map(|h| parse_hindsight(h, window))
         .collect::<Result<Vec<_>, RunError>>()?;
+    let learned_site = methods
+        .iter()
+        .any(|m| matches!(&m.kind, Kind::Policy(p) if p.n_sites > 0));
+    for (flag, given) in [
+        ("--hindsight-front", !args.hindsight_front.is_empty()),
+        ("--predictive-front", !args.predictive_front.is_empty()),
+    ] {
+        if given && !learned_site {
+            return Err(refused!(
+                "{flag} re-flies the moves of learned-site policies: give a --policy whose policy chooses the site"
+            ));
+        }
+    }
+    let fronts = Fronts {
+        a3: if args.a3_front {
+            args.a3_grid.settings()?
+        } else {
+            Vec::new()
+        },
+        hindsight_costs_db: args.hindsight_front.clone(),
+        predictive_costs_db_m: args.predictive_front.clone(),
+    };
     let (world, rsrp) = world_and_cache(cfg, quiet)?;
     // Coverage classes for the coverage-aware planner; the guide planners of the policies'
     // flown configurations (a policy is flown guided as it was trained).
@@ -128,6 +146,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         };
         mcfg.env.association = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 => Association::Learned,
+            Kind::Policy(_) if method.predictive => Association::Predictive,
             Kind::Policy(_) => Association::A3,
             Kind::Coverage(_, a) => *a,
             Kind::Shortest(a) | Kind::Replay(a) => *a,
@@ -193,31 +212,13 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         let replays = match &method.kind {
             Kind::Policy(p) if p.n_sites > 0 && !args.no_replay => {
                 let ctx = (cfg, &world, &rsrp, &planners, fs);
-                replay_associations(ctx, method, &pairs, &flights, &hindsight)?
+                replay_associations(ctx, method, &pairs, &flights, &hindsight, quiet)?
             }
             _ => Vec::new(),
         };
-        let front_of = match &method.kind {
-            Kind::Policy(p) if p.n_sites > 0 => Some(true),
-            Kind::Shortest(Association::A3) | Kind::Coverage(_, Association::A3)
-                if method.a3.is_none() =>
-            {
-                Some(false)
-            }
-            _ => None,
-        };
-        if let (true, Some(learned_site)) = (args.a3_front, front_of) {
-            let ctx = (cfg, &world, &rsrp, &planners, fs);
-            let points = a3_front(ctx, method, &pairs, &flights, &rules, quiet)?;
-            write_front(
-                dir,
-                &FrontFile {
-                    method: method.label.clone(),
-                    seed: method.seed,
-                    learned_site,
-                    points,
-                },
-            )?;
+        let ctx = (cfg, &world, &rsrp, &planners, fs);
+        for f in fronts_of(ctx, &fronts, method, &pairs, &flights, &rules, quiet)? {
+            write_front(dir, &f)?;
         }
         for (label, flights) in std::iter::once((method.label.clone(), flights)).chain(replays) {
             let rec = RecordsFile {
@@ -236,234 +237,6 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         );
     }
     Ok(())
-}
-
-/// What a re-flight needs: the configuration, the world, its RSRP, the planners and the field
-/// split the pairs fly in.
-type FlyCtx<'a, 'w> = (
-    &'a Config,
-    &'a Arc<RadioWorld>,
-    &'a SharedRsrp,
-    &'a Planners<'w>,
-    FieldSplit,
-);
-
-/// Every flight of `flights` (one per pair of `pairs`) re-flown through its recorded positions
-/// under `rcfg` as `replay` ([`Kind::Replay`] or [`Kind::Hindsight`]), in parallel, in order.
-fn refly(
-    rcfg: &Config,
-    (_, world, rsrp, planners, fs): FlyCtx,
-    replay: &Method,
-    pairs: &[Pair],
-    flights: &[FlightRecord],
-) -> Result<Vec<FlightRecord>, RunError> {
-    pairs
-        .par_iter()
-        .zip(flights)
-        .map(|(p, f)| {
-            let w: Vec<Point> = f
-                .steps
-                .iter()
-                .map(|s| Point::from(s.position_m.map(f64::from)))
-                .collect();
-            fly_one(rcfg, world, rsrp, planners, fs, replay, p, Some(&w))
-        })
-        .collect()
-}
-
-/// The positions of every flight of `method` re-flown with the A3 rule (`LABEL+a3`) and with
-/// the best-RSRP oracle (`LABEL+oracle`) choosing the site: the same route, another association.
-/// A replay takes one step to each recorded position in turn (`pilot::replay_positions`), so it
-/// has the policy flight's steps and end; the positions are stored in f32 (within 0.1 mm).
-/// With `hindsight`, also with each hindsight association (`LABEL+hindsight_…`).
-fn replay_associations(
-    ctx: FlyCtx,
-    method: &Method,
-    pairs: &[Pair],
-    flights: &[FlightRecord],
-    hindsight: &[(String, Hindsight)],
-) -> Result<Vec<(String, Vec<FlightRecord>)>, RunError> {
-    let rules = [
-        (Kind::Replay(Association::A3), "a3".to_string()),
-        (Kind::Replay(Association::BestRsrp), "oracle".to_string()),
-    ];
-    let hindsight = hindsight
-        .iter()
-        .map(|(l, h)| (Kind::Hindsight(*h), l.clone()));
-    rules
-        .into_iter()
-        .chain(hindsight)
-        .map(|(kind, suffix)| {
-            let mut rcfg = dupac_run::scenario::unguided(ctx.0);
-            rcfg.env.association = match kind {
-                Kind::Replay(a) => a,
-                _ => Association::Learned,
-            };
-            let label = format!("{}+{suffix}", method.label);
-            let replay = Method {
-                label: label.clone(),
-                seed: method.seed,
-                kind,
-                a3: None,
-                handover_weight: None,
-            };
-            Ok((label, refly(&rcfg, ctx, &replay, pairs, flights)?))
-        })
-        .collect()
-}
-
-/// The positions of every flight of `method` re-flown with A3 at each setting of the `dupac
-/// tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)): each setting's per-flight metrics ([`crate::front`]).
-fn a3_front(
-    ctx: FlyCtx,
-    method: &Method,
-    pairs: &[Pair],
-    flights: &[FlightRecord],
-    rules: &MetricRules,
-    quiet: bool,
-) -> Result<Vec<FrontPoint>, RunError> {
-    let settings = A3Grid::default().settings()?;
-    let replay = Method {
-        label: format!("{}+a3_front", method.label),
-        seed: method.seed,
-        kind: Kind::Replay(Association::A3),
-        a3: None,
-        handover_weight: None,
-    };
-    let pb = progress_bar(
-        settings.len() as u64,
-        &format!("{} seed {}: A3 front", method.label, method.seed),
-        quiet,
-    );
-    let points = settings
-        .iter()
-        .map(|setting| {
-            let mut rcfg = dupac_run::scenario::unguided(ctx.0);
-            rcfg.env.association = Association::A3;
-            setting.apply(&mut rcfg.radio.a3);
-            let v = refly(&rcfg, ctx, &replay, pairs, flights)?
-                .iter()
-                .map(|r| (r.pair_id, flight_metrics(r, rules)))
-                .collect();
-            pb.inc(1);
-            Ok(FrontPoint {
-                setting: *setting,
-                flights: v,
-            })
-        })
-        .collect::<Result<Vec<_>, RunError>>();
-    pb.finish_and_clear();
-    points
-}
-
-#[allow(clippy::too_many_arguments)]
-fn fly_one(
-    cfg: &Config,
-    world: &Arc<RadioWorld>,
-    rsrp: &SharedRsrp,
-    planners: &Planners,
-    fs: FieldSplit,
-    method: &Method,
-    p: &Pair,
-    // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
-    waypoints_m: Option<&[Point]>,
-) -> Result<FlightRecord, RunError> {
-    let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let episode = dupac_run::scenario::episode(cfg, planners, p, fs)?;
-    let steps = match &method.kind {
-        Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
-        Kind::Shortest(_) => {
-            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no shortest path", p.id))?;
-            fly_waypoints(&mut env, p.id, episode, w, |e| e.serving())?.steps
-        }
-        Kind::Replay(_) => {
-            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
-            replay_positions(&mut env, p.id, episode, w, |e| e.serving())?.steps
-        }
-        Kind::Hindsight(h) => {
-            let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
-            let m = world.num_sites();
-            let truth = true_rsrp(world, rsrp, fs, p.id);
-            let mut rows = vec![f64::NAN; w.len() * m];
-            for (row, pos) in rows.chunks_mut(m).zip(w) {
-                truth.rsrp_all_dbm(*pos, row);
-            }
-            // From the site the environment starts with (what the UAV measured at the source).
-            env.reset(p.id, episode.clone())?;
-            let start = env.start_serving().0;
-            let sites = hindsight_association(&rows, m, start, h.cost_db, h.min_stay_steps);
-            let mut next = sites.into_iter().map(SiteId);
-            replay_positions(&mut env, p.id, episode, w, |e| {
-                next.next().unwrap_or_else(|| e.serving())
-            })?
-            .steps
-        }
-        Kind::Coverage(l, _) => {
-            let path = planners
-                .pairs
-                .coverage_aware(p.source_m, p.destination_m, *l)
-                .context_with(|| format!("pair {}: coverage-aware path (λ = {l})", p.id))?;
-            fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
-        }
-    };
-    Ok(flight_record(
-        world,
-        rsrp,
-        fs,
-        &method.label,
-        method.seed,
-        p,
-        (env.start_serving(), &steps),
-    ))
-}
-
-/// The record of pair `p`'s flight `steps` from the site `start_serving` served before its
-/// first step (its SINR per step from every site's true RSRP in the pair's field of `fs`), as
-/// `method` (`label`, training `seed`) flew it.
-pub(crate) fn flight_record(
-    world: &Arc<RadioWorld>,
-    rsrp: &SharedRsrp,
-    fs: FieldSplit,
-    label: &str,
-    seed: u32,
-    p: &Pair,
-    (start_serving, steps): (SiteId, &[StepInfo]),
-) -> FlightRecord {
-    let mut all = vec![f64::NAN; world.num_sites()];
-    let truth = true_rsrp(world, rsrp, fs, p.id);
-    let remaining_m = steps.last().map_or(p.shortest_m, |s| s.distance_to_goal_m);
-    let outcome = steps
-        .last()
-        .and_then(|s| s.outcome)
-        .unwrap_or(Outcome::TimeLimit);
-    let steps = steps
-        .iter()
-        .map(|s| {
-            truth.rsrp_all_dbm(s.position_m, &mut all);
-            StepRecord::from_info(s, sinr_db(&all, usize::from(s.serving.0), NOISE_PER_RE_DBM))
-        })
-        .collect();
-    FlightRecord {
-        method: label.to_string(),
-        seed,
-        pair_id: p.id,
-        bin_m: p.bin_m.unwrap_or(p.shortest_m),
-        shortest_m: p.shortest_m,
-        straight_m: p.straight_m,
-        outcome,
-        source_m: p.source_m,
-        destination_m: p.destination_m,
-        remaining_m,
-        start_serving: start_serving.0,
-        steps,
-    }
-}
-
-/// The true RSRP pair `id` is flown in: field `id mod radio.channel.eval_fields` of `fs` (the
-/// validation's or the test split's realisations) under the real channel
-/// ([`dupac_run::scenario::true_source`]).
-fn true_rsrp(world: &Arc<RadioWorld>, rsrp: &SharedRsrp, fs: FieldSplit, id: u64) -> SharedRsrp {
-    dupac_run::scenario::true_source(world, rsrp, fs, id)
 }
 
 /// With `radio.channel.knowledge = "true_field"` under the real channel, one set of planners per

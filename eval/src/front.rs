@@ -1,13 +1,17 @@
-//! A3's front on the same flights (`dupac eval --a3-front`, docs/results.md "Fronts"): a
-//! learned site choice trades excellent time for handovers, and so does A3 through its offset,
-//! hysteresis and time-to-trigger, so one operating point of each is not a comparison. Every
-//! setting of the `dupac tune-a3` grid ([`A3Grid`](crate::a3_setting::A3Grid)) re-flies the recorded positions of a
-//! learned-site policy (its own moves, as `LABEL+a3` does with `radio.a3`) and of every planner
-//! flown with A3 (its path), giving A3's front on exactly those flights; the report then
-//! compares a policy with A3 at the policy's own handover rate ([`matched`]).
+//! Fronts on the same flights (`dupac eval --a3-front`, `--hindsight-front`,
+//! `--predictive-front`; docs/results.md "Fronts"): a learned site choice trades excellent time
+//! for handovers, and so does every association rule through its parameters (A3 through its
+//! offset, hysteresis, time-to-trigger and filter; the predictive and the hindsight association
+//! through their handover cost), so one operating point of each is not a comparison. Each
+//! setting of a rule re-flies the recorded positions of a learned-site policy (its own moves, as
+//! `LABEL+a3` does with `radio.a3`) and, for A3, of every planner flown with A3 (its path),
+//! giving the rule's front on exactly those flights ([`FrontFile`], one per method, seed and
+//! rule); the report then compares a policy with A3 at the policy's own handover rate
+//! ([`matched`]), on A3's envelope without the settings that keep excellent time only by more
+//! ping-pongs ([`FrontRow::pp_marked`]).
 //!
-//! Files: `OUT/records/front/<method>__seed<k>.bin` (the one codec, its own magic and version),
-//! each setting's per-flight metrics; the report reads them with the records.
+//! Files: `OUT/records/front/<method>__<rule>__seed<k>.bin` (the one codec, its own magic and
+//! version), each setting's per-flight metrics; the report reads them with the records.
 
 use crate::a3_setting::A3Setting;
 use crate::records::RecordsFile;
@@ -22,11 +26,92 @@ use std::path::Path;
 
 /// Magic and version of a front file.
 pub const FRONT_MAGIC: &[u8; 8] = b"DUPACFRT";
-pub const FRONT_VERSION: u32 = 1;
+pub const FRONT_VERSION: u32 = 2;
 /// The folder of the front files inside the records folder.
 pub const FRONT_DIR: &str = "front";
+/// How far (points of excellent time) a setting with fewer ping-pongs may fall short of an
+/// envelope point's excellent time and still show that point's gain bought by ping-pongs
+/// ([`FrontRow::pp_marked`]).
+pub const PP_MARK_EXCELLENT_PCT: f64 = 0.1;
 
-/// One method's (and training seed's) flights re-flown with every A3 setting.
+/// The association rule whose settings a front re-flies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum FrontRule {
+    /// 3GPP A3 (offset, hysteresis, time-to-trigger, A3's own filter).
+    A3,
+    /// The predictive association (`env.predictive`) by its handover cost.
+    Predictive,
+    /// The hindsight association (perfect foresight of the true field: a bound) by its
+    /// handover cost.
+    Hindsight,
+}
+
+impl FrontRule {
+    /// The rule's name in file names and `front.csv`.
+    pub fn name(self) -> &'static str {
+        match self {
+            FrontRule::A3 => "a3",
+            FrontRule::Predictive => "predictive",
+            FrontRule::Hindsight => "hindsight",
+        }
+    }
+}
+
+/// One setting of a rule.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum FrontSetting {
+    A3(A3Setting),
+    /// `env.predictive.handover_cost_db_m` (dB·m per handover).
+    Predictive {
+        handover_cost_db_m: f64,
+    },
+    /// The hindsight association's cost per handover (dB·steps), no minimum stay.
+    Hindsight {
+        handover_cost_db: f64,
+    },
+}
+
+impl FrontSetting {
+    pub fn rule(&self) -> FrontRule {
+        match self {
+            FrontSetting::A3(_) => FrontRule::A3,
+            FrontSetting::Predictive { .. } => FrontRule::Predictive,
+            FrontSetting::Hindsight { .. } => FrontRule::Hindsight,
+        }
+    }
+
+    /// The A3 setting, for an A3 front.
+    pub fn a3(&self) -> Option<&A3Setting> {
+        match self {
+            FrontSetting::A3(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The handover cost of a predictive or hindsight setting (dB·m or dB·steps).
+    pub fn cost(&self) -> Option<f64> {
+        match *self {
+            FrontSetting::A3(_) => None,
+            FrontSetting::Predictive { handover_cost_db_m } => Some(handover_cost_db_m),
+            FrontSetting::Hindsight { handover_cost_db } => Some(handover_cost_db),
+        }
+    }
+
+    /// As the tables write it: A3's [`A3Setting::label`], `C = … dB·m` or `C = … dB·steps`.
+    pub fn label(&self) -> String {
+        match *self {
+            FrontSetting::A3(s) => s.label(),
+            FrontSetting::Predictive { handover_cost_db_m } => {
+                format!("C = {handover_cost_db_m} dB·m")
+            }
+            FrontSetting::Hindsight { handover_cost_db } => {
+                format!("C = {handover_cost_db} dB·steps")
+            }
+        }
+    }
+}
+
+/// One method's (and training seed's) flights re-flown with every setting of one rule.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FrontFile {
     /// The label of the flights re-flown (`dupac`, `shortest_a3`, `coverage_l1`, …).
@@ -34,13 +119,15 @@ pub struct FrontFile {
     pub seed: u32,
     /// A learned-site policy's moves (a planner's path otherwise).
     pub learned_site: bool,
+    /// The rule every point's setting is of.
+    pub rule: FrontRule,
     pub points: Vec<FrontPoint>,
 }
 
-/// One A3 setting's flights: `(pair id, metrics)` in the records' order.
+/// One setting's flights: `(pair id, metrics)` in the records' order.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FrontPoint {
-    pub setting: A3Setting,
+    pub setting: FrontSetting,
     pub flights: Vec<(u64, FlightMetrics)>,
 }
 
@@ -48,14 +135,20 @@ pub struct FrontPoint {
 pub fn write_front(records_dir: &Path, f: &FrontFile) -> Result<(), RunError> {
     let dir = records_dir.join(FRONT_DIR);
     std::fs::create_dir_all(&dir).context_with(|| format!("creating {}", dir.display()))?;
-    let bytes = codec::encode(FRONT_MAGIC, FRONT_VERSION, f, "A3 front")?;
+    let bytes = codec::encode(FRONT_MAGIC, FRONT_VERSION, f, "front")?;
     dupac_run::run_dir::write_plain(
-        &dir.join(format!("{}__seed{}.bin", f.method, f.seed)),
+        &dir.join(format!(
+            "{}__{}__seed{}.bin",
+            f.method,
+            f.rule.name(),
+            f.seed
+        )),
         &bytes,
     )
 }
 
-/// Every front file of `records_dir/front/` in name order (none when the folder is absent).
+/// Every front file of `records_dir/front/` in name order (none when the folder is absent); a
+/// file whose points are not all of its rule is refused, naming it.
 pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
     let dir = records_dir.join(FRONT_DIR);
     if !dir.is_dir() {
@@ -65,13 +158,22 @@ pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
         .iter()
         .map(|p| {
             let bytes = codec::read_limited(p, codec::MAX_BLOB_BYTES)?;
-            Ok(codec::decode(
+            let f: FrontFile = codec::decode(
                 FRONT_MAGIC,
                 FRONT_VERSION,
                 &bytes,
                 codec::MAX_BLOB_BYTES,
                 &p.display().to_string(),
-            )?)
+            )?;
+            if let Some(q) = f.points.iter().find(|q| q.setting.rule() != f.rule) {
+                return Err(crate::refused!(
+                    "{}: a {} front holds the setting {}",
+                    p.display(),
+                    f.rule.name(),
+                    q.setting.label()
+                ));
+            }
+            Ok(f)
         })
         .collect()
 }
@@ -108,51 +210,94 @@ impl FrontMeasures {
     }
 }
 
-/// One setting of a method's front, its flights pooled over the training seeds.
+/// One setting of a method's front of one rule, its flights pooled over the training seeds.
 #[derive(Debug, Clone)]
 pub struct FrontRow {
     pub method: String,
-    pub setting: A3Setting,
+    pub rule: FrontRule,
+    pub setting: FrontSetting,
     pub measures: FrontMeasures,
-    /// On the upper envelope: no other setting of the method keeps more excellent time with no
-    /// more handovers per km.
+    /// On the upper envelope: no other setting of the method's front keeps more excellent time
+    /// with no more handovers per km ([`upper_envelope`]).
     pub on_front: bool,
+    /// On the envelope, and its excellent time bought by ping-pongs: another setting of the
+    /// front has no more handovers per km, fewer ping-pongs per km and at least its excellent
+    /// time less [`PP_MARK_EXCELLENT_PCT`] points ([`pp_dominated`]).
+    pub pp_marked: bool,
+    /// On the upper envelope of the settings that no other buys off in that way
+    /// ([`clean_envelope`]): the envelope with ping-pongs as a third axis, which the matched
+    /// comparison uses.
+    pub on_clean_front: bool,
 }
 
-/// Each method's front, settings in grid order.
+/// Each method's front of each rule, settings in the order flown.
 pub fn front_rows(files: &[FrontFile]) -> Vec<FrontRow> {
-    let mut by: BTreeMap<&str, BTreeMap<usize, (A3Setting, Vec<&FlightMetrics>)>> = BTreeMap::new();
+    type Points<'a> = BTreeMap<usize, (FrontSetting, Vec<&'a FlightMetrics>)>;
+    let mut by: BTreeMap<(&str, FrontRule), Points> = BTreeMap::new();
     for f in files {
-        let m = by.entry(f.method.as_str()).or_default();
+        let m = by.entry((f.method.as_str(), f.rule)).or_default();
         for (k, p) in f.points.iter().enumerate() {
             let e = m.entry(k).or_insert_with(|| (p.setting, Vec::new()));
             e.1.extend(p.flights.iter().map(|(_, fm)| fm));
         }
     }
     let mut rows = Vec::new();
-    for (method, points) in by {
-        let measures: Vec<(A3Setting, FrontMeasures)> = points
+    for ((method, rule), points) in by {
+        let measures: Vec<(FrontSetting, FrontMeasures)> = points
             .into_values()
             .map(|(s, fl)| (s, FrontMeasures::of(fl.iter().copied())))
             .collect();
-        let xy: Vec<(f64, f64)> = measures
+        let xyz: Vec<(f64, f64, f64)> = measures
             .iter()
-            .map(|(_, m)| (m.handovers_per_km, m.excellent_pct))
+            .map(|(_, m)| (m.handovers_per_km, m.excellent_pct, m.ping_pongs_per_km))
             .collect();
+        let xy: Vec<(f64, f64)> = xyz.iter().map(|&(x, y, _)| (x, y)).collect();
         let envelope = upper_envelope(&xy);
+        let clean = clean_envelope(&xyz);
         rows.extend(
             measures
                 .into_iter()
                 .enumerate()
                 .map(|(k, (setting, m))| FrontRow {
                     method: method.to_string(),
+                    rule,
                     setting,
                     measures: m,
                     on_front: envelope.contains(&k),
+                    pp_marked: envelope.contains(&k) && pp_dominated(&xyz, k),
+                    on_clean_front: clean.contains(&k),
                 }),
         );
     }
     rows
+}
+
+/// Whether point `i` of `(handovers/km, excellent %, ping-pongs/km)` keeps its excellent time
+/// only by more ping-pongs: some other point has no more handovers per km, fewer ping-pongs per
+/// km, and excellent time at most [`PP_MARK_EXCELLENT_PCT`] points below point `i`'s (or
+/// above). Points with a non-finite coordinate neither are nor make one.
+pub fn pp_dominated(points: &[(f64, f64, f64)], i: usize) -> bool {
+    let finite = |p: &(f64, f64, f64)| p.0.is_finite() && p.1.is_finite() && p.2.is_finite();
+    let p = points[i];
+    finite(&p)
+        && points.iter().enumerate().any(|(j, q)| {
+            j != i && finite(q) && q.0 <= p.0 && q.2 < p.2 && q.1 >= p.1 - PP_MARK_EXCELLENT_PCT
+        })
+}
+
+/// The indices of the upper envelope ([`upper_envelope`] of handovers/km and excellent %) of the
+/// points that are not [`pp_dominated`], in ascending handovers/km.
+pub fn clean_envelope(points: &[(f64, f64, f64)]) -> Vec<usize> {
+    let xy: Vec<(f64, f64)> = (0..points.len())
+        .map(|i| {
+            if pp_dominated(points, i) {
+                (f64::NAN, f64::NAN)
+            } else {
+                (points[i].0, points[i].1)
+            }
+        })
+        .collect();
+    upper_envelope(&xy)
 }
 
 /// The indices of the points `(x, y)` no other point dominates (x no higher and y higher, or x
@@ -180,36 +325,52 @@ pub fn upper_envelope(points: &[(f64, f64)]) -> Vec<usize> {
     out
 }
 
-/// `front.csv`: every method's front, one row per setting.
+/// `front.csv`: every method's front of every rule, one row per setting (the columns of another
+/// rule's setting empty; `margin_db` = offset + hysteresis, what A3's entering condition
+/// depends on; `l3_filter_k` empty where A3 compares what the UAV holds).
 pub fn write_front_csv(path: &Path, rows: &[FrontRow]) -> Result<(), RunError> {
     Ok(write_atomic_with(path, |w| {
         writeln!(
             w,
-            "method,offset_db,hysteresis_db,time_to_trigger_ms,pct_excellent,pct_excellent_net,handovers_per_km,ping_pongs_per_km,pct_sinr_below_m6db,on_front"
+            "method,rule,offset_db,hysteresis_db,margin_db,time_to_trigger_ms,l3_filter_k,handover_cost,pct_excellent,pct_excellent_net,handovers_per_km,ping_pongs_per_km,pct_sinr_below_m6db,on_front,pp_marked,on_clean_front"
         )?;
         for r in rows {
-            let (s, m) = (&r.setting, &r.measures);
+            let m = &r.measures;
+            let a3 = match r.setting.a3() {
+                Some(s) => format!(
+                    "{},{},{},{},{}",
+                    s.offset_db,
+                    s.hysteresis_db,
+                    s.margin_db(),
+                    s.time_to_trigger_ms,
+                    s.l3_filter_k.map_or(String::new(), |k| k.to_string())
+                ),
+                None => ",,,,".to_string(),
+            };
+            let cost = r.setting.cost().map_or(String::new(), |c| c.to_string());
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{a3},{cost},{},{},{},{},{},{},{},{}",
                 r.method,
-                s.offset_db,
-                s.hysteresis_db,
-                s.time_to_trigger_ms,
+                r.rule.name(),
                 m.excellent_pct,
                 m.excellent_net_pct,
                 m.handovers_per_km,
                 m.ping_pongs_per_km,
                 m.sinr_below_m6db_pct,
-                r.on_front
+                r.on_front,
+                r.pp_marked,
+                r.on_clean_front
             )?;
         }
         Ok(())
     })?)
 }
 
-/// A3 at a learned policy's own handover rate, on its own moves: the two settings of the front
-/// of `label`'s moves (pooled over seeds) that bracket the policy's handovers per km, `lower`
+/// A3 at a learned policy's own handover rate, on its own moves: the two settings of A3's front
+/// of `label`'s moves (pooled over seeds; its envelope without the settings whose excellent time
+/// is bought by ping-pongs, [`FrontRow::on_clean_front`]) that bracket the policy's handovers
+/// per km, `lower`
 /// (fewer handovers) and `upper`, and the share `alpha` of flights flown with `upper` so that
 /// the mix has the policy's rate: each flight (seed, pair) takes `upper` when a fixed hash of
 /// the two is below `alpha` ([`takes_upper`]). A mix of two A3 settings is an A3 operating
@@ -239,15 +400,15 @@ pub fn takes_upper(seed: u32, pair_id: u64, alpha: f64) -> bool {
 pub fn matched(records: &[RecordsFile], fronts: &[FrontFile]) -> Vec<Matched> {
     let rows = front_rows(fronts);
     let mut out = Vec::new();
-    let labels: Vec<&str> = {
-        let mut l: Vec<&str> = fronts
-            .iter()
-            .filter(|f| f.learned_site)
-            .map(|f| f.method.as_str())
-            .collect();
-        l.dedup();
-        l
-    };
+    let a3 = |f: &&FrontFile| f.rule == FrontRule::A3;
+    let mut labels: Vec<&str> = fronts
+        .iter()
+        .filter(a3)
+        .filter(|f| f.learned_site)
+        .map(|f| f.method.as_str())
+        .collect();
+    labels.sort_unstable();
+    labels.dedup();
     for label in labels {
         let own: Vec<&RecordsFile> = records.iter().filter(|r| r.method == label).collect();
         if own.is_empty() {
@@ -260,7 +421,7 @@ pub fn matched(records: &[RecordsFile], fronts: &[FrontFile]) -> Vec<Matched> {
         let rate = FrontMeasures::of(metrics.iter()).handovers_per_km;
         let env: Vec<&FrontRow> = rows
             .iter()
-            .filter(|r| r.method == label && r.on_front)
+            .filter(|r| r.method == label && r.rule == FrontRule::A3 && r.on_clean_front)
             .collect();
         let lower = env
             .iter()
@@ -278,16 +439,20 @@ pub fn matched(records: &[RecordsFile], fronts: &[FrontFile]) -> Vec<Matched> {
                     .handovers_per_km
                     .total_cmp(&b.measures.handovers_per_km)
             });
-        let (Some(lo), Some(up)) = (lower, upper) else {
+        let (Some((lo, lo_s)), Some((up, up_s))) = (
+            lower.and_then(|r| Some((r, *r.setting.a3()?))),
+            upper.and_then(|r| Some((r, *r.setting.a3()?))),
+        ) else {
             continue;
         };
         let (hl, hu) = (lo.measures.handovers_per_km, up.measures.handovers_per_km);
         let alpha = ((rate - hl) / (hu - hl)).clamp(0.0, 1.0);
         let seeds: Vec<SeedFlights> = fronts
             .iter()
+            .filter(a3)
             .filter(|f| f.method == label)
             .filter_map(|f| {
-                let of = |s: &A3Setting| f.points.iter().find(|p| p.setting == *s);
+                let of = |s: &FrontSetting| f.points.iter().find(|p| p.setting == *s);
                 let (pl, pu) = (of(&lo.setting)?, of(&up.setting)?);
                 let flights = pl
                     .flights
@@ -307,8 +472,8 @@ pub fn matched(records: &[RecordsFile], fronts: &[FrontFile]) -> Vec<Matched> {
         let name = format!("{label}+a3_matched");
         out.push(Matched {
             label: label.to_string(),
-            lower: lo.setting,
-            upper: up.setting,
+            lower: lo_s,
+            upper: up_s,
             alpha,
             grid: Grid::new(&name, seeds),
         });
@@ -317,32 +482,4 @@ pub fn matched(records: &[RecordsFile], fronts: &[FrontFile]) -> Vec<Matched> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_upper_envelope_keeps_the_undominated_points() {
-        // (handovers/km, excellent %)
-        let p = [
-            (10.0, 90.0),
-            (12.0, 89.0), // dominated by (10, 90)
-            (15.0, 93.0),
-            (15.0, 92.0), // same x, less y
-            (20.0, 93.0), // no gain for more handovers
-            (25.0, 95.0),
-            (f64::NAN, 99.0),
-        ];
-        assert_eq!(upper_envelope(&p), vec![0, 2, 5]);
-    }
-
-    #[test]
-    fn the_mix_takes_the_upper_setting_for_its_share_of_flights() {
-        let n = 20_000u64;
-        for alpha in [0.0, 0.25, 0.8, 1.0] {
-            let k = (0..n).filter(|&p| takes_upper(3, p, alpha)).count() as f64;
-            assert!((k / n as f64 - alpha).abs() < 0.015, "α {alpha}: {k}");
-        }
-        // A fixed function of (seed, pair).
-        assert_eq!(takes_upper(1, 7, 0.5), takes_upper(1, 7, 0.5));
-    }
-}
+mod tests;

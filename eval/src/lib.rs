@@ -2,27 +2,31 @@
 //! training seeds per method) and with the planners (shortest path with A3 and with the
 //! best-RSRP oracle, coverage-aware paths over a λ sweep); every step recorded ([`records`]); a
 //! learned site choice's moves re-flown with A3, the oracle and the hindsight association
-//! ([`fly`], [`hindsight`]; each step's SINR [`sinr`]); A3's settings tuned on the validation split ([`tune_a3`], [`a3_setting`]) and the
-//! fronts of excellent time against handovers ([`front`]); the statistics and the report's
+//! ([`fly`], [`hindsight`]; each step's SINR [`sinr`]); A3's settings tuned on the validation
+//! split ([`tune_a3`], [`a3_setting`]) and the fronts of excellent time against handovers
+//! ([`front`]; every A3 setting re-associated from one flight: [`trace`]); the statistics and the report's
 //! tables from the records alone ([`report`]; per-method data [`method_data`]; intervals
 //! [`interval`]; seed-aware bootstrap, per-seed rows and paired differences: [`stats`],
 //! [`stats_tables`]). What `plot` draws is this crate's data: records, fronts, per-method data.
 //! The figures are `dupac-plot`'s; training's periodic held-out check is `dupac_run::held_out`.
 
 pub mod a3_setting;
+pub mod flight;
 pub mod fly;
 pub mod front;
 pub mod hindsight;
 pub mod interval;
 pub mod method_data;
 pub mod records;
+pub mod refly;
 pub mod report;
 pub mod sinr;
 pub mod stats;
 pub mod stats_tables;
+pub mod trace;
 pub mod tune_a3;
 
-use crate::a3_setting::A3Setting;
+use crate::a3_setting::{A3Grid, A3Setting};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
@@ -33,6 +37,10 @@ use std::path::{Path, PathBuf};
 
 /// The largest `--handover-weight` (the bound `env.reward.handover_weight` has).
 const MAX_HANDOVER_WEIGHT: f64 = 100.0;
+
+/// The largest handover cost of `--hindsight-front` and `--predictive-front` (the bound of
+/// `--hindsight` and of `env.predictive.handover_cost_db_m`).
+const MAX_HANDOVER_COST: f64 = 1e6;
 
 /// A refusal with a formatted reason.
 macro_rules! refused {
@@ -58,6 +66,9 @@ pub struct EvalPlan {
     /// Labels whose policies are flown with `a3_tuned` (a base method trained with the tuned
     /// A3: a policy records its observation, not its A3 setting).
     pub tuned_labels: Vec<String>,
+    /// Labels whose policies (base methods: no site head) are flown with the predictive
+    /// association (`env.predictive`) instead of A3.
+    pub predictive_labels: Vec<String>,
     /// The first K pairs of every bin.
     pub per_bin: Option<usize>,
     /// No `LABEL+a3` / `LABEL+oracle` replays.
@@ -65,8 +76,17 @@ pub struct EvalPlan {
     /// `C` or `C:mts` hindsight associations.
     pub hindsight: Vec<String>,
     /// Re-fly every learned-site policy's moves and every planner's A3 path with each setting of
-    /// the `dupac tune-a3` grid ([`front`]).
+    /// `a3_grid` ([`front`]).
     pub a3_front: bool,
+    /// The A3 settings of `a3_front` (the flags `--offset-db`, `--hysteresis-db`, `--ttt-ms`,
+    /// `--l3-filter-k`; by default [`A3Grid::default`]).
+    pub a3_grid: A3Grid,
+    /// Handover costs C (dB·steps per handover) at which every learned-site policy's moves are
+    /// re-flown with the hindsight association (no minimum stay): its front ([`front`]).
+    pub hindsight_front: Vec<f64>,
+    /// Handover costs C (dB·m per handover, `env.predictive.handover_cost_db_m`) at which every
+    /// learned-site policy's moves are re-flown with the predictive association: its front.
+    pub predictive_front: Vec<f64>,
     /// Handover weights (`env.reward.handover_weight`, docs/env.md "Handover weight") at which
     /// every policy that observes the weight is flown, each as its own method `LABEL_w<W>`
     /// (empty: once, at the configuration's weight).
@@ -120,6 +140,9 @@ pub struct Method {
     pub kind: Kind,
     /// The A3 parameters it is flown with instead of `radio.a3` (the `+a3tuned` rows).
     pub a3: Option<A3Setting>,
+    /// A base-method policy flown with the predictive association instead of A3
+    /// (`--predictive-label`).
+    pub predictive: bool,
     /// The handover weight it is flown at instead of `env.reward.handover_weight` (a policy
     /// that observes it, flown at each `--handover-weight`).
     pub handover_weight: Option<f64>,
@@ -135,6 +158,19 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
         return Err(refused!(
             "--handover-weight {w}: must be a number in [0, {MAX_HANDOVER_WEIGHT}]"
         ));
+    }
+    for (flag, costs, unit) in [
+        ("--hindsight-front", &args.hindsight_front, "dB·steps"),
+        ("--predictive-front", &args.predictive_front, "dB·m"),
+    ] {
+        if let Some(c) = costs
+            .iter()
+            .find(|c| !(c.is_finite() && (0.0..=MAX_HANDOVER_COST).contains(*c)))
+        {
+            return Err(refused!(
+                "{flag} {c}: a handover cost must be a number in [0, {MAX_HANDOVER_COST}] ({unit})"
+            ));
+        }
     }
     let mut out = Vec::new();
     let mut seeds: BTreeMap<String, u32> = BTreeMap::new();
@@ -162,6 +198,17 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
                 ));
             }
         };
+        let predictive = args.predictive_labels.iter().any(|t| t == label);
+        if predictive && p.n_sites > 0 {
+            return Err(refused!(
+                "--predictive-label {label}: its policy {file} chooses the site itself (a site head); the predictive association flies base-method policies"
+            ));
+        }
+        if predictive && a3.is_some() {
+            return Err(refused!(
+                "--predictive-label {label}: the label is a --tuned-label too; a policy is flown with one association"
+            ));
+        }
         // One method per weight (`LABEL_w<W>`) for a policy that observes it; one at the
         // configuration's weight otherwise (the weight would change only its reward).
         let observes_weight = p.observation.as_ref().is_some_and(|o| o.handover_weight);
@@ -182,6 +229,7 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
                 seed: *seed,
                 kind: Kind::Policy(Box::new(p.clone())),
                 a3,
+                predictive,
                 handover_weight: w,
             });
             *seed += 1;
@@ -189,6 +237,15 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
     }
     if let Some(t) = args.tuned_labels.iter().find(|t| !seeds.contains_key(*t)) {
         return Err(refused!("--tuned-label {t}: no --policy has this label"));
+    }
+    if let Some(t) = args
+        .predictive_labels
+        .iter()
+        .find(|t| !seeds.contains_key(*t))
+    {
+        return Err(refused!(
+            "--predictive-label {t}: no --policy has this label"
+        ));
     }
     if args.no_planners && args.a3_tuned.is_some() {
         return Err(refused!(
@@ -209,6 +266,7 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
             seed: 0,
             kind,
             a3,
+            predictive: false,
             handover_weight: None,
         };
         out.push(planner(
@@ -219,6 +277,12 @@ pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
         out.push(planner(
             "shortest_oracle".into(),
             Kind::Shortest(Association::BestRsrp),
+            None,
+        ));
+        // The predictive association on the route it flies (docs/env.md "Predictive association").
+        out.push(planner(
+            "shortest_predictive".into(),
+            Kind::Shortest(Association::Predictive),
             None,
         ));
         for &l in &lambdas {

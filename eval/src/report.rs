@@ -192,22 +192,17 @@ pub fn write_tables(
         .as_bytes(),
     )?;
     if !matched.is_empty() {
-        let mut md = String::from(
-            "# A3 at each learned policy's handover rate\n\nEach learned-site policy's own moves re-flown with every setting of the `dupac tune-a3` grid (`front.csv`); the two settings of that front bracketing the policy's handovers per km, mixed flight by flight (a fixed hash of seed and pair) so that the mix has the policy's rate: `LABEL+a3_matched`, compared with the policy in `paired.csv` and report.md's paired differences.\n\n| policy | lower setting (offset / hysteresis / TTT) | upper setting | share of the upper |\n|---|---|---|---:|\n",
+        let mut md = format!(
+            "# A3 at each learned policy's handover rate\n\nEach learned-site policy's own moves re-flown with every A3 setting of the grid (`front.csv`, rule `a3`); of that front's envelope without the settings whose excellent time is bought by ping-pongs (`on_clean_front`: another setting has no more handovers per km, fewer ping-pongs per km and at most {} point less excellent time; those envelope points are `pp_marked`), the two settings bracketing the policy's handovers per km, mixed flight by flight (a fixed hash of seed and pair) so that the mix has the policy's rate: `LABEL+a3_matched`, compared with the policy in `paired.csv` and report.md's paired differences.\n\n| policy | lower setting (offset dB / hysteresis dB / TTT / A3's filter k) | upper setting | share of the upper |\n|---|---|---|---:|\n",
+            front::PP_MARK_EXCELLENT_PCT
         );
         for m in &matched {
-            let f = |s: &crate::a3_setting::A3Setting| {
-                format!(
-                    "{} dB / {} dB / {} ms",
-                    s.offset_db, s.hysteresis_db, s.time_to_trigger_ms
-                )
-            };
             let _ = writeln!(
                 md,
                 "| {} | {} | {} | {:.3} |",
                 m.label,
-                f(&m.lower),
-                f(&m.upper),
+                m.lower.label(),
+                m.upper.label(),
                 m.alpha
             );
         }
@@ -459,8 +454,9 @@ fn report_md(
     s
 }
 
-/// "Route or association": each learned-site policy beside its own moves re-flown with A3 and
-/// with the best-RSRP oracle choosing the site (the replays `LABEL+a3`, `LABEL+oracle`).
+/// "Route or association": each learned-site policy beside its own moves re-flown with A3, the
+/// best-RSRP oracle and the predictive association choosing the site (the replays `LABEL+a3`,
+/// `LABEL+oracle`, `LABEL+predictive`).
 fn route_or_association(s: &mut String, data: &[MethodData]) {
     let policies: Vec<&MethodData> = data
         .iter()
@@ -474,7 +470,7 @@ fn route_or_association(s: &mut String, data: &[MethodData]) {
     }
     let _ = writeln!(
         s,
-        "\n## Route or association\n\nEach learned-site policy's own moves, re-flown with the A3 rule and with the best-RSRP oracle choosing the site. The route is the same in the three rows, so the oracle row is the best this route allows, and the gap from the policy's row to it is the association's alone; the gap between policies' oracle rows is the routes'. Excellent time over successful flights, the rest over all flights.\n"
+        "\n## Route or association\n\nEach learned-site policy's own moves, re-flown with the A3 rule, the best-RSRP oracle and the predictive association (`env.predictive`) choosing the site. The route is the same in every row, so the oracle row is the best this route allows, and the gap from the policy's row to it is the association's alone; the gap between policies' oracle rows is the routes'. Excellent time over successful flights, the rest over all flights.\n"
     );
     let _ = writeln!(
         s,
@@ -485,6 +481,7 @@ fn route_or_association(s: &mut String, data: &[MethodData]) {
             ("policy", p.label.clone()),
             ("A3", format!("{}+a3", p.label)),
             ("oracle", format!("{}+oracle", p.label)),
+            ("predictive", format!("{}+predictive", p.label)),
         ] {
             let Some(d) = data.iter().find(|d| d.label == label) else {
                 continue;

@@ -1,22 +1,21 @@
 //! Tuning the base method's A3 parameters on the validation split (`dupac tune-a3`,
 //! docs/results.md "A fair A3: `dupac tune-a3`"): the guide path every guided policy gets (the
 //! coverage-aware planner's path, λ = `lambda`, with the guide's clearance) of every validation
-//! pair, flown by the scripted pilot with A3 choosing the site, once per setting of a grid of
-//! a3-Offset × Hysteresis × timeToTrigger (TS 36.331 values, docs/spec/radio.md §4); per setting
-//! the excellent-RSRP time, handovers and ping-pongs per km and the time below −6 dB SINR
-//! ([`dupac_actor::metrics::flight_metrics`]); the chosen setting ([`choose`]): the most
-//! excellent time among those with no more ping-pongs per km than the reference (`radio.a3`,
-//! 3 dB / 1 dB / 160 ms by default), ties to fewer handovers per km.
+//! pair, flown by the scripted pilot once and re-associated by A3 at every setting of a grid of
+//! a3-Offset × Hysteresis × timeToTrigger × A3's own filter coefficient (TS 36.331 values,
+//! docs/spec/radio.md §4; [`crate::trace`]: what the flight through the environment with that
+//! setting gives); per setting the excellent-RSRP time, handovers and ping-pongs per km and the
+//! time below −6 dB SINR ([`dupac_actor::metrics::flight_metrics`]); the chosen setting
+//! ([`choose`]): the most excellent time among those with no more ping-pongs per km than the
+//! reference (`radio.a3`, 3 dB / 1 dB / 160 ms by default), ties to fewer handovers per km.
 //!
 //! Deterministic: every flight is a function of the pair and the setting, the pairs are flown in
 //! parallel and gathered in order, so the same inputs give a byte-identical `a3_grid.csv`.
 
-use crate::fly::flight_record;
-use dupac_actor::env::Env;
-use dupac_actor::metrics::{FlightMetrics, flight_metrics};
+use crate::trace::{Flown, ReplayTrace};
+use dupac_actor::metrics::FlightMetrics;
 use dupac_actor::pairs::Split;
-use dupac_actor::pilot::fly_waypoints;
-use dupac_common::config::{Association, Config};
+use dupac_common::config::Config;
 use dupac_common::msg::Outcome;
 use dupac_radio::channel::FieldSplit;
 use dupac_run::error::{Context, RunError};
@@ -107,17 +106,8 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
     guide_cfg.env.observation.path_guide_lambda = lambda;
     guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs)?;
     let rules = dupac_actor::metrics::MetricRules::from_config(cfg);
-    let configs: Vec<Config> = settings
-        .iter()
-        .map(|s| {
-            let mut c = flight_cfg.clone();
-            c.env.association = Association::A3;
-            s.apply(&mut c.radio.a3);
-            c
-        })
-        .collect();
     let pb = progress_bar(pairs.len() as u64, "A3 settings × pairs", quiet);
-    // metrics[pair][setting]
+    // metrics[pair][setting]: each pair's guide path flown once, re-associated by every setting.
     let metrics: Vec<Vec<FlightMetrics>> = pairs
         .par_iter()
         .map(|p| {
@@ -125,27 +115,19 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
                 .path
                 .as_ref()
                 .ok_or_else(|| RunError::Refused(format!("pair {}: no guide path", p.id)))?;
-            let row = configs
-                .iter()
-                .map(|c| {
-                    let mut env = Env::new(c, world.clone(), rsrp.clone())?;
-                    let episode = p.episode(false, FieldSplit::Eval);
-                    let flight =
-                        fly_waypoints(&mut env, p.id, episode, path.points_m(), |e| e.serving())?;
-                    let r = flight_record(
-                        &world,
-                        &rsrp,
-                        FieldSplit::Eval,
-                        "a3",
-                        0,
-                        p,
-                        (env.start_serving(), &flight.steps),
-                    );
-                    Ok(flight_metrics(&r, &rules))
-                })
-                .collect::<Result<Vec<_>, RunError>>();
+            let episode = p.episode(false, FieldSplit::Eval);
+            let flown = Flown::Waypoints(path.points_m());
+            let trace = ReplayTrace::fly(
+                &flight_cfg,
+                &world,
+                &rsrp,
+                FieldSplit::Eval,
+                p,
+                episode,
+                flown,
+            )?;
             pb.inc(1);
-            row
+            Ok(trace.a3_metrics(&settings, &rules))
         })
         .collect::<Result<_, RunError>>()?;
     pb.finish_and_clear();
@@ -187,18 +169,24 @@ pub fn choose(results: &[SettingResult]) -> Result<&SettingResult, RunError> {
     Ok(best)
 }
 
-/// `a3_grid.csv`: one row per setting, in grid order; `chosen` marks [`choose`]'s.
+/// `a3_grid.csv`: one row per setting, in grid order; `chosen` marks [`choose`]'s. `margin_db`
+/// is offset + hysteresis (what A3's entering condition depends on); `l3_filter_k` is empty
+/// where A3 compares what the UAV holds.
 pub fn grid_csv(results: &[SettingResult], chosen: &SettingResult) -> String {
     let mut s = String::from(
-        "offset_db,hysteresis_db,time_to_trigger_ms,flights,success_pct,excellent_pct,handovers_per_km,ping_pongs_per_km,sinr_below_m6db_pct,reference,chosen\n",
+        "offset_db,hysteresis_db,margin_db,time_to_trigger_ms,l3_filter_k,flights,success_pct,excellent_pct,handovers_per_km,ping_pongs_per_km,sinr_below_m6db_pct,reference,chosen\n",
     );
     for r in results {
         let _ = writeln!(
             s,
-            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}",
+            "{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}",
             r.setting.offset_db,
             r.setting.hysteresis_db,
+            r.setting.margin_db(),
             r.setting.time_to_trigger_ms,
+            r.setting
+                .l3_filter_k
+                .map_or(String::new(), |k| k.to_string()),
             r.flights,
             r.success_pct,
             r.excellent_pct,
@@ -212,9 +200,10 @@ pub fn grid_csv(results: &[SettingResult], chosen: &SettingResult) -> String {
     s
 }
 
-/// `tuned_a3.toml`: `[radio.a3]` with the chosen setting's three keys, a configuration file of
-/// its own (`--config tuned_a3.toml`), with a comment that says where it came from (the pairs
-/// file, the guide path's λ, the chosen and the reference setting's measures).
+/// `tuned_a3.toml`: `[radio.a3]` with the chosen setting's keys (`l3_filter_k` when it has A3's
+/// own filter), a configuration file of its own (`--config tuned_a3.toml`), with a comment that
+/// says where it came from (the pairs file, the guide path's λ, the chosen and the reference
+/// setting's measures) and the same setting as `--set` options.
 pub fn tuned_toml(
     chosen: &SettingResult,
     reference: &SettingResult,
@@ -222,39 +211,51 @@ pub fn tuned_toml(
     lambda: f64,
 ) -> String {
     let c = chosen.setting;
+    let filter_key = c
+        .l3_filter_k
+        .map_or(String::new(), |k| format!("l3_filter_k = {k}\n"));
     format!(
         "# A3 tuned by `dupac tune-a3` on the validation split ({}), {} flights of the\n\
          # λ = {lambda} guide path: excellent {:.2} %, {:.3} handovers/km, {:.3} ping-pongs/km\n\
-         # (reference {} dB / {} dB / {} ms: {:.2} %, {:.3}, {:.3}).\n\
+         # (reference {}: {:.2} %, {:.3}, {:.3}).\n\
          # Use: `dupac train --association a3 --config THIS_FILE`, or with a configuration of your\n\
-         # own: --set radio.a3.offset_db={} --set radio.a3.hysteresis_db={} --set radio.a3.time_to_trigger_ms={}\n\
+         # own: {}\n\
          [radio.a3]\n\
          offset_db = {:?}\n\
          hysteresis_db = {:?}\n\
-         time_to_trigger_ms = {:?}\n",
+         time_to_trigger_ms = {:?}\n\
+         {filter_key}",
         pairs_file.display(),
         chosen.flights,
         chosen.excellent_pct,
         chosen.handovers_per_km,
         chosen.ping_pongs_per_km,
-        reference.setting.offset_db,
-        reference.setting.hysteresis_db,
-        reference.setting.time_to_trigger_ms,
+        reference.setting.label(),
         reference.excellent_pct,
         reference.handovers_per_km,
         reference.ping_pongs_per_km,
-        c.offset_db,
-        c.hysteresis_db,
-        c.time_to_trigger_ms,
+        set_options(&c),
         c.offset_db,
         c.hysteresis_db,
         c.time_to_trigger_ms,
     )
 }
 
+/// `setting` as the `--set` options of `radio.a3` (`l3_filter_k` only with A3's own filter).
+pub fn set_options(setting: &A3Setting) -> String {
+    let mut s = format!(
+        "--set radio.a3.offset_db={} --set radio.a3.hysteresis_db={} --set radio.a3.time_to_trigger_ms={}",
+        setting.offset_db, setting.hysteresis_db, setting.time_to_trigger_ms
+    );
+    if let Some(k) = setting.l3_filter_k {
+        s.push_str(&format!(" --set radio.a3.l3_filter_k={k}"));
+    }
+    s
+}
+
 /// Reads a `tuned_a3.toml` (`dupac eval --a3-tuned FILE`): `[radio.a3]` with exactly
-/// `offset_db`, `hysteresis_db` and `time_to_trigger_ms`, TS 36.331 values; every error names
-/// the file.
+/// `offset_db`, `hysteresis_db`, `time_to_trigger_ms` and optionally `l3_filter_k`, TS 36.331
+/// values; every error names the file.
 pub fn read_tuned(path: &Path) -> Result<A3Setting, RunError> {
     #[derive(Deserialize)]
     #[serde(deny_unknown_fields)]
@@ -275,7 +276,7 @@ pub fn read_tuned(path: &Path) -> Result<A3Setting, RunError> {
         std::fs::read_to_string(path).context_with(|| format!("--a3-tuned {}", path.display()))?;
     let f: File = toml::from_str(&text).map_err(|e| {
         bad(format!(
-            "expected [radio.a3] with offset_db, hysteresis_db and time_to_trigger_ms only: {e}"
+            "expected [radio.a3] with offset_db, hysteresis_db, time_to_trigger_ms and optionally l3_filter_k only: {e}"
         ))
     })?;
     f.radio.a3.check_legal().map_err(bad)?;

@@ -10,7 +10,7 @@ use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
-use dupac_eval::front::{FrontFile, FrontMeasures, FrontRow, front_rows};
+use dupac_eval::front::{FrontFile, FrontMeasures, FrontRow, FrontRule, front_rows};
 use dupac_eval::interval::MeanCi;
 use dupac_eval::records::RecordsFile;
 use dupac_eval::report::{MethodData, is_planner};
@@ -371,15 +371,18 @@ pub fn draw_examples(
     Ok(())
 }
 
-/// `fronts.png`: time in excellent RSRP against handovers per km. Every policy of the records and
-/// each planner with an A3 front as a point (a learned front: one policy flown at several
-/// handover weights, or several policies), and A3's front on the same flights (every `dupac
-/// tune-a3` setting re-flying them, `front.csv`) as a line through its upper envelope with the
-/// other settings as small dots; ping-pongs per km in the legend and on the envelope.
+/// `fronts.png`: time in excellent RSRP against handovers per km, one colour per method. Each
+/// policy of the records and each planner with a front as a triangle (its own flights); A3's
+/// front on the same flights (every setting of the grid, `front.csv`) as small dots and a solid
+/// line through its upper envelope, an envelope point whose excellent time is bought by
+/// ping-pongs (`pp_marked`) as a hollow ring; the predictive association's front as a dashed
+/// line with squares and the hindsight association's (a bound: perfect foresight) as a finely
+/// dashed line with crosses, through their settings in order of handovers; one policy flown at
+/// several handover weights (`LABEL_w<W>`) joined by a black line, the learned front.
 pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> Result<()> {
     let rows = front_rows(fronts);
     // The policies of the records (a learned front is several of them: DUPAC at several handover
-    // weights), then the methods whose flights have an A3 front.
+    // weights), then the methods whose flights have a front.
     let mut methods: Vec<&str> = files
         .iter()
         .map(|f| f.method.as_str())
@@ -412,13 +415,14 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
         .chain(own.iter().map(|(_, m)| m.excellent_pct))
         .filter(|y| y.is_finite());
     let y_lo = (ys.fold(100.0, f64::min) - 2.0).max(0.0);
+    let xy = |r: &FrontRow| (r.measures.handovers_per_km, r.measures.excellent_pct);
     crate::write_png_atomic(&out.join("fronts.png"), |tmp| {
         let root = BitMapBackend::new(tmp, (1100, 800)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
-                "Excellent RSRP against handovers: A3's front on the same flights",
-                (FONT, 20),
+                "Excellent RSRP against handovers on the same flights: A3 (solid; ring: bought by ping-pongs), predictive (dashed), hindsight (fine dashes, a bound)",
+                (FONT, 16),
             )
             .margin(16)
             .x_label_area_size(50)
@@ -432,7 +436,6 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             .draw()?;
         for (k, method) in methods.iter().enumerate() {
             let c = series_colour(k);
-            let mine: Vec<&FrontRow> = rows.iter().filter(|r| r.method == *method).collect();
             if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
                 chart
                     .draw_series(std::iter::once(TriangleMarker::new(
@@ -446,39 +449,67 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
                     ))
                     .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
             }
-            if mine.is_empty() {
-                continue;
-            }
-            chart.draw_series(mine.iter().map(|r| {
-                Circle::new(
-                    (r.measures.handovers_per_km, r.measures.excellent_pct),
-                    2,
-                    c.mix(0.35).filled(),
-                )
-            }))?;
-            let mut env: Vec<&&FrontRow> = mine.iter().filter(|r| r.on_front).collect();
-            env.sort_by(|a, b| {
-                a.measures
-                    .handovers_per_km
-                    .total_cmp(&b.measures.handovers_per_km)
-            });
-            chart
-                .draw_series(LineSeries::new(
-                    env.iter()
-                        .map(|r| (r.measures.handovers_per_km, r.measures.excellent_pct)),
-                    c.stroke_width(2),
-                ))?
-                .label(format!("A3's front on {method}'s flights"))
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+            let of = |rule: FrontRule| -> Vec<&FrontRow> {
+                let mut v: Vec<&FrontRow> = rows
+                    .iter()
+                    .filter(|r| r.method == *method && r.rule == rule)
+                    .collect();
+                v.sort_by(|a, b| {
+                    a.measures
+                        .handovers_per_km
+                        .total_cmp(&b.measures.handovers_per_km)
                 });
-            chart.draw_series(env.iter().map(|r| {
-                Text::new(
-                    format!("{:.2}", r.measures.ping_pongs_per_km),
-                    (r.measures.handovers_per_km, r.measures.excellent_pct),
-                    (FONT, 11).into_font().color(&c.mix(0.8)),
-                )
-            }))?;
+                v
+            };
+            let a3 = of(FrontRule::A3);
+            if !a3.is_empty() {
+                chart.draw_series(
+                    a3.iter()
+                        .filter(|r| !r.on_front)
+                        .map(|r| Circle::new(xy(r), 2, c.mix(0.3).filled())),
+                )?;
+                let env: Vec<&&FrontRow> = a3.iter().filter(|r| r.on_front).collect();
+                chart
+                    .draw_series(LineSeries::new(env.iter().map(|r| xy(r)), c.stroke_width(2)))?
+                    .label(format!("A3 on {method}'s flights"))
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
+                chart.draw_series(env.iter().map(|r| {
+                    if r.pp_marked {
+                        Circle::new(xy(r), 6, c.stroke_width(2))
+                    } else {
+                        Circle::new(xy(r), 3, c.filled())
+                    }
+                }))?;
+            }
+            let predictive = of(FrontRule::Predictive);
+            if !predictive.is_empty() {
+                let pts: Vec<(f64, f64)> = predictive.iter().map(|r| xy(r)).collect();
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        pts.clone(),
+                        10,
+                        6,
+                        c.stroke_width(2),
+                    ))?
+                    .label(format!("predictive on {method}'s flights"))
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 8, y)], c.stroke_width(2))
+                    });
+                chart.draw_series(pts.iter().map(|&p| {
+                    EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], c.filled())
+                }))?;
+            }
+            let hindsight = of(FrontRule::Hindsight);
+            if !hindsight.is_empty() {
+                let pts: Vec<(f64, f64)> = hindsight.iter().map(|r| xy(r)).collect();
+                chart
+                    .draw_series(DashedLineSeries::new(pts.clone(), 3, 4, c.stroke_width(2)))?
+                    .label(format!("hindsight on {method}'s flights (a bound)"))
+                    .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
+                chart.draw_series(pts.iter().map(|&p| Cross::new(p, 5, c.stroke_width(2))))?;
+            }
         }
         // One policy flown at several handover weights (`LABEL_w<W>`, `dupac eval
         // --handover-weight`): its points joined, the learned front.
@@ -517,3 +548,6 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
     })
     .with_context(|| "writing fronts.png".to_string())
 }
+
+#[cfg(test)]
+mod tests;

@@ -50,6 +50,10 @@ pub struct EvalArgs {
     /// trained with it; repeatable).
     #[arg(long, value_name = "LABEL")]
     pub tuned_label: Vec<String>,
+    /// The policies of this label (base methods: no site head) are flown with the predictive
+    /// association (`env.predictive`) instead of A3 (repeatable).
+    #[arg(long, value_name = "LABEL")]
+    pub predictive_label: Vec<String>,
     /// Pairs per distance bin: the first K of each bin (default: all).
     #[arg(long, value_name = "K")]
     pub per_bin: Option<usize>,
@@ -80,13 +84,8 @@ pub struct EvalArgs {
     /// on DUPAC's moves").
     #[arg(long = "hindsight", value_name = "C[:mts]")]
     pub hindsight: Vec<String>,
-    /// A3's front on the same flights: re-fly every learned-site policy's moves and every
-    /// planner's A3 path with each setting of the `dupac tune-a3` grid (5 offsets × 4
-    /// hysteresis × 5 time-to-trigger values) into `OUT/records/front/`; the report adds
-    /// `front.csv`, `fronts.png` and each policy against A3 at its own handover rate
-    /// (`LABEL+a3_matched`, `matched.md`). About 100 re-flights per flight.
-    #[arg(long)]
-    pub a3_front: bool,
+    #[command(flatten)]
+    pub fronts: super::front_args::FrontArgs,
     /// Fly every policy that observes the handover weight (`env.observation.handover_weight`)
     /// at each of these weights (`env.reward.handover_weight`), each as its own method
     /// `LABEL_w<W>`: one conditioned policy's front in one evaluation (repeatable, or
@@ -109,10 +108,8 @@ impl EvalArgs {
 
     /// What to fly, for the run layer.
     fn plan(&self) -> Result<EvalPlan> {
-        let a3_tuned = match &self.a3_tuned {
-            Some(f) => Some(read_tuned(f)?),
-            None => None,
-        };
+        let a3_tuned = self.a3_tuned.as_deref().map(read_tuned).transpose()?;
+        let f = &self.fronts;
         Ok(EvalPlan {
             policies: self.policies.clone(),
             lambdas: self.lambdas.clone(),
@@ -124,7 +121,11 @@ impl EvalArgs {
             per_bin: self.per_bin,
             no_replay: self.no_replay,
             hindsight: self.hindsight.clone(),
-            a3_front: self.a3_front,
+            predictive_labels: self.predictive_label.clone(),
+            a3_front: f.a3_front,
+            a3_grid: f.a3_grid()?,
+            hindsight_front: f.hindsight_front.clone(),
+            predictive_front: f.predictive_front.clone(),
             handover_weights: self.handover_weights.clone(),
         })
     }

@@ -7,6 +7,7 @@ pub mod config;
 pub mod eval;
 pub mod export;
 pub mod fly;
+pub mod front_args;
 pub mod learner;
 pub mod map;
 pub mod monitor;

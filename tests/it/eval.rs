@@ -99,10 +99,12 @@ fn eval_flies_every_method_and_replays_the_association() {
             "dupac+hindsight_0",
             "dupac+hindsight_1000_mts",
             "dupac+oracle",
+            "dupac+predictive",
             "coverage_l1",
             "coverage_l1+oracle",
             "shortest_a3",
-            "shortest_oracle"
+            "shortest_oracle",
+            "shortest_predictive"
         ],
         "{summary}"
     );
@@ -126,11 +128,12 @@ fn eval_flies_every_method_and_replays_the_association() {
         "{summary}"
     );
     assert_eq!(col("dupac+oracle", "pct_class_regret"), 0.0, "{summary}");
-    assert_eq!(
-        col("dupac+a3", "success"),
-        col("dupac", "success"),
-        "{summary}"
-    );
+    // A replay flies the policy's moves and ends as its flights ended: a collision stays one.
+    for replay in ["dupac+a3", "dupac+oracle", "dupac+predictive"] {
+        for outcome in ["success", "collision", "timeout"] {
+            assert_eq!(col(replay, outcome), col("dupac", outcome), "{summary}");
+        }
+    }
     let dupac_row: Vec<&str> = summary.lines().nth(1).expect("row").split(',').collect();
     assert_eq!(
         &dupac_row[1..3],
@@ -214,7 +217,8 @@ fn eval_writes_per_seed_rows_and_paired_differences() {
             "coverage_l1",
             "coverage_l1+oracle",
             "shortest_a3",
-            "shortest_oracle"
+            "shortest_oracle",
+            "shortest_predictive"
         ],
         "{paired}"
     );
@@ -286,6 +290,50 @@ fn eval_refuses_a_bad_hindsight_value_before_flying() {
         assert!(!e.status.success() && err.contains(says), "{err}");
     }
     assert!(!dir.path().join("eval_bad").join("records").exists());
+}
+
+/// The fronts' and the predictive association's options are refused before flying, each naming
+/// its flag: an A3 value TS 36.331 cannot signal, grid flags without `--a3-front`, a negative
+/// cost, a learned-site policy flown "with the predictive association", an unknown label.
+#[test]
+fn eval_refuses_bad_front_and_predictive_options_before_flying() {
+    let run = trained_run();
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("eval_bad");
+    for (bad, says) in [
+        (
+            &["--a3-front", "--offset-db", "16"][..],
+            "--offset-db: a3-Offset 16",
+        ),
+        (
+            &["--a3-front", "--l3-filter-k", "10"],
+            "--l3-filter-k: filterCoefficient k = 10",
+        ),
+        (&["--a3-front", "--l3-filter-k", "fast"], "--l3-filter-k"),
+        (&["--ttt-ms", "320"], "give --a3-front"),
+        (&["--hindsight-front=-1"], "--hindsight-front -1"),
+        (&["--predictive-front", "60,-5"], "--predictive-front -5"),
+        (&["--predictive-label", "dupac"], "--predictive-label dupac"),
+        (
+            &["--predictive-label", "nobody"],
+            "--predictive-label nobody",
+        ),
+    ] {
+        let mut command: Vec<String> = [
+            "eval".to_string(),
+            "-q".into(),
+            "--policy".into(),
+            format!("dupac={}", run.policy().display()),
+            "--out".into(),
+            out.display().to_string(),
+        ]
+        .into();
+        command.extend(bad.iter().map(|s| s.to_string()));
+        let e = dupac_output(&run.args, &command);
+        let err = String::from_utf8_lossy(&e.stderr);
+        assert!(!e.status.success() && err.contains(says), "{bad:?}: {err}");
+    }
+    assert!(!out.join("records").exists());
 }
 
 /// `--bootstrap 0` is refused before anything is flown, naming the option.
@@ -400,11 +448,13 @@ fn fly_and_eval_draw_a_missing_held_out_set() {
 /// Under the real channel a flight starts from the site the UAV measured strongest at the
 /// source, for the metrics as for the environment: every recorded flight's handovers, recounted
 /// from its start site, are the environment's per-step flags (a start site taken from the true
-/// RSRP instead adds a phantom handover where the two differ). With `--a3-front`: A3's front on
-/// the policy's moves and on each planner's A3 path, 100 settings each (`front.csv`,
-/// `fronts.png`).
+/// RSRP instead adds a phantom handover where the two differ). With `--a3-front` on a grid from
+/// the flags (margins 0 and 12 dB, TTT 0 and 320 ms, without and with A3's filter k = 4): A3's
+/// front on the policy's moves and on each planner's A3 path, 8 settings each, the 12 dB margin
+/// flown with fewer handovers than 0 dB; the hindsight and the predictive association's fronts
+/// on the policy's moves at two costs each (`front.csv`, `fronts.png`).
 #[test]
-fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_front() {
+fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_the_fronts() {
     let run = trained_run();
     let ev = run.dir.join("eval_real");
     let mut scenario = run.args.clone();
@@ -412,16 +462,27 @@ fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_fron
     let e = dupac_output(
         &scenario,
         &[
-            "eval".into(),
-            "-q".into(),
-            "--policy".into(),
-            format!("dupac={}", run.policy().display()),
-            "--lambda".into(),
-            "1".into(),
-            "--a3-front".into(),
-            "--out".into(),
-            ev.display().to_string(),
-        ],
+            "eval",
+            "-q",
+            "--policy",
+            &format!("dupac={}", run.policy().display()),
+            "--lambda",
+            "1",
+            "--a3-front",
+            "--offset-db",
+            "0,12",
+            "--ttt-ms",
+            "0,320",
+            "--l3-filter-k",
+            "none,4",
+            "--hindsight-front",
+            "0,200",
+            "--predictive-front",
+            "0,300",
+            "--out",
+            &ev.display().to_string(),
+        ]
+        .map(String::from),
     );
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
     let files = dupac_eval::records::read_records(&ev.join("records")).expect("records");
@@ -440,22 +501,41 @@ fn eval_under_the_real_channel_counts_from_the_measured_start_and_flies_a3s_fron
     }
     assert!(flights >= 8 * 5, "{flights} flights");
     let front = std::fs::read_to_string(ev.join("front.csv")).expect("front.csv");
+    let rows: Vec<std::collections::BTreeMap<&str, &str>> = {
+        let mut lines = front.lines();
+        let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+        lines
+            .map(|l| header.iter().copied().zip(l.split(',')).collect())
+            .collect()
+    };
+    let of = |method: &str, rule: &str| -> Vec<&std::collections::BTreeMap<&str, &str>> {
+        rows.iter()
+            .filter(|r| r["method"] == method && r["rule"] == rule)
+            .collect()
+    };
     for method in ["dupac", "shortest_a3", "coverage_l1"] {
-        let rows = front
-            .lines()
-            .filter(|l| l.starts_with(&format!("{method},")))
-            .count();
-        assert_eq!(rows, 100, "{method}: {front}");
+        assert_eq!(of(method, "a3").len(), 8, "{method}: {front}");
+    }
+    for rule in ["hindsight", "predictive"] {
+        assert_eq!(of("dupac", rule).len(), 2, "{rule}: {front}");
+        assert!(of("shortest_a3", rule).is_empty(), "{front}");
     }
     // The planned paths arrive, so their excellent time is defined and their front has an
-    // envelope (the small policy's flights may all fail: its time is over successes only).
+    // envelope (the small policy's flights may all fail: its time is over successes only); a
+    // 12 dB margin flies, and hands over less than no margin.
     for method in ["shortest_a3", "coverage_l1"] {
+        let a3 = of(method, "a3");
         assert!(
-            front
-                .lines()
-                .any(|l| l.starts_with(&format!("{method},")) && l.ends_with(",true")),
-            "{method} has an envelope: {front}"
+            a3.iter().any(|r| r["on_front"] == "true"),
+            "{method}: {front}"
         );
+        let rate = |margin: &str| -> f64 {
+            a3.iter()
+                .filter(|r| r["margin_db"] == margin)
+                .map(|r| r["handovers_per_km"].parse::<f64>().expect("number"))
+                .sum()
+        };
+        assert!(rate("12") < rate("0"), "{method}: {front}");
     }
     assert!(ev.join("fronts.png").exists());
 }

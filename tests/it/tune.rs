@@ -1,7 +1,9 @@
-//! `dupac tune-a3` on the small procedural world: the grid of every setting, a chosen setting
-//! with no more ping-pongs per km and no less excellent time than the reference (3 dB / 1 dB /
-//! 160 ms), a byte-identical grid when run again, TS 36.331 values enforced, and `dupac eval
-//! --a3-tuned` flying the planners with the tuned A3 as extra rows.
+//! `dupac tune-a3` on the small procedural world: the default grid of every setting (margins
+//! 0–15 dB, TTT 0–1 280 ms, A3's filter k 0, 4, 8) and the reference, a chosen setting with no
+//! more ping-pongs per km and no less excellent time than the reference (3 dB / 1 dB / 160 ms),
+//! a byte-identical grid when run again, a value TS 36.331 cannot signal refused naming its flag
+//! (`--ttt-ms`, `--offset-db`, `--l3-filter-k`), a 12 dB margin flown from the flags, and `dupac
+//! eval --a3-tuned` flying the planners with the tuned A3 as extra rows.
 
 use crate::support::{dupac_output, split_world_args as args};
 
@@ -37,7 +39,8 @@ fn tune_a3_writes_the_grid_and_a_setting_no_worse_than_the_reference() {
     ok(&dupac_output(&a, &cmd(&["tune-a3", "-q", "--out", &out_s])));
     let csv = std::fs::read_to_string(out.join("a3_grid.csv")).expect("a3_grid.csv");
     let r = rows(&csv);
-    assert_eq!(r.len(), 5 * 4 * 5, "{csv}");
+    // The default grid (16 offsets × 6 TTT × 3 filters) and the reference (3 / 1 / 160 ms).
+    assert_eq!(r.len(), 16 * 6 * 3 + 1, "{csv}");
     let num = |row: &std::collections::BTreeMap<String, String>, k: &str| -> f64 {
         row[k].parse().expect("number")
     };
@@ -80,15 +83,47 @@ fn tune_a3_writes_the_grid_and_a_setting_no_worse_than_the_reference() {
         std::fs::read(again.join("a3_grid.csv")).expect("again"),
         csv.as_bytes()
     );
-    // A value TS 36.331 cannot signal: refused before any work, naming it.
-    let bad = dupac_output(
+    // Values TS 36.331 cannot signal: refused before any work, naming the flag and the value.
+    for (flag, value, says) in [
+        ("--ttt-ms", "50", "timeToTrigger 50"),
+        ("--offset-db", "16", "a3-Offset 16"),
+        ("--l3-filter-k", "10", "filterCoefficient k = 10"),
+    ] {
+        let bad = dupac_output(&a, &cmd(&["tune-a3", "-q", flag, value, "--out", &out_s]));
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains(flag) && err.contains(says),
+            "{err}"
+        );
+    }
+    // A margin of 12 dB flies (with A3's own filter), and hands over less than none.
+    let wide = dir.path().join("wide");
+    ok(&dupac_output(
         &a,
-        &cmd(&["tune-a3", "-q", "--ttt-ms", "50", "--out", &out_s]),
-    );
-    let err = String::from_utf8_lossy(&bad.stderr);
+        &cmd(&[
+            "tune-a3",
+            "-q",
+            "--offset-db",
+            "0,12",
+            "--ttt-ms",
+            "0",
+            "--l3-filter-k",
+            "4",
+            "--out",
+            &wide.display().to_string(),
+        ]),
+    ));
+    let csv = std::fs::read_to_string(wide.join("a3_grid.csv")).expect("a3_grid.csv");
+    let r = rows(&csv);
+    let at = |margin: &str| {
+        r.iter()
+            .find(|x| x["margin_db"] == margin && x["l3_filter_k"] == "4")
+            .unwrap_or_else(|| panic!("margin {margin}: {csv}"))
+    };
+    assert_eq!(at("12")["flights"], "8", "{csv}");
     assert!(
-        !bad.status.success() && err.contains("--ttt-ms") && err.contains("timeToTrigger 50"),
-        "{err}"
+        num(at("12"), "handovers_per_km") < num(at("0"), "handovers_per_km"),
+        "{csv}"
     );
     // eval --a3-tuned: the planners flown with the tuned A3 too.
     let ev = dir.path().join("eval");
@@ -121,7 +156,8 @@ fn tune_a3_writes_the_grid_and_a_setting_no_worse_than_the_reference() {
             "coverage_l1+oracle",
             "shortest_a3",
             "shortest_a3tuned",
-            "shortest_oracle"
+            "shortest_oracle",
+            "shortest_predictive"
         ],
         "{summary}"
     );

@@ -6,6 +6,7 @@ fn result(o: f64, h: f64, t: f64, excellent: f64, ho: f64, pp: f64) -> SettingRe
         offset_db: o,
         hysteresis_db: h,
         time_to_trigger_ms: t,
+        l3_filter_k: None,
     };
     SettingResult {
         setting,
@@ -20,14 +21,22 @@ fn result(o: f64, h: f64, t: f64, excellent: f64, ho: f64, pp: f64) -> SettingRe
 }
 
 #[test]
-fn the_default_grid_has_every_setting_once_and_the_reference() {
+fn the_default_grid_spans_ts_36_331s_useful_range_once_each() {
     let s = A3Grid::default().settings().expect("legal");
-    assert_eq!(s.len(), 5 * 4 * 5);
-    assert!(s.contains(&A3Setting::of(&A3Config::default())));
+    assert_eq!(s.len(), 16 * 6 * 3);
+    let margins: Vec<f64> = s.iter().map(A3Setting::margin_db).collect();
+    for m in 0..=15 {
+        assert!(margins.contains(&f64::from(m)), "margin {m} dB");
+    }
+    assert!(s.iter().any(|x| x.time_to_trigger_ms == 1280.0));
+    for k in [0, 4, 8] {
+        assert!(s.iter().any(|x| x.l3_filter_k == Some(k)), "k {k}");
+    }
     let dup = A3Grid {
         offsets_db: vec![1.0, 1.0],
         hysteresis_db: vec![0.5],
         ttt_ms: vec![40.0],
+        l3_filter_k: vec![None, None],
     };
     assert_eq!(dup.settings().expect("legal").len(), 1);
 }
@@ -77,6 +86,20 @@ fn values_ts_36_331_cannot_signal_are_refused_naming_them() {
             },
             "--ttt-ms: no values",
         ),
+        (
+            A3Grid {
+                l3_filter_k: vec![Some(10)],
+                ..A3Grid::default()
+            },
+            "--l3-filter-k: filterCoefficient k = 10",
+        ),
+        (
+            A3Grid {
+                offsets_db: vec![12.0, 16.0],
+                ..A3Grid::default()
+            },
+            "--offset-db: a3-Offset 16",
+        ),
     ] {
         let e = grid.settings().unwrap_err().to_string();
         assert!(e.contains(says), "{e}");
@@ -85,7 +108,8 @@ fn values_ts_36_331_cannot_signal_are_refused_naming_them() {
         A3Setting {
             offset_db: -15.0,
             hysteresis_db: 15.0,
-            time_to_trigger_ms: 5120.0
+            time_to_trigger_ms: 5120.0,
+            l3_filter_k: Some(19),
         }
         .check_legal()
         .is_ok()
@@ -119,23 +143,37 @@ fn the_choice_keeps_ping_pongs_at_most_the_reference_and_breaks_ties_by_handover
         1,
         "{csv}"
     );
-    assert!(csv.contains("\n3,1,160,10,"), "{csv}");
+    assert!(csv.contains("\n3,1,4,160,,10,"), "{csv}");
 }
 
 #[test]
 fn the_tuned_file_reads_back_and_is_a_configuration_file() {
+    let mut filtered = result(12.0, 0.0, 1280.0, 91.0, 4.0, 0.4);
+    filtered.setting.l3_filter_k = Some(8);
     let rs = [
         result(3.0, 1.0, 160.0, 90.0, 3.0, 0.6),
         result(2.0, 0.5, 40.0, 91.0, 4.0, 0.4),
+        filtered,
     ];
-    let text = tuned_toml(&rs[1], &rs[0], Path::new("out/pairs/eval_pairs.jsonl"), 1.0);
     let dir = tempfile::tempdir().expect("tmp");
     let f = dir.path().join("tuned_a3.toml");
-    std::fs::write(&f, &text).expect("write");
-    assert_eq!(read_tuned(&f).expect("reads back"), rs[1].setting);
-    // The same file as `--config`: the three keys, the rest defaults.
-    let c = Config::from_toml_str(&text, "tuned_a3.toml", &[]).expect("a configuration");
-    assert_eq!(A3Setting::of(&c.radio.a3), rs[1].setting);
+    for chosen in &rs[1..] {
+        let text = tuned_toml(chosen, &rs[0], Path::new("out/pairs/eval_pairs.jsonl"), 1.0);
+        std::fs::write(&f, &text).expect("write");
+        assert_eq!(read_tuned(&f).expect("reads back"), chosen.setting);
+        // The same file as `--config`: the setting's keys, the rest defaults.
+        let c = Config::from_toml_str(&text, "tuned_a3.toml", &[]).expect("a configuration");
+        assert_eq!(A3Setting::of(&c.radio.a3), chosen.setting);
+        // Its `--set` options say the same.
+        let sets: Vec<String> = set_options(&chosen.setting)
+            .split_whitespace()
+            .filter(|w| *w != "--set")
+            .map(str::to_string)
+            .collect();
+        let c = Config::from_toml_str("", "none", &sets).expect("the --set options");
+        assert_eq!(A3Setting::of(&c.radio.a3), chosen.setting);
+    }
+    assert!(tuned_toml(&rs[2], &rs[0], Path::new("p"), 1.0).contains("\nl3_filter_k = 8\n"));
     // Bad files name the file and what is wrong.
     for (body, says) in [
         ("[radio.a3]\noffset_db = 2.0\n", "missing field"),
