@@ -10,7 +10,8 @@ use std::ops::Range;
 /// (`geofence`). 3: the per-site features of the equivariant site head (`site_features`, last).
 /// The optional `path_guide` field does not bump it: a layout without it is unchanged, and one
 /// with it is 4 values longer and recorded in the policy (`env.observation.path_guide`); the same
-/// holds for the optional `handover_weight` field (`env.observation.handover_weight`).
+/// holds for the optional `path_offset` and `handover_weight` fields
+/// (`env.observation.path_offset`, `env.observation.handover_weight`).
 pub const OBS_VERSION: u32 = 3;
 
 /// Features per site in the `site_features` field, in this order (fixed physical scales, not
@@ -118,6 +119,7 @@ pub mod field {
     pub const GOAL_DISTANCE: &str = "goal_distance";
     pub const GOAL_DIRECTION: &str = "goal_direction";
     pub const PATH_GUIDE: &str = "path_guide";
+    pub const PATH_OFFSET: &str = "path_offset";
     pub const HANDOVER_WEIGHT: &str = "handover_weight";
     pub const OBSTACLE_DISTANCE: &str = "obstacle_distance";
     pub const OBSTACLE_DIRECTION: &str = "obstacle_direction";
@@ -171,6 +173,13 @@ impl ObsLayout {
                 PATH_GUIDE,
                 4,
                 "unit direction to the point path_lookahead_m along the planned path beyond the UAV's tracked place on it (zeros at the destination), then the path distance to go / goal_scale_m",
+            );
+        }
+        if cfg.path_guide && cfg.path_offset {
+            push(
+                PATH_OFFSET,
+                3,
+                "(the UAV's tracked place on the planned path − position) / PATH_OFFSET_SCALE_M (10 m), each clipped to ±3",
             );
         }
         if cfg.handover_weight {

@@ -22,7 +22,7 @@ use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use dupac_radio::a3::{A3Params, A3State};
-use dupac_radio::channel::{FieldSplit, Measurer};
+use dupac_radio::channel::FieldSplit;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
 use dupac_run::error::RunError;
@@ -79,35 +79,18 @@ pub struct ReplayTrace {
 /// What the UAV measures, read from the environment after each of its measurements.
 struct Capture {
     m: usize,
-    /// A measurer built as the environment's (`radio.channel`), fed with the environment's true
-    /// RSRP: its held values must be the environment's, and it gives the unfiltered
-    /// measurement and the fresh flag. `None` where the UAV measures exactly.
-    measurer: Option<Measurer>,
     held_dbm: Vec<f64>,
     raw_dbm: Vec<f64>,
     fresh: Vec<bool>,
     true_dbm: Vec<f64>,
-    scratch_dbm: Vec<f64>,
-    /// The first row at which the measurer's held values differed from the environment's.
-    mismatch: Option<usize>,
 }
 
 impl Capture {
     fn take(&mut self, e: &Env) {
-        let row = self.fresh.len();
         self.true_dbm.extend_from_slice(e.rsrp_dbm());
         self.held_dbm.extend_from_slice(e.measured_dbm());
-        match self.measurer.as_mut() {
+        match e.measurer() {
             Some(me) => {
-                me.measure(e.rsrp_dbm(), &mut self.scratch_dbm);
-                let same = self
-                    .scratch_dbm
-                    .iter()
-                    .zip(e.measured_dbm())
-                    .all(|(a, b)| a.to_bits() == b.to_bits());
-                if !same && self.mismatch.is_none() {
-                    self.mismatch = Some(row);
-                }
                 self.raw_dbm.extend_from_slice(me.raw_dbm());
                 self.fresh.push(me.fresh());
             }
@@ -138,31 +121,15 @@ impl ReplayTrace {
         let mut env = Env::new(&fcfg, world.clone(), rsrp.clone())?;
         let m = world.num_sites();
         let dt_s = cfg.env.dt_s();
-        let c = &cfg.radio.channel;
-        let mut measurer = c.measured().then(|| {
-            Measurer::new(
-                m,
-                c.measurement_sigma_db,
-                c.l3_filter_k,
-                dt_s,
-                c.measurement_period_ms / 1000.0,
-            )
-        });
-        if let Some(me) = measurer.as_mut() {
-            me.reset(episode.field, p.id);
-        }
-        let measurement_period_s = measurer
-            .as_ref()
+        let measurement_period_s = env
+            .measurer()
             .map_or(dt_s, |me| f64::from(me.period_steps()) * dt_s);
         let mut cap = Capture {
             m,
-            measurer,
             held_dbm: Vec::new(),
             raw_dbm: Vec::new(),
             fresh: Vec::new(),
             true_dbm: Vec::new(),
-            scratch_dbm: vec![0.0; m],
-            mismatch: None,
         };
         // The site closure runs before every step: it sees the source, then each step but the
         // last; the last is read after the flight.
@@ -188,12 +155,6 @@ impl ReplayTrace {
             }
         };
         cap.take(&env);
-        if let Some(row) = cap.mismatch {
-            return Err(RunError::Refused(format!(
-                "pair {}: the A3 trace's measurements differ from the environment's at step {row}",
-                p.id
-            )));
-        }
         let n = steps.len();
         let truth = true_rsrp(world, rsrp, fs, p.id);
         let mut all = vec![f64::NAN; m];

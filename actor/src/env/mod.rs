@@ -377,6 +377,13 @@ impl Env {
         &self.measured_dbm
     }
 
+    /// What measures the UAV's RSRP under the real channel (its unfiltered sample, whether this
+    /// step brought a new measurement, the measurement period); `None` where the UAV measures
+    /// the true RSRP every step.
+    pub fn measurer(&self) -> Option<&Measurer> {
+        self.measurer.as_ref()
+    }
+
     /// The current episode's shadow-fading realisation (none in the deterministic world).
     pub fn field(&self) -> Option<&Arc<ShadowField>> {
         self.field.as_ref()

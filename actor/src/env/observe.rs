@@ -3,7 +3,7 @@
 //! per-site features the equivariant site head reads, written once per decision.
 
 use super::{Env, RSRP_FLOOR_DBM, argmax};
-use dupac_common::config::{NearestObstacle, SiteLos};
+use dupac_common::config::{NearestObstacle, PATH_OFFSET_SCALE_M, SiteLos};
 use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::ids::SiteId;
 use dupac_common::obs::{ObsLayout, field, site_feature, site_features_per_site};
@@ -18,6 +18,7 @@ pub(super) struct Slots {
     goal_distance: Option<Range<usize>>,
     goal_direction: Option<Range<usize>>,
     path_guide: Option<Range<usize>>,
+    path_offset: Option<Range<usize>>,
     handover_weight: Option<Range<usize>>,
     obstacle_distance: Range<usize>,
     obstacle_direction: Range<usize>,
@@ -39,6 +40,7 @@ impl Slots {
             goal_distance: layout.range(field::GOAL_DISTANCE),
             goal_direction: layout.range(field::GOAL_DIRECTION),
             path_guide: layout.range(field::PATH_GUIDE),
+            path_offset: layout.range(field::PATH_OFFSET),
             handover_weight: layout.range(field::HANDOVER_WEIGHT),
             obstacle_distance: req(field::OBSTACLE_DISTANCE),
             obstacle_direction: req(field::OBSTACLE_DIRECTION),
@@ -151,6 +153,12 @@ impl Env {
                 obs[r.start + k] = if n > 1e-9 { (to[k] / n) as f32 } else { 0.0 };
             }
             obs[r.start + 3] = (self.path_to_go_m / o.goal_scale_m) as f32;
+            if let Some(r) = &s.path_offset {
+                let off = g.point_at(self.path_s_m) - p;
+                for k in 0..3 {
+                    obs[r.start + k] = (off[k] / PATH_OFFSET_SCALE_M).clamp(-3.0, 3.0) as f32;
+                }
+            }
         }
         if let Some(r) = &s.handover_weight {
             obs[r.start] = self.handover_weight.ln_1p() as f32;

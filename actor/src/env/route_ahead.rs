@@ -298,11 +298,16 @@ mod tests {
                 "s = {s}, cost {cost}"
             );
         }
-        // Before the crossing: with no cost the strongest now (site 0); at 40 m with a small
-        // cost the coming site 1 already.
-        ahead.predict(&map, 0.0, 200.0, &[0.0, 0.0], &[50.0, 50.0]);
-        assert_eq!(ahead.choice(SiteId(0), 0.0), SiteId(0));
+        // 2 m before the crossing (x = 48: site 0 ahead by 0.4 dB) the plan stays one more row
+        // and hands over at the next (2 dB of cost either way, 0.4 dB less regret); 2 m after
+        // it, site 1.
         ahead.predict(&map, 48.0, 200.0, &[0.0, 0.0], &[50.0, 50.0]);
+        assert_eq!(ahead.choice(SiteId(0), 20.0), SiteId(0));
+        ahead.predict(&map, 52.0, 200.0, &[0.0, 0.0], &[50.0, 50.0]);
+        assert_eq!(ahead.choice(SiteId(0), 20.0), SiteId(1));
+        // A measured offset moves the choice: site 1 measured 3 dB above its map at x = 48 is
+        // the best now and (fading over 50 m) on every row ahead.
+        ahead.predict(&map, 48.0, 200.0, &[0.0, 3.0], &[50.0, 50.0]);
         assert_eq!(ahead.choice(SiteId(0), 20.0), SiteId(1));
     }
 }

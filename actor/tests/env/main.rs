@@ -778,3 +778,48 @@ fn the_path_guide_points_along_the_planned_path_and_pays_its_progress() {
             .is_none()
     );
 }
+
+/// The path offset (`env.observation.path_offset`): the vector from the UAV to its tracked place
+/// on the planned path, / 10 m, clipped to ±3 — zero on the path, pointing back to it beside it.
+#[test]
+fn the_path_offset_points_from_the_uav_back_to_its_place_on_the_path() {
+    use dupac_actor::env::PathGuide;
+    let mut cfg = unguided();
+    cfg.env.association = Association::A3;
+    paper_reward(&mut cfg);
+    cfg.env.observation.path_guide = true;
+    cfg.env.observation.path_offset = true;
+    // A path due north along x = 0; the episode starts on it.
+    let (src, dst) = (Point::new(0.0, -150.0, 70.0), Point::new(0.0, 150.0, 70.0));
+    let guided = Episode {
+        guide: Some(Arc::new(PathGuide::new(&[src, dst]).expect("path"))),
+        ..ep(src, dst)
+    };
+    let mut e = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    let obs = e.reset(1, guided).expect("reset").to_vec();
+    let r = e.layout().range(field::PATH_OFFSET).expect("the field");
+    assert_eq!(r.len(), 3);
+    assert!(obs[r.clone()].iter().all(|v| v.abs() < 1e-6), "{obs:?}");
+    // Two moves due east: the tracked place stays at the path's nearest point (x = 0), the
+    // offset points west by the distance flown, / 10 m.
+    let east = Action {
+        move_: Vector::new(1.0, 0.0, 0.0),
+        site: SiteId(0),
+    };
+    let mut flown_m = 0.0;
+    for _ in 0..2 {
+        e.step(&east).expect("step");
+        flown_m += cfg.env.max_step_m;
+        let o = &e.observation()[r.clone()];
+        assert!(
+            (f64::from(o[0]) + flown_m / 10.0).abs() < 1e-5
+                && o[1].abs() < 1e-5
+                && o[2].abs() < 1e-5,
+            "{flown_m} m east: {o:?}"
+        );
+    }
+    // Off by default: the layout has no such field.
+    cfg.env.observation.path_offset = false;
+    let f = Env::new(&cfg, world(), Arc::new(Field(EXCELLENT, 2))).expect("env");
+    assert!(f.layout().range(field::PATH_OFFSET).is_none());
+}

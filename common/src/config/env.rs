@@ -207,6 +207,10 @@ impl Default for RewardConfig {
     }
 }
 
+/// Scale (m) of the `path_offset` observation ([`ObservationConfig::path_offset`]): offsets of
+/// a few metres, the range where a corner's wall comes within the collision sphere, read ≈ 0.1–0.5.
+pub const PATH_OFFSET_SCALE_M: f64 = 10.0;
+
 /// Which parts of the observation are present (spec/env.md "Observation"); each addition to the
 /// paper's state can be switched off for ablations.
 ///
@@ -297,6 +301,14 @@ pub struct ObservationConfig {
     /// inside it, 3.5 m for L = 10, what the guide's 5 m clearance leaves the 1.5 m training
     /// sphere (docs/env.md "Path guide"). Recorded in the policy, which is flown with its own.
     pub path_lookahead_m: f64,
+    /// Also observe how far off the planned path the UAV flies (`path_offset`, 3 values after
+    /// `path_guide`, with it): (the UAV's tracked place on the path − its position) /
+    /// [`PATH_OFFSET_SCALE_M`], each clipped to ±3. The guide's direction alone points at a place
+    /// ahead on the path and does not say how far beside the path the UAV is; at a convex corner
+    /// of a path planned `path_guide_clearance_m` from the buildings a UAV a few metres inside
+    /// the chord is within the collision sphere of the corner (docs/env.md "Path guide"). Off by
+    /// default (the default run is trained without it); recorded in the policy.
+    pub path_offset: bool,
     /// The planned path of the guide (and of `env.reward.progress = "path"`): 0 = the shortest
     /// flyable path; λ > 0 = the coverage-aware planner's path with this λ (`planner.penalty_*`),
     /// so the guide leads through coverage as the planner would (map and coverage knowledge: a
@@ -381,6 +393,7 @@ impl Default for ObservationConfig {
             site_prediction: PredictiveConfig::default(),
             path_guide: true,
             path_lookahead_m: 10.0,
+            path_offset: false,
             path_guide_lambda: 1.0,
             path_guide_clearance_m: 5.0,
             handover_weight: false,
