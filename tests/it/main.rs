@@ -1,7 +1,7 @@
 //! The one integration-test binary of the `dupac` command (ripgrep's layout): end-to-end tests of
 //! real processes, the real Midtown data and real files, one module per area, all built on
 //! [`support::dupac_cmd`]. Run one area with `cargo test --test it cli::` (or `train::`, `eval::`,
-//! `deploy::`, `distributed::`, `faults::`, `fronts::`, `netns::`, `scenario::`, `security::`, `soak::`,
+//! `deploy::`, `distributed::`, `faults::`, `fronts::`, `hotspots::`, `netns::`, `scenario::`, `security::`, `soak::`,
 //! `splits::`, `tune::`,
 //! `usage::`).
 
@@ -11,6 +11,7 @@ mod distributed;
 mod eval;
 mod faults;
 mod fronts;
+mod hotspots;
 mod netns;
 mod scenario;
 mod security;
