@@ -5,7 +5,7 @@
 //! way the weight reaches the flight is through the observation — with the input ignored (or
 //! zeroed on its way to the network) all three rows are equal and the test fails.
 
-use crate::support::{dupac_output, summary_column};
+use crate::support::{dupac_output, fly_committed_policy, summary_column};
 
 /// The committed conditioned policy's point directory (its training `config.toml` and
 /// `policy.bin`): real channel, seed 1.
@@ -27,34 +27,7 @@ fn the_conditioned_policy_hands_over_less_as_its_weight_rises() {
     let pairs = dir.path().join("pairs.jsonl");
     std::fs::write(&pairs, PAIRS).expect("pairs");
     let out = dir.path().join("eval");
-    let config = format!("{CONDITIONED}/config.toml");
-    let policy = format!("c={CONDITIONED}/policy.bin");
-    // Exact radio (a ray per site per step) instead of the 200 MB cache: six flights do not
-    // need the cache, and the policy's observation is the same up to the cache's interpolation.
-    let e = dupac_output(
-        &[
-            "--config".into(),
-            config,
-            "--set".into(),
-            "env.radio_mode=\"exact\"".into(),
-            "--set".into(),
-            format!("cache.path=\"{}\"", dir.path().join("rsrp.bin").display()),
-        ],
-        &[
-            "eval".into(),
-            "-q".into(),
-            "--pairs".into(),
-            pairs.display().to_string(),
-            "--policy".into(),
-            policy,
-            "--handover-weight".into(),
-            "0,3,6".into(),
-            "--no-planners".into(),
-            "--no-replay".into(),
-            "--out".into(),
-            out.display().to_string(),
-        ],
-    );
+    let e = fly_committed_policy(CONDITIONED, "c", &pairs, "0,3,6", dir.path(), &out);
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
     let summary = std::fs::read_to_string(out.join("summary.csv")).expect("summary.csv");
     let rate = |label: &str| summary_column(&summary, label, "handovers_per_km");

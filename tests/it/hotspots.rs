@@ -8,7 +8,7 @@
 //! every step). Flown with the earlier policy (`results/complete/real/dupac_s1`) the test fails:
 //! four of its eight flights pass within 0.8–1.5 m.
 
-use crate::support::dupac_output;
+use crate::support::fly_committed_policy;
 use dupac_common::config::Config;
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
@@ -35,33 +35,9 @@ fn the_lookahead_policy_keeps_clear_of_the_corners_where_collisions_were() {
     let pairs = dir.path().join("pairs.jsonl");
     std::fs::write(&pairs, PAIRS).expect("pairs");
     let out = dir.path().join("eval");
-    let config = format!("{LOOKAHEAD}/config.toml");
-    // Exact radio (a ray per site per step) instead of the 200 MB cache, as in `fronts::`.
-    let e = dupac_output(
-        &[
-            "--config".into(),
-            config.clone(),
-            "--set".into(),
-            "env.radio_mode=\"exact\"".into(),
-            "--set".into(),
-            format!("cache.path=\"{}\"", dir.path().join("rsrp.bin").display()),
-        ],
-        &[
-            "eval".into(),
-            "-q".into(),
-            "--pairs".into(),
-            pairs.display().to_string(),
-            "--policy".into(),
-            format!("look={LOOKAHEAD}/policy.bin"),
-            "--handover-weight".into(),
-            "1,6".into(),
-            "--no-planners".into(),
-            "--no-replay".into(),
-            "--out".into(),
-            out.display().to_string(),
-        ],
-    );
+    let e = fly_committed_policy(LOOKAHEAD, "look", &pairs, "1,6", dir.path(), &out);
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    let config = format!("{LOOKAHEAD}/config.toml");
     let cfg = Config::load(Some(Path::new(&config)), &[]).expect("the policy's config");
     let city = City::load(&cfg.scenario).expect("Midtown");
     let records = dupac_eval::records::read_records(&out.join("records")).expect("records");

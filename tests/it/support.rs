@@ -116,6 +116,45 @@ pub fn small_train_args(dir: &Path) -> Vec<String> {
     args
 }
 
+/// Flies the committed policy of point directory `point` (its `config.toml` and `policy.bin`,
+/// labelled `label`) with `dupac eval` on the pairs file `pairs` at each handover weight of
+/// `weights` (comma-separated), without planners or re-flights, into `out`. Exact radio (a ray
+/// per site per step) instead of the 200 MB cache, kept under `tmp`: a few flights do not need
+/// the cache, and the policy's observation is the same up to the cache's interpolation.
+pub fn fly_committed_policy(
+    point: &str,
+    label: &str,
+    pairs: &Path,
+    weights: &str,
+    tmp: &Path,
+    out: &Path,
+) -> std::process::Output {
+    dupac_output(
+        &[
+            "--config".into(),
+            format!("{point}/config.toml"),
+            "--set".into(),
+            "env.radio_mode=\"exact\"".into(),
+            "--set".into(),
+            format!("cache.path=\"{}\"", tmp.join("rsrp.bin").display()),
+        ],
+        &[
+            "eval".into(),
+            "-q".into(),
+            "--pairs".into(),
+            pairs.display().to_string(),
+            "--policy".into(),
+            format!("{label}={point}/policy.bin"),
+            "--handover-weight".into(),
+            weights.into(),
+            "--no-planners".into(),
+            "--no-replay".into(),
+            "--out".into(),
+            out.display().to_string(),
+        ],
+    )
+}
+
 /// Runs `dupac COMMAND… SCENARIO…` (no stdin) and returns its output. The scenario's `--set`s
 /// come after the command's own: clap keeps only the occurrences of a global option on one side
 /// of the subcommand.
