@@ -66,3 +66,34 @@ fn paper_dupac_toml_is_the_papers_site_learning() {
     paper.env.reward.progress = Progress::Straight;
     assert_eq!(cfg, paper);
 }
+
+/// `docs/foresight.toml` is the look-ahead design of docs/results.md: it must load and give
+/// the environment every committed look-ahead policy (`results/foresight/{real,det}/dupac_s*`)
+/// was trained with, apart from the channel and the seeds, so that `dupac train --config
+/// docs/foresight.toml` trains the page's points.
+#[test]
+fn foresight_toml_is_the_committed_lookahead_policies_environment() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let cfg = Config::load(Some(&root.join("docs/foresight.toml")), &[])
+        .expect("docs/foresight.toml loads and validates");
+    let mut points = 0;
+    for world in ["real", "det"] {
+        let dir = root.join("results/foresight").join(world);
+        for entry in std::fs::read_dir(&dir).expect("results/foresight/<world>") {
+            let point = entry.expect("entry").path().join("config.toml");
+            if !point.exists() {
+                continue;
+            }
+            let trained = Config::load(Some(&point), &[]).expect("a committed point's config");
+            assert_eq!(
+                trained.env.observation,
+                cfg.env.observation,
+                "{}",
+                point.display()
+            );
+            assert_eq!(trained.env.reward, cfg.env.reward, "{}", point.display());
+            points += 1;
+        }
+    }
+    assert!(points >= 2, "no committed look-ahead point found");
+}

@@ -378,7 +378,9 @@ pub fn draw_examples(
 /// ping-pongs (`pp_marked`) as a hollow ring; the predictive association's front as a dashed
 /// line with squares and the hindsight association's (a bound: perfect foresight) as a finely
 /// dashed line with crosses, through their settings in order of handovers; one policy flown at
-/// several handover weights (`LABEL_w<W>`) joined by a black line, the learned front.
+/// several handover weights (`LABEL_w<W>`) joined by a black line, the learned front, its
+/// points marked with their weight. A policy's weights share one colour and one
+/// legend entry per rule.
 pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> Result<()> {
     let rows = front_rows(fronts);
     // The policies of the records (a learned front is several of them: DUPAC at several handover
@@ -434,20 +436,45 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             .y_desc("flight time in excellent RSRP (%, successful flights)")
             .label_style((FONT, 14))
             .draw()?;
-        for (k, method) in methods.iter().enumerate() {
-            let c = series_colour(k);
+        // One colour per family (a policy flown at several handover weights is one family), one
+        // legend entry per family and rule.
+        let mut families: Vec<&str> = Vec::new();
+        for m in &methods {
+            if !families.contains(&family(m)) {
+                families.push(family(m));
+            }
+        }
+        let mut labelled = std::collections::BTreeSet::new();
+        for method in &methods {
+            let fam = family(method);
+            let c = series_colour(families.iter().position(|f| *f == fam).unwrap_or(0));
+            let mut weights: Vec<&str> = methods
+                .iter()
+                .filter(|m| family(m) == fam && **m != fam)
+                .filter_map(|m| m.rsplit_once("_w").map(|(_, w)| w))
+                .collect();
+            weights.sort_by(|a, b| {
+                let w = |s: &str| s.parse::<f64>().unwrap_or(f64::INFINITY);
+                w(a).total_cmp(&w(b))
+            });
+            let mut first = |rule: &'static str| labelled.insert((fam, rule));
             if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
-                chart
-                    .draw_series(std::iter::once(TriangleMarker::new(
-                        (m.handovers_per_km, m.excellent_pct),
-                        9,
-                        c.filled(),
-                    )))?
-                    .label(format!(
-                        "{method} ({:.2} ping-pongs/km)",
-                        m.ping_pongs_per_km
-                    ))
-                    .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
+                let p = (m.handovers_per_km, m.excellent_pct);
+                let weight = method.rsplit_once("_w").filter(|_| *method != fam);
+                if let Some((_, w)) = weight {
+                    chart.draw_series(std::iter::once(
+                        EmptyElement::at(p) + Text::new(format!("w{w}"), (8, -16), (FONT, 12)),
+                    ))?;
+                }
+                let s = chart.draw_series(std::iter::once(TriangleMarker::new(p, 9, c.filled())))?;
+                if first("own") {
+                    let label = match weight {
+                        Some(_) => format!("{fam} at w = {} (its own flights)", weights.join(", ")),
+                        None => format!("{method} ({:.2} ping-pongs/km)", m.ping_pongs_per_km),
+                    };
+                    s.label(label)
+                        .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, c.filled()));
+                }
             }
             let of = |rule: FrontRule| -> Vec<&FrontRow> {
                 let mut v: Vec<&FrontRow> = rows
@@ -469,12 +496,13 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
                         .map(|r| Circle::new(xy(r), 2, c.mix(0.3).filled())),
                 )?;
                 let env: Vec<&&FrontRow> = a3.iter().filter(|r| r.on_front).collect();
-                chart
-                    .draw_series(LineSeries::new(env.iter().map(|r| xy(r)), c.stroke_width(2)))?
-                    .label(format!("A3 on {method}'s flights"))
-                    .legend(move |(x, y)| {
+                let s = chart
+                    .draw_series(LineSeries::new(env.iter().map(|r| xy(r)), c.stroke_width(2)))?;
+                if first("a3") {
+                    s.label(format!("A3 on {fam}'s flights")).legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
                     });
+                }
                 chart.draw_series(env.iter().map(|r| {
                     if r.pp_marked {
                         Circle::new(xy(r), 6, c.stroke_width(2))
@@ -486,17 +514,18 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             let predictive = of(FrontRule::Predictive);
             if !predictive.is_empty() {
                 let pts: Vec<(f64, f64)> = predictive.iter().map(|r| xy(r)).collect();
-                chart
-                    .draw_series(DashedLineSeries::new(
-                        pts.clone(),
-                        10,
-                        6,
-                        c.stroke_width(2),
-                    ))?
-                    .label(format!("predictive on {method}'s flights"))
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 8, y)], c.stroke_width(2))
-                    });
+                let s = chart.draw_series(DashedLineSeries::new(
+                    pts.clone(),
+                    10,
+                    6,
+                    c.stroke_width(2),
+                ))?;
+                if first("predictive") {
+                    s.label(format!("predictive on {fam}'s flights"))
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 8, y)], c.stroke_width(2))
+                        });
+                }
                 chart.draw_series(pts.iter().map(|&p| {
                     EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], c.filled())
                 }))?;
@@ -504,10 +533,12 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             let hindsight = of(FrontRule::Hindsight);
             if !hindsight.is_empty() {
                 let pts: Vec<(f64, f64)> = hindsight.iter().map(|r| xy(r)).collect();
-                chart
-                    .draw_series(DashedLineSeries::new(pts.clone(), 3, 4, c.stroke_width(2)))?
-                    .label(format!("hindsight on {method}'s flights (a bound)"))
-                    .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
+                let s =
+                    chart.draw_series(DashedLineSeries::new(pts.clone(), 3, 4, c.stroke_width(2)))?;
+                if first("hindsight") {
+                    s.label(format!("hindsight on {fam}'s flights (a bound)"))
+                        .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
+                }
                 chart.draw_series(pts.iter().map(|&p| Cross::new(p, 5, c.stroke_width(2))))?;
             }
         }
@@ -547,6 +578,15 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
         Ok(())
     })
     .with_context(|| "writing fronts.png".to_string())
+}
+
+/// The family of method `label` in `fronts.png`: a policy flown at several handover weights
+/// (`LABEL_w<W>`) is `LABEL`; any other method is its own.
+fn family(label: &str) -> &str {
+    match label.rsplit_once("_w") {
+        Some((policy, w)) if w.parse::<f64>().is_ok() => policy,
+        _ => label,
+    }
 }
 
 #[cfg(test)]

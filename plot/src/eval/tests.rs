@@ -109,3 +109,15 @@ fn fronts_draw_every_rule_and_ring_the_points_bought_by_ping_pongs() {
         "the predictive and hindsight fronts are not drawn"
     );
 }
+
+/// A policy flown at several handover weights is one family in `fronts.png` (one colour, one
+/// legend entry per rule); any other label, a planner's or one whose `_w` is not a weight, is
+/// its own.
+#[test]
+fn a_policys_weights_are_one_family() {
+    assert_eq!(family("look_w1.5"), "look");
+    assert_eq!(family("look_w0"), "look");
+    assert_eq!(family("my_wide_policy"), "my_wide_policy");
+    assert_eq!(family("shortest_a3"), "shortest_a3");
+    assert_eq!(family("base"), "base");
+}
