@@ -1,14 +1,13 @@
-//! Fronts on the same flights (`dupac eval --a3-front`, `--hindsight-front`,
-//! `--predictive-front`; docs/results.md "Fronts"): a learned site choice trades excellent time
-//! for handovers, and so does every association rule through its parameters (A3 through its
-//! offset, hysteresis, time-to-trigger and filter; the predictive and the hindsight association
-//! through their handover cost), so one operating point of each is not a comparison. Each
-//! setting of a rule re-flies the recorded positions of a learned-site policy (its own moves, as
-//! `LABEL+a3` does with `radio.a3`) and, for A3, of every planner flown with A3 (its path),
-//! giving the rule's front on exactly those flights ([`FrontFile`], one per method, seed and
-//! rule); the report then compares a policy with A3 at the policy's own handover rate
-//! ([`matched`]), on A3's envelope without the settings that keep excellent time only by more
-//! ping-pongs ([`FrontRow::pp_marked`]).
+//! Fronts on the same flights (`dupac eval --a3-front`, `--hindsight-front`, `--predictive-front`;
+//! docs/results.md "How the fronts are measured"): a learned site choice trades excellent time for
+//! handovers, and so does every association rule through its parameters (A3 through its offset,
+//! hysteresis, time-to-trigger and filter; the predictive and the hindsight association through
+//! their handover cost), so one operating point of each is not a comparison. Each setting of a rule
+//! re-flies the recorded positions of a learned-site policy (its own moves, as `LABEL+a3` does with
+//! `radio.a3`) and, for A3, of every planner flown with A3 (its path), giving the rule's front on
+//! exactly those flights ([`FrontFile`], one per method, seed and rule); the report then compares a
+//! policy with A3 at the policy's own handover rate ([`matched`]), on A3's envelope without the
+//! settings that keep excellent time only by more ping-pongs ([`FrontRow::pp_marked`]).
 //!
 //! Files: `OUT/records/front/<method>__<rule>__seed<k>.bin` (the one codec, its own magic and
 //! version), each setting's per-flight metrics; the report reads them with the records.

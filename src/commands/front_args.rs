@@ -58,7 +58,7 @@ impl A3GridArgs {
     }
 }
 
-/// `dupac eval`'s fronts on the same flights (docs/results.md "Fronts").
+/// `dupac eval`'s fronts on the same flights (docs/results.md "How the fronts are measured").
 #[derive(Args, Debug, Clone, Default)]
 pub struct FrontArgs {
     /// A3's front on the same flights: re-fly every learned-site policy's moves and every
