@@ -450,8 +450,9 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             let c = series_colour(families.iter().position(|f| *f == fam).unwrap_or(0));
             let mut weights: Vec<&str> = methods
                 .iter()
-                .filter(|m| family(m) == fam && **m != fam)
-                .filter_map(|m| m.rsplit_once("_w").map(|(_, w)| w))
+                .filter_map(|m| weighted(m))
+                .filter(|(policy, _)| *policy == fam)
+                .map(|(_, w)| w)
                 .collect();
             weights.sort_by(|a, b| {
                 let w = |s: &str| s.parse::<f64>().unwrap_or(f64::INFINITY);
@@ -460,7 +461,7 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
             let mut first = |rule: &'static str| labelled.insert((fam, rule));
             if let Some((_, m)) = own.iter().find(|(l, _)| l == method) {
                 let p = (m.handovers_per_km, m.excellent_pct);
-                let weight = method.rsplit_once("_w").filter(|_| *method != fam);
+                let weight = weighted(method);
                 if let Some((_, w)) = weight {
                     chart.draw_series(std::iter::once(
                         EmptyElement::at(p) + Text::new(format!("w{w}"), (8, -16), (FONT, 12)),
@@ -546,9 +547,7 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
         // --handover-weight`): its points joined, the learned front.
         let mut learned: std::collections::BTreeMap<&str, Vec<(f64, f64)>> = Default::default();
         for (label, m) in &own {
-            if let Some((policy, w)) = label.rsplit_once("_w")
-                && w.parse::<f64>().is_ok()
-            {
+            if let Some((policy, _)) = weighted(label) {
                 learned
                     .entry(policy)
                     .or_default()
@@ -580,13 +579,18 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
     .with_context(|| "writing fronts.png".to_string())
 }
 
+/// A method flown at one handover weight (`LABEL_w<W>`, `dupac eval --handover-weight`): its
+/// policy's label and the weight as written; `None` for any other method.
+fn weighted(label: &str) -> Option<(&str, &str)> {
+    label
+        .rsplit_once("_w")
+        .filter(|(_, w)| w.parse::<f64>().is_ok())
+}
+
 /// The family of method `label` in `fronts.png`: a policy flown at several handover weights
 /// (`LABEL_w<W>`) is `LABEL`; any other method is its own.
 fn family(label: &str) -> &str {
-    match label.rsplit_once("_w") {
-        Some((policy, w)) if w.parse::<f64>().is_ok() => policy,
-        _ => label,
-    }
+    weighted(label).map_or(label, |(policy, _)| policy)
 }
 
 #[cfg(test)]
