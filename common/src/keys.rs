@@ -2,8 +2,8 @@
 //!
 //! ```text
 //! dupac/<run>/traj/<actor>            trajectory chunks (actor → learner, Block)
-//! dupac/<run>/weights                 new weights (learner → actors, Block, high priority);
-//!                                     also the learner's queryable for late joiners
+//! dupac/<run>/weights                 new weights (learner → actors, Drop, high priority);
+//!                                     also the learner's queryable (`?held=` in the query)
 //! dupac/<run>/stats/learner           learner stats (→ monitors)
 //! dupac/<run>/stats/actor/<actor>     actor stats (→ monitors)
 //! dupac/<run>/alive/<role>/<id>       liveliness tokens (learner, actor, monitor, pilot)

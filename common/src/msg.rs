@@ -22,7 +22,9 @@ use std::collections::BTreeMap;
 /// 10: stats and control messages in JSON ([`crate::jsonmsg`]), not in this binary codec.
 /// 11: the handover weight in that observation (`env.observation.handover_weight`).
 /// 12: that observation as TOML text, with the look-ahead keys (`env.observation.site_lookahead_m`).
-pub const SCHEMA_VERSION: u32 = 12;
+/// 13: [`WeightsHeld`], the small reply to a weights query from a process that holds the newest
+/// weights ([`HELD_PARAMETER`]).
+pub const SCHEMA_VERSION: u32 = 13;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -290,6 +292,32 @@ pub struct WeightsMsg {
     pub policy: PolicyWeights,
 }
 
+/// The learner's reply to a weights query from a process that already holds its newest weights
+/// (the query's [`HELD_PARAMETER`] names them): the header alone, ≈ 100 bytes instead of the
+/// policy. `header.learner_incarnation` and `header.policy_version` say which weights the
+/// learner is at.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeightsHeld {
+    pub header: Header,
+}
+
+/// The selector parameter of a weights query naming the weights the asker holds,
+/// `held=<learner incarnation>.<policy version>` (decimal): the learner answers with
+/// [`WeightsHeld`] when they are its newest.
+pub const HELD_PARAMETER: &str = "held";
+
+/// The [`HELD_PARAMETER`] value of the weights of learner `incarnation` at `version`.
+pub fn held_value(incarnation: u64, version: u64) -> String {
+    format!("{incarnation}.{version}")
+}
+
+/// The (learner incarnation, policy version) of a [`HELD_PARAMETER`] value; `None` for
+/// anything else (a malformed value is a query for the full weights).
+pub fn parse_held(value: &str) -> Option<(u64, u64)> {
+    let (i, v) = value.split_once('.')?;
+    Some((i.parse().ok()?, v.parse().ok()?))
+}
+
 /// How an actor is seen by the learner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -409,6 +437,15 @@ impl Message for WeightsMsg {
     const MAGIC: &'static [u8; 8] = b"DUPACWTS";
     const NAME: &'static str = "weights";
 }
+impl Message for WeightsHeld {
+    const MAGIC: &'static [u8; 8] = b"DUPACWHD";
+    const NAME: &'static str = "weights held";
+}
+
+/// Whether `bytes` start with `M`'s magic (which kind of message a reply is, before decoding).
+pub fn is_kind<M: Message>(bytes: &[u8]) -> bool {
+    bytes.starts_with(M::MAGIC)
+}
 
 /// Encodes a message (magic + [`SCHEMA_VERSION`] + bincode body).
 pub fn encode_msg<M: Message>(msg: &M) -> Result<Vec<u8>, CodecError> {
@@ -455,4 +492,27 @@ pub fn decode_msg<M: Message>(
         limits.budget_bytes,
         &format!("{} on {origin}", M::NAME),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_held_value_reads_back_and_anything_else_is_none() {
+        let v = held_value(u64::MAX, 41);
+        assert_eq!(parse_held(&v), Some((u64::MAX, 41)));
+        for bad in [
+            "",
+            "12",
+            "12.",
+            ".3",
+            "a.3",
+            "1.2.3",
+            "-1.2",
+            "1.99999999999999999999",
+        ] {
+            assert_eq!(parse_held(bad), None, "{bad:?}");
+        }
+    }
 }

@@ -7,12 +7,15 @@
 //! task of its network side ([`crate::netside`]): the environments step the next chunk while
 //! the last one is sent, and wait only when two are queued.
 //! Weights arrive on a ring channel of 1 (only the newest matters) and are swapped between
-//! chunks. The actor refuses weights whose configuration fingerprint differs from its own,
+//! chunks; publications may be dropped on a full link, so an actor that has heard none for a
+//! second asks the queryable, naming the weights it holds (an unchanged version costs a few
+//! bytes). The actor refuses weights whose configuration fingerprint differs from its own,
 //! waits while no learner is alive, and follows a restarted learner (a new incarnation's
 //! weights replace the old ones even with a lower version). Its stats, and the learner's
 //! `Stop`, are JSON ([`dupac_common::jsonmsg`], zenoh encoding `application/json`).
 
-use crate::intake::{Offer, WeightsIntake, WeightsKey};
+use crate::intake::{Answer, Offer, WeightsIntake, WeightsKey};
+use crate::netside::Outgoing;
 use crate::outbox::ChunkOutbox;
 use crate::wiring::Wiring;
 use dupac_actor::env::Env;
@@ -35,6 +38,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 pub use crate::actor_error::ActorError;
+
+/// An actor that has heard no weights for this long asks the learner's queryable.
+const QUERY_AFTER: Duration = Duration::from_secs(1);
 
 /// How one actor process runs.
 #[derive(Debug, Clone)]
@@ -105,6 +111,8 @@ pub struct ActorReport {
     pub refused_weights: u64,
     /// Shares sent again because the learner stayed at a version (`distributed.resend_after_s`).
     pub resent_shares: u64,
+    /// Chunks not sent: stale (`distributed.max_policy_lag`) by the time their turn came.
+    pub stale_unsent: u64,
 }
 
 /// What a process expects of its weights: `cfg`'s run and chunk sizes, the environment
@@ -158,22 +166,32 @@ impl Acting {
     ) -> Result<bool, ActorError> {
         let wait = at_cap.then_some(Duration::from_millis(50));
         let mut incoming = wiring.receive_weights(&mut self.intake, wait)?;
-        if incoming.is_none() && at_cap && self.last_weights_at.elapsed() > Duration::from_secs(1) {
-            incoming = wiring.query_weights(&mut self.intake)?;
+        // Publications may be dropped on a slow link: an actor that has heard nothing for a
+        // second asks (a few bytes when it holds the newest weights).
+        if incoming.is_none() && self.last_weights_at.elapsed() > QUERY_AFTER {
+            let answer = wiring.query_weights(&mut self.intake)?;
             self.last_weights_at = Instant::now();
-            if let Some(w) = &incoming
-                && outbox.resend_if_lost(WeightsKey::of(w))
-            {
-                tracing::info!(
-                    version = w.policy.version,
-                    "the learner still waits at this version; sending another share"
-                );
-                report.resent_shares += 1;
+            if let Some(a) = &answer {
+                wiring.learner_at(a.learner_at());
+                if let Some((seq, at)) = wiring.last_left() {
+                    outbox.left(seq, at);
+                }
+                if at_cap && outbox.resend_if_lost(a.learner_at()) {
+                    tracing::info!(
+                        version = a.learner_at().version,
+                        "the learner still waits at this version; sending another share"
+                    );
+                    report.resent_shares += 1;
+                }
             }
+            incoming = answer.and_then(Answer::into_weights);
         }
         if self.policy.is_none() || (!wiring.learner_alive() && incoming.is_none()) {
             // Joining, or the learner is gone: ask for weights (a restarted learner answers).
-            if let Some(w) = wiring.query_weights(&mut self.intake)? {
+            if let Some(w) = wiring
+                .query_weights(&mut self.intake)?
+                .and_then(Answer::into_weights)
+            {
                 incoming = Some(w);
             }
             if incoming.is_none() {
@@ -186,6 +204,7 @@ impl Acting {
             }
         }
         if let Some(w) = incoming {
+            wiring.learner_at(WeightsKey::of(&w));
             let offer = self.intake.offer(WeightsKey::of(&w));
             if offer == Offer::NewIncarnation {
                 tracing::info!(
@@ -388,14 +407,17 @@ pub fn run_actor(
         stats.sent(&chunk);
         report.chunks_sent += 1;
         report.env_steps += chunk.samples() as u64;
-        wiring
-            .traj
-            .send(encode_msg(&chunk)?)
-            .map_err(ActorError::Zenoh)?;
+        let out = Outgoing {
+            bytes: encode_msg(&chunk)?,
+            seq: chunk.header.seq,
+            key,
+        };
+        wiring.traj.send(out).map_err(ActorError::Zenoh)?;
         if let Some(s) = stats.due(&report, &outbox, d.actor_envs) {
             wiring.stats.set(encode_json(&s)?);
         }
     }
+    report.stale_unsent = wiring.delivery.lock().map_or(0, |d| d.dropped_stale);
     wiring.close();
     report.refused_weights = acting.intake.refused;
     if let (Some(path), Some(recorded)) = (&opts.record, &rollouts.recorded) {
@@ -432,7 +454,11 @@ impl Follower {
     pub fn initial(&mut self, timeout: Duration) -> Result<Option<PolicyWeights>, ActorError> {
         let t0 = Instant::now();
         while t0.elapsed() < timeout {
-            if let Some(w) = self.wiring.query_weights(&mut self.intake)? {
+            if let Some(w) = self
+                .wiring
+                .query_weights(&mut self.intake)?
+                .and_then(Answer::into_weights)
+            {
                 self.intake.offer(WeightsKey::of(&w));
                 return Ok(Some(w.policy));
             }

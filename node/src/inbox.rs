@@ -4,16 +4,17 @@
 //! decode task ([`decode_task`], on the node's network side) decodes each within its
 //! allocation budget, validates it, drops replays and queues it for PPO.
 
+use crate::accept::{Acceptor, Refusal};
 use crate::ratelog::RateLog;
-use dupac_common::dedup::{SeqTracker, Verdict};
 use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
-use dupac_common::msg::{MsgLimits, TrajectoryChunk, decode_msg};
-use dupac_common::validate::{ChunkExpect, DropReason, validate_chunk};
+use dupac_common::msg::{MsgLimits, TrajectoryChunk};
+use dupac_common::validate::DropReason;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
+use zenoh::bytes::ZBytes;
 
 /// A chunk that passed validation, waiting for the PPO loop.
 #[derive(Debug)]
@@ -29,7 +30,7 @@ pub struct Received {
 pub(crate) struct Raw {
     pub(crate) key: String,
     pub(crate) sender: ActorId,
-    pub(crate) payload: zenoh::bytes::ZBytes,
+    pub(crate) payload: ZBytes,
     pub(crate) charge: usize,
 }
 
@@ -169,11 +170,60 @@ impl Inbox {
         self.drop_n(reason, 1);
     }
 
+    /// A refused message: counted, its bytes released, warned (one line per kind per period).
+    fn refuse(&self, raw: &Raw, r: Refusal) {
+        self.drop_one(r.reason);
+        if let Ok(mut q) = self.queues.lock() {
+            q.release(raw.sender, raw.charge);
+        }
+        self.warnings.warn(r.kind, Some(raw.sender.0), r.detail);
+    }
+
+    /// An accepted chunk joins the decoded queue (the oldest go past `max_chunks`).
+    fn decoded(&self, chunk: TrajectoryChunk, sender: ActorId, charge: usize) {
+        let Ok(mut q) = self.queues.lock() else {
+            return;
+        };
+        q.decoded.push_back(Received {
+            chunk,
+            at: Instant::now(),
+            sender,
+            charge,
+        });
+        let mut evicted = 0;
+        while q.decoded.len() > self.budget.max_chunks {
+            if let Some(old) = q.decoded.pop_front() {
+                q.release(old.sender, old.charge);
+                evicted += 1;
+            }
+        }
+        drop(q);
+        self.drop_n(DropReason::Overflow, evicted);
+        self.ready.notify_one();
+    }
+
+    /// The oldest decoded chunk, waiting up to `wait` for one; its bytes are released.
+    pub(crate) fn take(&self, wait: Duration) -> Option<Received> {
+        let Ok(mut q) = self.queues.lock() else {
+            return None;
+        };
+        if q.decoded.is_empty() {
+            q = self.ready.wait_timeout(q, wait).ok()?.0;
+        }
+        let r = q.decoded.pop_front()?;
+        q.release(r.sender, r.charge);
+        Some(r)
+    }
+
     /// zenoh's receive callback: size and key checks, then the byte budgets; never blocks on
     /// the decoder (a blocked `Block` sender would lose its transport).
     pub(crate) fn admit(&self, keys: &KeySpace, sample: &zenoh::sample::Sample) {
-        let key = sample.key_expr().as_str();
-        let len = sample.payload().len();
+        self.push(keys, sample.key_expr().as_str(), sample.payload());
+    }
+
+    /// [`Inbox::admit`] of `payload` received on `key`.
+    pub(crate) fn push(&self, keys: &KeySpace, key: &str, payload: &ZBytes) {
+        let len = payload.len();
         let Some(sender) = keys.actor_of_traj(key) else {
             self.drop_one(DropReason::Garbage);
             return;
@@ -197,7 +247,7 @@ impl Inbox {
         q.raw.push_back(Raw {
             key: key.to_string(),
             sender,
-            payload: sample.payload().clone(),
+            payload: payload.clone(),
             charge: len,
         });
         *q.held.entry(sender).or_insert(0) += len;
@@ -208,16 +258,14 @@ impl Inbox {
     }
 }
 
-/// The decode task (on the node's network side): queued bytes → decode within the budget →
-/// validate → at-most-once → decoded queue. The message keeps its charge against its sender
-/// until the PPO loop takes it. Ends when `closing` is set (and `arrived` notified).
+/// The decode task (on the node's network side): queued bytes → [`Acceptor::accept`] →
+/// decoded queue. The message keeps its charge against its sender until the PPO loop takes it
+/// ([`Inbox::take`]). Ends when `closing` is set (and `arrived` notified).
 pub(crate) async fn decode_task(
     inbox: Arc<Inbox>,
     closing: Arc<AtomicBool>,
-    expect: ChunkExpect,
-    limits: MsgLimits,
+    mut acceptor: Acceptor,
 ) {
-    let mut seqs = SeqTracker::new();
     while !closing.load(Ordering::Relaxed) {
         let raw = {
             let Ok(mut q) = inbox.queues.lock() else {
@@ -233,76 +281,155 @@ pub(crate) async fn decode_task(
         // A backlog (or a flood of refused messages) is worked through a message at a time
         // between the other tasks' turns.
         tokio::task::yield_now().await;
-        let refuse = |reason: DropReason| {
-            inbox.drop_one(reason);
-            if let Ok(mut q) = inbox.queues.lock() {
-                q.release(raw.sender, raw.charge);
-            }
-        };
-        let chunk: TrajectoryChunk = match decode_msg(&raw.payload.to_bytes(), limits, &raw.key) {
-            Ok(c) => c,
-            Err(e) => {
-                refuse(DropReason::of_codec(&e));
-                inbox
-                    .warnings
-                    .warn("undecodable chunk", Some(raw.sender.0), e);
-                continue;
-            }
-        };
-        if chunk.header.actor != raw.sender {
-            refuse(DropReason::Garbage);
-            inbox.warnings.warn(
-                "chunk on another actor's key",
-                Some(raw.sender.0),
-                format_args!("actor {} on {}", chunk.header.actor, raw.key),
-            );
-            continue;
+        match acceptor.accept(raw.sender, &raw.key, &raw.payload.to_bytes()) {
+            Ok(chunk) => inbox.decoded(chunk, raw.sender, raw.charge),
+            Err(r) => inbox.refuse(&raw, r),
         }
-        if let Err(r) = validate_chunk(&chunk, &expect) {
-            refuse(r.reason);
-            inbox.warnings.warn("rejected chunk", Some(raw.sender.0), r);
-            continue;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dupac_common::msg::{EnvTrajectory, Header, encode_msg};
+    use dupac_common::validate::ChunkExpect;
+
+    const RUN: &str = "run-a";
+
+    fn expect() -> ChunkExpect {
+        ChunkExpect {
+            run_id: RUN.into(),
+            incarnation: 5,
+            fingerprint: 7,
+            obs_dim: 1,
+            n_sites: 0,
+            max_envs: 1,
+            max_steps: 1,
+            site_steps: None,
         }
-        let h = &chunk.header;
-        match seqs.accept(h.actor, h.sender_incarnation, h.seq) {
-            Verdict::Accept => {}
-            Verdict::Replay { high_water } => {
-                refuse(DropReason::Replay);
-                inbox.warnings.warn(
-                    "replayed chunk",
-                    Some(raw.sender.0),
-                    format_args!("seq {} at or below {high_water} (already received)", h.seq),
-                );
-                continue;
-            }
-            Verdict::TooManySenders => {
-                refuse(DropReason::Overflow);
-                inbox.warnings.warn(
-                    "chunk of one actor id too many",
-                    Some(raw.sender.0),
-                    "more actor ids than the learner tracks",
-                );
-                continue;
-            }
-        }
-        let Ok(mut q) = inbox.queues.lock() else {
-            break;
+    }
+
+    /// The bytes of a valid one-step chunk of `actor` with sequence number `seq`.
+    fn chunk(actor: u32, seq: u64) -> ZBytes {
+        let mut header = Header::new(RUN, 5, ActorId(actor), 7);
+        header.seq = seq;
+        let c = TrajectoryChunk {
+            header,
+            trajectories: vec![EnvTrajectory {
+                obs_dim: 1,
+                obs: vec![0.0],
+                moves: vec![0.0; 3],
+                sites: vec![0],
+                logprobs: vec![0.0],
+                site_logprobs: vec![0.0],
+                values: vec![0.0],
+                rewards: vec![0.0],
+                terminated: vec![false],
+                truncated: vec![false],
+                next_values: vec![0.0],
+                bootstrap_obs: vec![0.0],
+                ..EnvTrajectory::default()
+            }],
         };
-        q.decoded.push_back(Received {
-            chunk,
-            at: Instant::now(),
-            sender: raw.sender,
-            charge: raw.charge,
+        encode_msg(&c).expect("encode").into()
+    }
+
+    fn inbox(message_bytes: usize, per_sender_bytes: usize, total_bytes: usize) -> Arc<Inbox> {
+        Arc::new(Inbox::new(InboxBudget {
+            message_bytes,
+            per_sender_bytes,
+            total_bytes,
+            max_chunks: 8,
+        }))
+    }
+
+    fn drops(i: &Inbox, r: DropReason) -> u64 {
+        i.drops
+            .lock()
+            .map_or(0, |d| d.get(&r).copied().unwrap_or(0))
+    }
+
+    /// The decode task on a runtime of its own, fed through `push`, read through `take`.
+    #[test]
+    fn chunks_pass_the_decode_task_in_order_and_refusals_are_counted_and_released() {
+        let keys = KeySpace::new(RUN);
+        let one = chunk(1, 0).len();
+        let i = inbox(10 * one, 10 * one, 10 * one);
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .expect("runtime");
+        let closing = Arc::new(AtomicBool::new(false));
+        let acceptor = Acceptor::new(expect(), MsgLimits::both(1 << 20));
+        let task = std::thread::spawn({
+            let (i, closing) = (i.clone(), closing.clone());
+            move || rt.block_on(decode_task(i, closing, acceptor))
         });
-        let mut evicted = 0;
-        while q.decoded.len() > inbox.budget.max_chunks {
-            if let Some(old) = q.decoded.pop_front() {
-                q.release(old.sender, old.charge);
-                evicted += 1;
-            }
-        }
+        i.push(&keys, &keys.traj(ActorId(1)), &chunk(1, 0));
+        i.push(
+            &keys,
+            &keys.traj(ActorId(1)),
+            &ZBytes::from(b"garbage".to_vec()),
+        );
+        i.push(&keys, &keys.traj(ActorId(1)), &chunk(1, 0));
+        i.push(&keys, &keys.traj(ActorId(2)), &chunk(1, 1));
+        i.push(&keys, &keys.traj(ActorId(1)), &chunk(1, 1));
+        i.push(&keys, "dupac/run-a/elsewhere", &chunk(1, 2));
+        let first = i.take(Duration::from_secs(10)).expect("the first chunk");
+        assert_eq!((first.sender, first.chunk.header.seq), (ActorId(1), 0));
+        let second = i.take(Duration::from_secs(10)).expect("the second chunk");
+        assert_eq!(second.chunk.header.seq, 1);
+        assert!(
+            i.take(Duration::from_millis(200)).is_none(),
+            "nothing else passed"
+        );
+        assert_eq!(drops(&i, DropReason::Replay), 1);
+        assert_eq!(
+            drops(&i, DropReason::Garbage),
+            3,
+            "garbage, another's key, no actor key"
+        );
+        let q = i.queues.lock().expect("queues");
+        assert_eq!((q.total, q.held.len()), (0, 0), "every byte released");
         drop(q);
-        inbox.drop_n(DropReason::Overflow, evicted);
-        inbox.ready.notify_one();
+        closing.store(true, Ordering::Relaxed);
+        i.arrived.notify_one();
+        task.join().expect("the decode task ends");
+    }
+
+    #[test]
+    fn over_its_share_a_sender_loses_its_own_oldest_then_the_biggest_holder_loses_its() {
+        let keys = KeySpace::new(RUN);
+        let one = chunk(1, 0).len();
+        let i = inbox(one, 2 * one, 3 * one);
+        for seq in 0..3 {
+            i.push(&keys, &keys.traj(ActorId(1)), &chunk(1, seq));
+        }
+        assert_eq!(
+            drops(&i, DropReason::Overflow),
+            1,
+            "actor 1 over its two-chunk share"
+        );
+        i.push(&keys, &keys.traj(ActorId(2)), &chunk(2, 0));
+        i.push(&keys, &keys.traj(ActorId(3)), &chunk(3, 0));
+        assert_eq!(
+            drops(&i, DropReason::Overflow),
+            2,
+            "the biggest holder gave way"
+        );
+        let q = i.queues.lock().expect("queues");
+        let senders: Vec<u32> = q.raw.iter().map(|r| r.sender.0).collect();
+        assert_eq!(senders, [1, 2, 3], "actor 1 keeps its newest");
+        assert_eq!(q.total, 3 * one);
+        drop(q);
+        i.push(
+            &keys,
+            &keys.traj(ActorId(1)),
+            &ZBytes::from(vec![0u8; one + 1]),
+        );
+        assert_eq!(
+            drops(&i, DropReason::TooLarge),
+            1,
+            "over the chunk limit, unread"
+        );
     }
 }

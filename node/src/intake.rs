@@ -11,8 +11,8 @@
 //! continue from its checkpoint and may be lower than the ones in use) or carry a higher version
 //! of the same incarnation.
 
-use dupac_common::msg::{MsgLimits, WeightsMsg, decode_msg};
-use dupac_common::validate::{ChunkExpect, DropReason, validate_weights};
+use dupac_common::msg::{MsgLimits, WeightsHeld, WeightsMsg, decode_msg, held_value, is_kind};
+use dupac_common::validate::{ChunkExpect, DropReason, check_header, validate_weights};
 
 /// A learner incarnation and a policy version: which weights are in use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,6 +27,33 @@ impl WeightsKey {
         WeightsKey {
             incarnation: w.header.learner_incarnation,
             version: w.policy.version,
+        }
+    }
+}
+
+/// What a weights query brought back.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Answer {
+    /// The learner's newest weights (the best of the replies).
+    Weights(Box<WeightsMsg>),
+    /// The learner is at the weights the asker holds ([`WeightsHeld`]): nothing to take.
+    Held(WeightsKey),
+}
+
+impl Answer {
+    /// Which weights the learner is at.
+    pub fn learner_at(&self) -> WeightsKey {
+        match self {
+            Answer::Weights(w) => WeightsKey::of(w),
+            Answer::Held(k) => *k,
+        }
+    }
+
+    /// The weights, when the reply carried them.
+    pub fn into_weights(self) -> Option<WeightsMsg> {
+        match self {
+            Answer::Weights(w) => Some(*w),
+            Answer::Held(_) => None,
         }
     }
 }
@@ -98,21 +125,84 @@ impl WeightsIntake {
         }
     }
 
-    /// The weights to act with among a query's replies: the highest version of those that pass
-    /// [`WeightsIntake::check`].
+    /// The selector parameters of a weights query from this process: `held=…` naming the
+    /// weights in use (the learner then answers [`WeightsHeld`] when they are its newest), empty
+    /// before any.
+    pub fn query_parameters(&self) -> String {
+        self.current
+            .map(|k| {
+                let held = held_value(k.incarnation, k.version);
+                format!("{}={held}", dupac_common::msg::HELD_PARAMETER)
+            })
+            .unwrap_or_default()
+    }
+
+    /// Decodes and checks one reply to a weights query: the weights ([`WeightsIntake::check`]),
+    /// or a [`WeightsHeld`] whose header passes the same checks and names the weights in use
+    /// (any other is ignored and counted: this process did not ask for it).
+    pub fn check_reply(&mut self, bytes: &[u8], origin: &str) -> Result<Option<Answer>, Mismatch> {
+        if !is_kind::<WeightsHeld>(bytes) {
+            return Ok(self
+                .check(bytes, origin)?
+                .map(|w| Answer::Weights(Box::new(w))));
+        }
+        let h: WeightsHeld = match decode_msg(bytes, self.limit, origin) {
+            Ok(h) => h,
+            Err(e) => {
+                self.refused += 1;
+                tracing::debug!("weights reply ignored: {e}");
+                return Ok(None);
+            }
+        };
+        match check_header(&h.header, &self.expect) {
+            Ok(()) => {}
+            Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
+                return Err(Mismatch(r.detail));
+            }
+            Err(r) => {
+                self.refused += 1;
+                tracing::debug!("weights reply ignored: {r}");
+                return Ok(None);
+            }
+        }
+        let key = WeightsKey {
+            incarnation: h.header.learner_incarnation,
+            version: h.header.policy_version,
+        };
+        if self.current != Some(key) {
+            self.refused += 1;
+            tracing::debug!(
+                ?key,
+                "a 'held' reply for weights this process does not hold"
+            );
+            return Ok(None);
+        }
+        Ok(Some(Answer::Held(key)))
+    }
+
+    /// What a query's replies say, each checked by [`WeightsIntake::check_reply`]: the weights of
+    /// the highest version among them, or, when none carried newer weights, that the learner is
+    /// at the weights in use.
     pub fn best_reply<B: AsRef<[u8]>>(
         &mut self,
         replies: impl IntoIterator<Item = B>,
         origin: &str,
-    ) -> Result<Option<WeightsMsg>, Mismatch> {
-        let mut best: Option<WeightsMsg> = None;
+    ) -> Result<Option<Answer>, Mismatch> {
+        let mut best: Option<Answer> = None;
         for bytes in replies {
-            if let Some(w) = self.check(bytes.as_ref(), origin)?
-                && best
-                    .as_ref()
-                    .is_none_or(|b| w.policy.version > b.policy.version)
-            {
-                best = Some(w);
+            let Some(a) = self.check_reply(bytes.as_ref(), origin)? else {
+                continue;
+            };
+            let better = match (&best, &a) {
+                (None, _) => true,
+                (Some(Answer::Held(_)), Answer::Weights(_)) => true,
+                (Some(Answer::Weights(b)), Answer::Weights(w)) => {
+                    w.policy.version > b.policy.version
+                }
+                _ => false,
+            };
+            if better {
+                best = Some(a);
             }
         }
         Ok(best)
@@ -265,8 +355,53 @@ mod tests {
         let best = i
             .best_reply(&replies, "w")
             .expect("same run")
+            .and_then(Answer::into_weights)
             .expect("some");
         assert_eq!(best.policy.version, 9);
         assert_eq!(i.refused, 1);
+    }
+
+    /// The bytes of a "held" reply of learner `incarnation` at `version`.
+    fn held(run: &str, incarnation: u64, version: u64, fingerprint: u64) -> Vec<u8> {
+        let mut header = Header::new(run, incarnation, ActorId::LEARNER, fingerprint);
+        header.policy_version = version;
+        encode_msg(&WeightsHeld { header }).expect("encode")
+    }
+
+    #[test]
+    fn a_query_names_the_weights_held_and_a_held_reply_says_the_learner_is_there() {
+        let mut i = intake();
+        assert_eq!(
+            i.query_parameters(),
+            "",
+            "nothing held: ask for the weights"
+        );
+        i.offer(key(3, 9));
+        assert_eq!(i.query_parameters(), "held=3.9");
+        let a = i
+            .best_reply([held(RUN, 3, 9, FINGERPRINT)], "w")
+            .expect("same run")
+            .expect("an answer");
+        assert_eq!(a, Answer::Held(key(3, 9)));
+        assert_eq!(a.learner_at(), key(3, 9));
+        // Weights among the replies win over a "held" one.
+        let replies = [
+            held(RUN, 3, 9, FINGERPRINT),
+            message(RUN, 3, 10, FINGERPRINT),
+        ];
+        let a = i.best_reply(replies, "w").expect("same run").expect("some");
+        assert_eq!(a.learner_at(), key(3, 10));
+        assert!(a.into_weights().is_some());
+        // A "held" reply for weights not in use is nobody's answer; another run's is fatal.
+        assert_eq!(i.check_reply(&held(RUN, 3, 8, FINGERPRINT), "w"), Ok(None));
+        assert_eq!(i.refused, 1);
+        assert!(
+            i.check_reply(&held("run-b", 3, 9, FINGERPRINT), "w")
+                .is_err()
+        );
+        assert!(
+            i.check_reply(&held(RUN, 3, 9, FINGERPRINT + 1), "w")
+                .is_err()
+        );
     }
 }

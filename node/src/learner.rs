@@ -1,35 +1,36 @@
 //! The learner's side of the Zenoh actor/learner system.
 //!
+//! The rules live in zenoh-free modules; this one wires them to zenoh:
+//!
 //! * zenoh's receive callback takes `dupac/<run>/traj/*` without ever blocking (a blocked
-//!   `Block` sender gets its transport closed after 5 s): it drops messages over the chunk
-//!   limit unread and queues the rest under byte budgets per sender and in total
-//!   ([`InboxBudget`]; over budget, the sender's own oldest message goes, then the biggest
-//!   holder's: `overflow`). A decode task decodes each within its allocation budget
-//!   ([`MsgLimits::chunk`]), validates it ([`dupac_common::validate::validate_chunk`]),
-//!   drops replays ([`SeqTracker`]: at most once per (actor, sender incarnation, seq)) and
-//!   queues it for PPO (at most `distributed.queue_chunks`).
-//! * [`LearnerNode::next_batch`] takes queued chunks until the batch (`train.num_envs ×
-//!   train.num_steps` samples) is full, dropping data more than `distributed.max_policy_lag`
-//!   versions old (`stale`).
-//! * Weights are published with `CongestionControl::Block` and high priority, and served by a
-//!   queryable for actors that join late; a liveliness token announces the learner; a
-//!   liveliness subscriber tracks actors (joined, left, silent).
+//!   `Block` sender gets its transport closed after 5 s) into the [`Inbox`] (byte budgets per
+//!   sender and in total); a decode task accepts each message ([`Acceptor`]: decoding within
+//!   its budget, sender, validation, replays) into the inbox's decoded queue.
+//! * [`LearnerNode::gather`] takes queued chunks until the batch (`train.num_envs ×
+//!   train.num_steps` samples) is full, dropping stale ones ([`accept::is_stale`]).
+//! * Weights are published with `CongestionControl::Drop` (a slow subscriber misses one and
+//!   asks) and high priority, and served by a queryable ([`crate::weights_server`], within
+//!   the [`TokenBucket`]'s rate) for actors that join late or missed a publication; a
+//!   liveliness token announces the learner; a liveliness subscriber keeps the [`Roster`].
 //! * Stats for monitors go to `dupac/<run>/stats/learner`; `Stop` goes to `dupac/<run>/ctrl`;
 //!   both in JSON ([`dupac_common::jsonmsg`]) with zenoh's encoding `application/json`.
 //! * Decoding, publishing and query replies are tasks on the node's network side
 //!   ([`crate::netside`]): the PPO loop hands over encoded weights and stats and goes on.
 
+use crate::accept::{self, Acceptor};
 use crate::inbox::{Inbox, InboxBudget, decode_task};
 use crate::netside::{Latest, NetSide};
 use crate::presence::{LOSS_GRACE, PresenceLog};
+use crate::ratelimit::TokenBucket;
+use crate::roster::Roster;
+use crate::weights_server::{self, ReplyCounts, Served, WeightsQuery};
 use dupac_common::config::Config;
-use dupac_common::dedup::MAX_TRACKED_SENDERS;
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::encode_json;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    ActorRow, ActorState, Command, ControlMsg, Header, LearnerStats, MsgLimits, TrajectoryChunk,
-    WeightsMsg, encode_msg, unix_ms,
+    Command, ControlMsg, HELD_PARAMETER, Header, LearnerStats, MsgLimits, TrajectoryChunk,
+    WeightsHeld, WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
 use dupac_common::validate::{ChunkExpect, DropReason, SiteSteps};
@@ -37,8 +38,9 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use tokio::sync::watch;
 use zenoh::Wait;
-use zenoh::bytes::Encoding;
+use zenoh::bytes::{Encoding, ZBytes};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
@@ -53,41 +55,6 @@ pub enum NodeError {
         "another learner is live on run {run:?} ({key}): stop it, or give this run another distributed.run"
     )]
     AnotherLearner { run: String, key: String },
-}
-
-/// A token bucket: `rate` tokens a second, at most `burst` saved.
-#[derive(Debug, Clone)]
-pub struct TokenBucket {
-    rate: f64,
-    burst: f64,
-    tokens: f64,
-    at: Option<Instant>,
-}
-
-impl TokenBucket {
-    pub fn new(rate: f64, burst: f64) -> TokenBucket {
-        TokenBucket {
-            rate,
-            burst: burst.max(1.0),
-            tokens: burst.max(1.0),
-            at: None,
-        }
-    }
-
-    /// Takes a token if there is one at `now`.
-    pub fn take(&mut self, now: Instant) -> bool {
-        if let Some(at) = self.at {
-            let dt = now.saturating_duration_since(at).as_secs_f64();
-            self.tokens = (self.tokens + dt * self.rate).min(self.burst);
-        }
-        self.at = Some(now);
-        if self.tokens >= 1.0 {
-            self.tokens -= 1.0;
-            true
-        } else {
-            false
-        }
-    }
 }
 
 /// The liveliness key of a live learner of this run, if any: asked twice a second apart, so a
@@ -121,31 +88,32 @@ fn z(e: impl std::fmt::Display) -> NodeError {
     NodeError::Zenoh(crate::net::zenoh_message(&e))
 }
 
-/// The learner's view of one actor.
-#[derive(Debug, Clone)]
-struct ActorInfo {
-    state: ActorState,
-    env_steps: u64,
-    chunks: u64,
-    last_version: u64,
-    last_seen: Option<Instant>,
-    steps_at_last_stats: u64,
+/// Weights replies sent at once at most (each on a blocking thread of its own).
+const MAX_PARALLEL_REPLIES: usize = 64;
+
+/// A zenoh weights query for the weights server.
+struct ZenohQuery {
+    query: zenoh::query::Query,
+    key: String,
 }
 
-impl ActorInfo {
-    fn new() -> ActorInfo {
-        ActorInfo {
-            state: ActorState::Alive,
-            env_steps: 0,
-            chunks: 0,
-            last_version: 0,
-            last_seen: None,
-            steps_at_last_stats: 0,
-        }
+impl WeightsQuery for ZenohQuery {
+    type Bytes = ZBytes;
+
+    fn held(&self) -> Option<String> {
+        self.query
+            .parameters()
+            .get(HELD_PARAMETER)
+            .map(str::to_string)
+    }
+
+    fn reply(self, bytes: ZBytes) -> Result<(), String> {
+        self.query
+            .reply(self.key, bytes)
+            .wait()
+            .map_err(|e| crate::net::zenoh_message(&e))
     }
 }
-
-type ActorTable = Arc<Mutex<BTreeMap<ActorId, ActorInfo>>>;
 
 /// The learner's Zenoh presence: subscriptions, publishers, queryable, liveliness.
 pub struct LearnerNode {
@@ -153,11 +121,13 @@ pub struct LearnerNode {
     keys: KeySpace,
     expect: ChunkExpect,
     max_policy_lag: u64,
-    silent_after: Duration,
     stats_every_s: f64,
     inbox: Arc<Inbox>,
-    actors: ActorTable,
+    roster: Arc<Mutex<Roster>>,
     weights: Latest,
+    /// The newest weights for the queryable.
+    served: watch::Sender<Option<Served<ZBytes>>>,
+    replies: Arc<ReplyCounts>,
     stats: Latest,
     _token: zenoh::liveliness::LivelinessToken,
     _queryable: zenoh::query::Queryable<()>,
@@ -172,11 +142,25 @@ pub struct LearnerNode {
     steps_at_last_stats: u64,
 }
 
-/// Chunks taken for one batch.
+/// A batch being gathered from the inbox ([`LearnerNode::gather`]).
+#[derive(Default)]
 pub struct BatchChunks {
     pub chunks: Vec<TrajectoryChunk>,
+    /// Samples in `chunks`.
+    pub samples: usize,
     /// Time spent waiting for data (s).
     pub wait_s: f64,
+}
+
+/// What [`LearnerNode::gather`] came back with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gathered {
+    /// The batch holds its samples.
+    Full,
+    /// The deadline came first (the batch keeps what it has).
+    Due,
+    /// `stop` was set.
+    Stopped,
 }
 
 impl LearnerNode {
@@ -209,157 +193,51 @@ impl LearnerNode {
             max_steps: d.chunk_steps.max(cfg.train.num_steps),
             site_steps: SiteSteps::of(cfg),
         };
-        let limits = MsgLimits::chunk(cfg, &expect);
-        let budget = InboxBudget::new(
-            limits,
-            cfg.train.num_envs * cfg.train.num_steps,
-            expect.max_envs * expect.max_steps,
-            d.queue_chunks,
-        );
-        tracing::info!(
-            message_bytes = limits.bytes,
-            decode_budget_bytes = limits.budget_bytes,
-            per_sender_bytes = budget.per_sender_bytes,
-            total_bytes = budget.total_bytes,
-            "receive limits"
-        );
-        let inbox = Arc::new(Inbox::new(budget));
-        let closing = Arc::new(AtomicBool::new(false));
-        let actors: ActorTable = Arc::default();
-
         let mut net = NetSide::new()
             .map_err(|e| NodeError::Zenoh(format!("cannot start the network side: {e}")))?;
-        // zenoh's callback only queues (bounded by the byte budgets); a task decodes.
-        let sub = {
-            let (inbox, keys) = (inbox.clone(), keys.clone());
-            session
-                .declare_subscriber(keys.traj_all())
-                .callback(move |sample| inbox.admit(&keys, &sample))
-                .wait()
-                .map_err(z)?
-        };
-        net.spawn(decode_task(
-            inbox.clone(),
-            closing.clone(),
-            expect.clone(),
-            limits,
-        ));
-
-        let weights = Latest::start(
-            &mut net,
-            session
-                .declare_publisher(keys.weights())
-                .congestion_control(CongestionControl::Block)
-                .priority(Priority::InteractiveHigh)
-                .wait()
-                .map_err(z)?,
-            "weights",
-        );
-        let stats = Latest::start(
-            &mut net,
-            session
-                .declare_publisher(keys.stats_learner())
-                .congestion_control(CongestionControl::Drop)
-                .encoding(Encoding::APPLICATION_JSON)
-                .wait()
-                .map_err(z)?,
-            "stats",
-        );
-        // Queries within the reply rate are passed to a task that replies with the newest
-        // weights; over the rate, or while a burst of them waits, they go unanswered.
-        let queryable = {
-            let rate = d.weights_replies_per_s;
-            let bucket = Mutex::new(TokenBucket::new(rate, 2.0 * rate));
-            let burst = (2.0 * rate).ceil().clamp(1.0, 1024.0) as usize;
-            let (tx, mut rx) = tokio::sync::mpsc::channel::<zenoh::query::Query>(burst);
-            let (latest, key) = (weights.receiver(), keys.weights());
-            net.spawn(async move {
-                while let Some(query) = rx.recv().await {
-                    let bytes = latest.borrow().as_ref().map(|(_, b)| b.clone());
-                    if let Some(b) = bytes
-                        && let Err(e) = query.reply(key.clone(), b).await
-                    {
-                        tracing::warn!("weights query: cannot reply: {e}");
-                    }
-                }
-            });
-            session
-                .declare_queryable(keys.weights())
-                .callback(move |query| {
-                    if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now())) {
-                        tracing::debug!("weights query left unanswered: over the reply rate");
-                    } else if tx.try_send(query).is_err() {
-                        tracing::debug!("weights query left unanswered: a burst already waits");
-                    }
-                })
-                .wait()
-                .map_err(z)?
-        };
+        let closing = Arc::new(AtomicBool::new(false));
+        let (inbox, traj_sub) = receive_chunks(&session, &keys, cfg, &expect, &mut net, &closing)?;
+        // Drop, not Block: a subscriber behind a slow link misses a publication (and asks the
+        // queryable) rather than holding back everyone's weights.
+        let weights = publisher(&session, keys.weights(), CongestionControl::Drop, None)?;
+        let weights = Latest::start(&mut net, weights, "weights");
+        let json = Some(Encoding::APPLICATION_JSON);
+        let stats = publisher(
+            &session,
+            keys.stats_learner(),
+            CongestionControl::Drop,
+            json,
+        )?;
+        let stats = Latest::start(&mut net, stats, "stats");
+        let (served, _) = watch::channel(None);
+        let replies = Arc::new(ReplyCounts::default());
+        let queryable = serve_weights(&session, &keys, cfg, &served, &replies, &mut net)?;
         let token = session
             .liveliness()
             .declare_token(keys.alive(Role::Learner, &format!("{incarnation:016x}")))
             .wait()
             .map_err(z)?;
-        let alive_sub = {
-            let (actors, keys2) = (actors.clone(), keys.clone());
-            let presence = PresenceLog::default();
-            session
-                .liveliness()
-                .declare_subscriber(keys.alive_role(Role::Actor))
-                .history(true)
-                .callback(move |sample| {
-                    let Some((_, id)) = keys2.parse_alive(sample.key_expr().as_str()) else {
-                        return;
-                    };
-                    let Ok(id) = id.parse::<u32>() else { return };
-                    let id = ActorId(id);
-                    let Ok(mut t) = actors.lock() else { return };
-                    if !t.contains_key(&id) && t.len() >= MAX_TRACKED_SENDERS {
-                        tracing::warn!(actor = %id, "too many actor ids: liveliness ignored");
-                        return;
-                    }
-                    let info = t.entry(id).or_insert_with(ActorInfo::new);
-                    match sample.kind() {
-                        SampleKind::Put => {
-                            if !presence.back(&id.to_string(), &format!("actor {id}")) {
-                                tracing::info!(actor = %id, "actor joined");
-                            }
-                            info.state = ActorState::Alive;
-                        }
-                        SampleKind::Delete => {
-                            presence.left(
-                                &id.to_string(),
-                                format!(
-                                    "actor {id} left {} s ago (its process ended or the network \
-                                     parted it); training goes on with the others, it rejoins \
-                                     by itself",
-                                    LOSS_GRACE.as_secs()
-                                ),
-                            );
-                            info.state = ActorState::Left;
-                        }
-                    }
-                })
-                .wait()
-                .map_err(z)?
-        };
+        // Validated to [0, 1 day]: the conversion cannot fail; a day if it did.
+        let silent_after =
+            Duration::try_from_secs_f64(d.silent_after_s).unwrap_or(Duration::from_secs(86_400));
+        let roster = Arc::new(Mutex::new(Roster::new(silent_after)));
+        let alive_sub = track_actors(&session, &keys, &roster)?;
         Ok(LearnerNode {
             session,
             keys,
             expect,
             max_policy_lag: d.max_policy_lag,
-            // Validated to [0, 1 day]: the conversion cannot fail; a day if it did.
-            silent_after: Duration::try_from_secs_f64(d.silent_after_s)
-                .unwrap_or(Duration::from_secs(86_400)),
             stats_every_s: d.stats_every_s,
             inbox,
-            actors,
+            roster,
             weights,
+            served,
+            replies,
             stats,
             _token: token,
             _queryable: queryable,
             _alive_sub: alive_sub,
-            _traj_sub: sub,
+            _traj_sub: traj_sub,
             net,
             closing,
             accepted_chunks: 0,
@@ -389,78 +267,71 @@ impl LearnerNode {
             policy: policy.clone(),
         };
         let bytes = encode_msg(&msg)?;
+        let held = encode_msg(&WeightsHeld { header: msg.header })?;
         let n = bytes.len();
-        self.weights.set(bytes);
+        let full = ZBytes::from(bytes);
+        self.served.send_replace(Some(Served {
+            incarnation: self.expect.incarnation,
+            version: policy.version,
+            full: full.clone(),
+            held: held.into(),
+        }));
+        self.weights.set_bytes(full);
         Ok(n)
     }
 
-    /// Takes queued chunks until `samples` samples for policy `version` are gathered, or
-    /// `stop` is set (then `None`). Chunks older than `version − max_policy_lag`, or from a
-    /// version the learner has not published, are dropped (`stale`). While waiting, `idle` is
-    /// called every `distributed.stats_every_s` (to keep monitors informed).
-    pub fn next_batch(
+    /// Weights query replies so far: (full weights, [`WeightsHeld`]).
+    pub fn weights_replies(&self) -> (u64, u64) {
+        self.replies.get()
+    }
+
+    /// Takes queued chunks into `batch` until it holds `samples` samples for policy `version`
+    /// (`Full`), `until` passes (`Due`: the caller publishes its stats and gathers on) or
+    /// `stop` is set. Stale chunks ([`accept::is_stale`]) are dropped and counted.
+    pub fn gather(
         &mut self,
+        batch: &mut BatchChunks,
         version: u64,
         samples: usize,
         stop: &AtomicBool,
-        idle: &mut dyn FnMut(&mut LearnerNode),
-    ) -> Option<BatchChunks> {
+        until: Instant,
+    ) -> Gathered {
         let t0 = Instant::now();
-        let mut chunks = Vec::new();
-        let mut have = 0usize;
-        while have < samples {
-            if stop.load(Ordering::Relaxed) {
-                return None;
+        let result = loop {
+            if batch.samples >= samples {
+                break Gathered::Full;
             }
-            if self.since_stats_s() >= self.stats_every_s {
-                idle(self);
+            if stop.load(Ordering::Relaxed) {
+                break Gathered::Stopped;
+            }
+            if Instant::now() >= until {
+                break Gathered::Due;
             }
             self.inbox.warnings.flush_due();
-            let next = {
-                let Ok(mut q) = self.inbox.queues.lock() else {
-                    return None;
-                };
-                if q.decoded.is_empty() {
-                    q = match self.inbox.ready.wait_timeout(q, Duration::from_millis(100)) {
-                        Ok((q, _)) => q,
-                        Err(_) => return None,
-                    };
-                }
-                let r = q.decoded.pop_front();
-                if let Some(r) = &r {
-                    q.release(r.sender, r.charge);
-                }
-                r
+            let Some(r) = self.inbox.take(Duration::from_millis(100)) else {
+                continue;
             };
-            let Some(r) = next else { continue };
-            let c = r.chunk;
-            let v = c.header.policy_version;
-            if v > version || version - v > self.max_policy_lag {
+            let v = r.chunk.header.policy_version;
+            if accept::is_stale(v, version, self.max_policy_lag) {
                 self.inbox.drop_one(DropReason::Stale);
-                tracing::debug!(
-                    actor = %c.header.actor,
-                    chunk_version = v,
-                    version,
-                    "stale chunk dropped"
-                );
+                tracing::debug!(actor = %r.chunk.header.actor, chunk_version = v, version, "stale chunk dropped");
                 continue;
             }
-            let n = c.samples();
-            if let Ok(mut t) = self.actors.lock() {
-                let a = t.entry(c.header.actor).or_insert_with(ActorInfo::new);
-                a.env_steps += n as u64;
-                a.chunks += 1;
-                a.last_version = v;
-                a.last_seen = Some(r.at);
+            let n = r.chunk.samples();
+            if let Ok(mut roster) = self.roster.lock() {
+                roster.accepted(r.chunk.header.actor, n, v, r.at);
             }
             self.accepted_chunks += 1;
-            have += n;
-            chunks.push(c);
-        }
-        Some(BatchChunks {
-            chunks,
-            wait_s: t0.elapsed().as_secs_f64(),
-        })
+            batch.samples += n;
+            batch.chunks.push(r.chunk);
+        };
+        batch.wait_s += t0.elapsed().as_secs_f64();
+        result
+    }
+
+    /// When the next stats message is due.
+    pub fn stats_due_at(&self) -> Instant {
+        self.last_stats + Duration::try_from_secs_f64(self.stats_every_s).unwrap_or_default()
     }
 
     /// Drops counted so far, by reason name.
@@ -476,45 +347,9 @@ impl LearnerNode {
             .collect()
     }
 
-    /// The actor table as monitors see it (silent actors marked).
-    pub fn actor_rows(&mut self, version: u64) -> Vec<ActorRow> {
-        let dt = self.last_stats.elapsed().as_secs_f64().max(1e-9);
-        let Ok(mut t) = self.actors.lock() else {
-            return Vec::new();
-        };
-        t.iter_mut()
-            .map(|(id, a)| {
-                let last_seen_s = a.last_seen.map(|s| s.elapsed().as_secs_f64());
-                let state = match a.state {
-                    ActorState::Alive | ActorState::Silent
-                        if last_seen_s.is_none_or(|s| s > self.silent_after.as_secs_f64()) =>
-                    {
-                        ActorState::Silent
-                    }
-                    ActorState::Silent => ActorState::Alive,
-                    s => s,
-                };
-                let steps_per_s = (a.env_steps - a.steps_at_last_stats) as f64 / dt;
-                a.steps_at_last_stats = a.env_steps;
-                ActorRow {
-                    actor: *id,
-                    state,
-                    steps_per_s,
-                    env_steps: a.env_steps,
-                    chunks: a.chunks,
-                    policy_lag: version.saturating_sub(a.last_version),
-                    last_seen_s,
-                }
-            })
-            .collect()
-    }
-
     /// Actors whose liveliness token is present.
     pub fn alive_actors(&self) -> usize {
-        self.actors
-            .lock()
-            .map(|t| t.values().filter(|a| a.state != ActorState::Left).count())
-            .unwrap_or(0)
+        self.roster.lock().map_or(0, |r| r.alive())
     }
 
     /// Publishes the learner's stats.
@@ -527,7 +362,11 @@ impl LearnerNode {
         done: bool,
     ) -> Result<LearnerStats, NodeError> {
         let dt = self.last_stats.elapsed().as_secs_f64().max(1e-9);
-        let actors = self.actor_rows(update);
+        let actors = self
+            .roster
+            .lock()
+            .map(|mut r| r.rows(update, Instant::now()))
+            .unwrap_or_default();
         let mut header = self.header(update);
         header.seq = self.stats_seq;
         self.stats_seq += 1;
@@ -574,6 +413,8 @@ impl LearnerNode {
             })
             .transpose()?;
         let ctrl = self.keys.ctrl();
+        let last = self.served.borrow().as_ref().map(|s| s.full.clone());
+        let weights_key = self.keys.weights();
         let LearnerNode {
             session,
             inbox,
@@ -591,18 +432,169 @@ impl LearnerNode {
         drop((weights, stats, _queryable));
         net.finish(Duration::from_secs(5));
         let sent = match stop {
-            Some(bytes) => session
-                .put(ctrl, bytes)
-                .encoding(Encoding::APPLICATION_JSON)
-                .congestion_control(CongestionControl::Block)
-                .priority(Priority::InteractiveHigh)
-                .wait()
-                .map_err(z),
+            Some(bytes) => {
+                // The last weights once more, blocking (publications may drop): a follower has
+                // them before the run's end.
+                if let Some(w) = last {
+                    let _ = session
+                        .put(weights_key, w)
+                        .congestion_control(CongestionControl::Block)
+                        .priority(Priority::InteractiveHigh)
+                        .wait();
+                }
+                session
+                    .put(ctrl, bytes)
+                    .encoding(Encoding::APPLICATION_JSON)
+                    .congestion_control(CongestionControl::Block)
+                    .priority(Priority::InteractiveHigh)
+                    .wait()
+                    .map_err(z)
+            }
             None => Ok(()),
         };
         let _ = session.close().wait();
         sent
     }
+}
+
+/// The trajectory subscription: zenoh's callback only queues (bounded by the inbox's byte
+/// budgets); the decode task on `net` accepts ([`Acceptor`]).
+fn receive_chunks(
+    session: &zenoh::Session,
+    keys: &KeySpace,
+    cfg: &Config,
+    expect: &ChunkExpect,
+    net: &mut NetSide,
+    closing: &Arc<AtomicBool>,
+) -> Result<(Arc<Inbox>, zenoh::pubsub::Subscriber<()>), NodeError> {
+    let limits = MsgLimits::chunk(cfg, expect);
+    let budget = InboxBudget::new(
+        limits,
+        cfg.train.num_envs * cfg.train.num_steps,
+        expect.max_envs * expect.max_steps,
+        cfg.distributed.queue_chunks,
+    );
+    tracing::info!(
+        message_bytes = limits.bytes,
+        decode_budget_bytes = limits.budget_bytes,
+        per_sender_bytes = budget.per_sender_bytes,
+        total_bytes = budget.total_bytes,
+        "receive limits"
+    );
+    let inbox = Arc::new(Inbox::new(budget));
+    let sub = {
+        let (inbox, keys) = (inbox.clone(), keys.clone());
+        session
+            .declare_subscriber(keys.traj_all())
+            .callback(move |sample| inbox.admit(&keys, &sample))
+            .wait()
+            .map_err(z)?
+    };
+    let acceptor = Acceptor::new(expect.clone(), limits);
+    net.spawn(decode_task(inbox.clone(), closing.clone(), acceptor));
+    Ok((inbox, sub))
+}
+
+/// A publisher on `key` with high priority when it carries weights.
+fn publisher(
+    session: &zenoh::Session,
+    key: String,
+    congestion: CongestionControl,
+    encoding: Option<Encoding>,
+) -> Result<zenoh::pubsub::Publisher<'static>, NodeError> {
+    let b = session
+        .declare_publisher(key)
+        .congestion_control(congestion);
+    let b = match encoding {
+        Some(e) => b.encoding(e),
+        None => b.priority(Priority::InteractiveHigh),
+    };
+    b.wait().map_err(z)
+}
+
+/// The weights queryable: queries within `distributed.weights_replies_per_s` go to the weights
+/// server ([`crate::weights_server`]) on `net`; over the rate, or while a burst of them waits,
+/// they go unanswered.
+fn serve_weights(
+    session: &zenoh::Session,
+    keys: &KeySpace,
+    cfg: &Config,
+    served: &watch::Sender<Option<Served<ZBytes>>>,
+    replies: &Arc<ReplyCounts>,
+    net: &mut NetSide,
+) -> Result<zenoh::query::Queryable<()>, NodeError> {
+    let rate = cfg.distributed.weights_replies_per_s;
+    let bucket = Mutex::new(TokenBucket::new(rate, 2.0 * rate));
+    let burst = (2.0 * rate).ceil().clamp(1.0, 1024.0) as usize;
+    let (tx, rx) = tokio::sync::mpsc::channel::<ZenohQuery>(burst);
+    let parallel = burst.min(MAX_PARALLEL_REPLIES);
+    net.spawn(weights_server::serve(
+        rx,
+        served.subscribe(),
+        parallel,
+        replies.clone(),
+    ));
+    let key = keys.weights();
+    session
+        .declare_queryable(keys.weights())
+        .callback(move |query| {
+            if !bucket.lock().is_ok_and(|mut b| b.take(Instant::now())) {
+                tracing::debug!("weights query left unanswered: over the reply rate");
+                return;
+            }
+            let q = ZenohQuery {
+                query,
+                key: key.clone(),
+            };
+            if tx.try_send(q).is_err() {
+                tracing::debug!("weights query left unanswered: a burst already waits");
+            }
+        })
+        .wait()
+        .map_err(z)
+}
+
+/// The liveliness subscriber of the run's actors (with history: tokens declared before it
+/// count), reporting to `roster` and the log (a blip at debug, a loss warned once).
+fn track_actors(
+    session: &zenoh::Session,
+    keys: &KeySpace,
+    roster: &Arc<Mutex<Roster>>,
+) -> Result<zenoh::pubsub::Subscriber<()>, NodeError> {
+    let (roster, keys2) = (roster.clone(), keys.clone());
+    let presence = PresenceLog::default();
+    session
+        .liveliness()
+        .declare_subscriber(keys.alive_role(Role::Actor))
+        .history(true)
+        .callback(move |sample| {
+            let Some(id) = keys2
+                .parse_alive(sample.key_expr().as_str())
+                .and_then(|(_, id)| id.parse::<u32>().ok())
+                .map(ActorId)
+            else {
+                return;
+            };
+            let present = sample.kind() == SampleKind::Put;
+            if !roster.lock().is_ok_and(|mut r| r.presence(id, present)) {
+                tracing::warn!(actor = %id, "too many actor ids: liveliness ignored");
+                return;
+            }
+            if !present {
+                presence.left(
+                    &id.to_string(),
+                    format!(
+                        "actor {id} left {} s ago (its process ended or the network parted it); \
+                         training goes on with the others, it rejoins by itself",
+                        LOSS_GRACE.as_secs()
+                    ),
+                );
+            } else if !presence.back(&id.to_string(), &format!("actor {id}")) {
+                tracing::info!(actor = %id, "actor joined");
+            }
+        })
+        .wait()
+        .map_err(z)
 }
 
 /// A random 64-bit incarnation id (time and process id through SplitMix64).
@@ -612,23 +604,4 @@ pub fn new_incarnation() -> u64 {
         .map(|d| d.as_nanos() as u64)
         .unwrap_or(0);
     dupac_common::seed::stream_seed(t, u64::from(std::process::id()), unix_ms())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_token_bucket_allows_its_burst_then_its_rate() {
-        let t0 = Instant::now();
-        let mut b = TokenBucket::new(10.0, 20.0);
-        let burst = (0..100).filter(|_| b.take(t0)).count();
-        assert_eq!(burst, 20);
-        // One second later: 10 more.
-        let later = t0 + Duration::from_secs(1);
-        assert_eq!((0..100).filter(|_| b.take(later)).count(), 10);
-        // Idle for a minute: never more than the burst.
-        let much_later = later + Duration::from_secs(60);
-        assert_eq!((0..100).filter(|_| b.take(much_later)).count(), 20);
-    }
 }

@@ -3,8 +3,9 @@
 //! - [`net`]: the connection options every process takes (zenoh's examples' shared arguments).
 //! - [`actor`]: an actor process's node: environments stepped with the newest weights,
 //!   trajectory chunks published, a live-weights [`actor::Follower`] for `dupac fly --follow`.
-//! - [`learner`]: the learner's node: chunks received ([`inbox`]), validated and batched,
-//!   weights and statistics published; [`source`]: the node as a
+//! - [`learner`]: the learner's node: chunks received ([`inbox`]), accepted ([`accept`]) and
+//!   batched, the actors' [`roster`], weights and statistics published, weights queries
+//!   answered within a rate ([`ratelimit`]); [`source`]: the node as a
 //!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
 //! - [`intake`]: which weights an actor or a pilot takes; [`outbox`]: an actor's chunk headers,
@@ -12,7 +13,10 @@
 //! - [`presence`]: peers' departures and returns in the log (a blip at debug, a loss warned
 //!   once, then its return).
 //! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.
+//! - [`weights_server`]: the learner's answers to weights queries (the full weights, or a
+//!   small reply to a process that holds them), replies apart from each other.
 
+pub mod accept;
 pub mod actor;
 pub(crate) mod actor_error;
 pub mod follow;
@@ -23,6 +27,9 @@ pub mod net;
 pub(crate) mod netside;
 pub mod outbox;
 pub mod presence;
+pub mod ratelimit;
 pub mod ratelog;
+pub mod roster;
 pub mod source;
+pub mod weights_server;
 pub(crate) mod wiring;

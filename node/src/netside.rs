@@ -12,8 +12,11 @@
 //! keep the decode task going beside it, and the decode task yields after each message so
 //! that a backlog does not hold back the publishers.
 
+use crate::intake::WeightsKey;
+use crate::outbox::Delivery;
 use std::future::Future;
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 use zenoh::pubsub::Publisher;
@@ -102,24 +105,33 @@ impl Latest {
 
     /// Hands `bytes` to the publishing task (replacing a message it has not sent yet).
     pub(crate) fn set(&self, bytes: Vec<u8>) {
+        self.set_bytes(bytes.into());
+    }
+
+    /// [`Latest::set`] with bytes already in zenoh's form (shared, not copied).
+    pub(crate) fn set_bytes(&self, bytes: zenoh::bytes::ZBytes) {
         // Delivered even when the task is gone (the runtime shut down): then nobody reads it.
         self.tx.send_modify(|m| {
             let seq = m.as_ref().map_or(0, |(s, _)| *s) + 1;
-            *m = Some((seq, bytes.into()));
+            *m = Some((seq, bytes));
         });
     }
+}
 
-    /// The newest message set, for a late joiner's query.
-    pub(crate) fn receiver(&self) -> watch::Receiver<Numbered> {
-        self.tx.subscribe()
-    }
+/// A trajectory chunk for [`Every`]: its bytes, sequence number and the weights it was acted
+/// with.
+pub(crate) struct Outgoing {
+    pub(crate) bytes: Vec<u8>,
+    pub(crate) seq: u64,
+    pub(crate) key: WeightsKey,
 }
 
 /// The compute side of a publication where every message counts (trajectory chunks):
 /// [`Every::send`] waits only while `depth` messages are already queued (backpressure, as
-/// `CongestionControl::Block` gives); the task publishes them in order.
+/// `CongestionControl::Block` gives); the task publishes them in order, except those that
+/// turned stale while queued ([`Delivery::admit`]), and records in `delivery` which left last.
 pub(crate) struct Every {
-    tx: mpsc::Sender<Vec<u8>>,
+    tx: mpsc::Sender<Outgoing>,
 }
 
 impl Every {
@@ -127,24 +139,40 @@ impl Every {
         net: &mut NetSide,
         publisher: Publisher<'static>,
         depth: usize,
+        delivery: Arc<Mutex<Delivery>>,
         what: &'static str,
     ) -> Every {
-        let (tx, mut rx) = mpsc::channel::<Vec<u8>>(depth.max(1));
+        let (tx, mut rx) = mpsc::channel::<Outgoing>(depth.max(1));
         net.spawn(async move {
-            while let Some(bytes) = rx.recv().await {
-                if let Err(e) = publisher.put(bytes).await {
+            while let Some(m) = rx.recv().await {
+                let send = delivery
+                    .lock()
+                    .map(|mut d| d.admit(m.seq, m.key, Instant::now()))
+                    .unwrap_or(true);
+                if !send {
+                    tracing::debug!(
+                        seq = m.seq,
+                        version = m.key.version,
+                        "stale {what} not sent"
+                    );
+                    continue;
+                }
+                if let Err(e) = publisher.put(m.bytes).await {
                     tracing::warn!("{what} not published: {e}");
+                }
+                if let Ok(mut d) = delivery.lock() {
+                    d.sent(m.seq, Instant::now());
                 }
             }
         });
         Every { tx }
     }
 
-    /// Queues `bytes` for publication; waits while the queue is full. Errors when the task is
+    /// Queues `m` for publication; waits while the queue is full. Errors when the task is
     /// gone (the runtime shut down).
-    pub(crate) fn send(&self, bytes: Vec<u8>) -> Result<(), String> {
+    pub(crate) fn send(&self, m: Outgoing) -> Result<(), String> {
         self.tx
-            .blocking_send(bytes)
+            .blocking_send(m)
             .map_err(|_| "the network side has stopped".to_string())
     }
 }

@@ -12,8 +12,11 @@
 //!   `cap` chunks of a version (`distributed.chunks_per_version` with the actors alive) and
 //!   then waits for the next version.
 //! * **Re-send**: delivery is at most once; when the learner is still at the version this
-//!   actor sent its share for `resend_after` after the swap, chunks were lost (a partition, a
+//!   actor sent its share for `resend_after` after the share's last chunk left (not after it was
+//!   wrapped: on a slow link a share takes seconds to leave), chunks were lost (a partition, a
 //!   router restart) and the actor sends another share rather than wait for ever.
+//! * **Staleness before sending** ([`Delivery`]): a queued chunk the learner would drop as too
+//!   old (`distributed.max_policy_lag`) by the time it leaves is dropped instead of sent.
 
 use crate::intake::WeightsKey;
 use dupac_common::ids::ActorId;
@@ -34,6 +37,8 @@ pub struct ChunkOutbox {
     acting: Option<(WeightsKey, Instant)>,
     /// Chunks sent of the current version's share.
     sent_of_share: usize,
+    /// The last chunk that left (sent, or dropped as stale) and when.
+    left: Option<(u64, Instant)>,
 }
 
 impl ChunkOutbox {
@@ -56,6 +61,14 @@ impl ChunkOutbox {
             seq: 0,
             acting: None,
             sent_of_share: 0,
+            left: None,
+        }
+    }
+
+    /// Chunk `seq` left at `at` (the network side sent it, or dropped it as stale).
+    pub fn left(&mut self, seq: u64, at: Instant) {
+        if self.left.is_none_or(|(s, _)| seq > s) {
+            self.left = Some((seq, at));
         }
     }
 
@@ -96,18 +109,24 @@ impl ChunkOutbox {
     }
 
     /// The learner answered a query with `learner_at`: when that is still the version this
-    /// actor acts with, `resend_after` after the swap, its share was lost in transit, and a new
-    /// share starts (`true`, once per `resend_after`).
+    /// actor acts with, every chunk wrapped has left, and `resend_after` has passed since the
+    /// swap and since the last chunk left, its share was lost in transit, and a new share starts
+    /// (`true`, once per `resend_after`).
     pub fn resend_if_lost(&mut self, learner_at: WeightsKey) -> bool {
         self.resend_if_lost_at(learner_at, Instant::now())
     }
 
     /// [`ChunkOutbox::resend_if_lost`] at `now`.
     pub fn resend_if_lost_at(&mut self, learner_at: WeightsKey, now: Instant) -> bool {
+        let all_left = self.seq == 0 || self.left.is_some_and(|(s, _)| s + 1 >= self.seq);
+        let last_left = self.left.map(|(_, at)| at);
         match &mut self.acting {
             Some((key, since))
                 if *key == learner_at
-                    && now.saturating_duration_since(*since) > self.resend_after =>
+                    && all_left
+                    && now
+                        .saturating_duration_since(last_left.map_or(*since, |l| l.max(*since)))
+                        > self.resend_after =>
             {
                 *since = now;
                 self.sent_of_share = 0;
@@ -128,6 +147,72 @@ impl ChunkOutbox {
         self.seq += 1;
         self.sent_of_share += 1;
         Some(chunk)
+    }
+}
+
+/// Whether a chunk acted with `chunk` is too old for a learner at `learner`: another learner
+/// incarnation (its chunks are refused), or more than `max_policy_lag` versions behind (the
+/// learner's `stale` rule).
+pub fn is_stale(chunk: WeightsKey, learner: WeightsKey, max_policy_lag: u64) -> bool {
+    chunk.incarnation != learner.incarnation
+        || learner.version.saturating_sub(chunk.version) > max_policy_lag
+}
+
+/// What an actor's thread and its network side share about outgoing chunks: the newest weights
+/// the learner is known to be at (from publications and query answers), which chunk left last,
+/// and the chunks dropped as stale before sending.
+#[derive(Debug, Clone)]
+pub struct Delivery {
+    max_policy_lag: u64,
+    learner_at: Option<WeightsKey>,
+    left: Option<(u64, Instant)>,
+    /// Chunks dropped before sending: stale by the time their turn came.
+    pub dropped_stale: u64,
+}
+
+impl Delivery {
+    /// Delivery of chunks for a learner keeping `max_policy_lag` versions
+    /// (`distributed.max_policy_lag`).
+    pub fn new(max_policy_lag: u64) -> Delivery {
+        Delivery {
+            max_policy_lag,
+            learner_at: None,
+            left: None,
+            dropped_stale: 0,
+        }
+    }
+
+    /// The learner is at `key` (or later).
+    pub fn learner_at(&mut self, key: WeightsKey) {
+        let newer = self
+            .learner_at
+            .is_none_or(|k| k.incarnation != key.incarnation || key.version > k.version);
+        if newer {
+            self.learner_at = Some(key);
+        }
+    }
+
+    /// Chunk `seq` acted with `key` is next to leave at `now`: `true` to send it, `false` when it
+    /// turned stale while queued (counted; it has left all the same).
+    pub fn admit(&mut self, seq: u64, key: WeightsKey, now: Instant) -> bool {
+        let fresh = self
+            .learner_at
+            .is_none_or(|l| !is_stale(key, l, self.max_policy_lag));
+        if !fresh {
+            self.dropped_stale += 1;
+            self.left = Some((seq, now));
+        }
+        fresh
+    }
+
+    /// Chunk `seq` was handed to zenoh at `now`.
+    pub fn sent(&mut self, seq: u64, now: Instant) {
+        self.left = Some((seq, now));
+    }
+
+    /// The last chunk that left, and when.
+    pub fn last_left(&self) -> Option<(u64, Instant)> {
+        self.left
     }
 }
 
@@ -200,6 +285,7 @@ mod tests {
         o.swap_at(key(1, 4), t0);
         o.wrap(Vec::new());
         o.wrap(Vec::new());
+        o.left(1, t0);
         assert!(o.at_cap(2));
         assert!(
             !o.resend_if_lost_at(key(1, 4), at(4.9)),
@@ -217,6 +303,58 @@ mod tests {
         assert!(!o.at_cap(2), "a new share starts");
         assert!(!o.resend_if_lost_at(key(1, 4), at(10.0)), "once per period");
         assert!(o.resend_if_lost_at(key(1, 4), at(10.2)));
+    }
+
+    /// On a slow link a share leaves long after it was wrapped: the period counts from the
+    /// last chunk that left, and nothing is sent again while chunks are still queued.
+    #[test]
+    fn a_share_still_leaving_is_not_sent_again() {
+        let mut o = outbox(Duration::from_secs(5));
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        o.swap_at(key(1, 4), t0);
+        o.wrap(Vec::new()); // seq 0
+        o.wrap(Vec::new()); // seq 1
+        o.left(0, at(8.0));
+        assert!(
+            !o.resend_if_lost_at(key(1, 4), at(9.0)),
+            "chunk 1 is still queued: nothing lost yet"
+        );
+        o.left(1, at(15.0));
+        assert!(
+            !o.resend_if_lost_at(key(1, 4), at(19.0)),
+            "4 s after the share left: the learner may still be training"
+        );
+        assert!(o.resend_if_lost_at(key(1, 4), at(20.5)));
+    }
+
+    #[test]
+    fn a_chunk_that_turned_stale_in_the_queue_is_not_sent() {
+        let mut d = Delivery::new(1);
+        let t0 = Instant::now();
+        assert!(d.admit(0, key(1, 4), t0), "no learner version known: send");
+        d.learner_at(key(1, 5));
+        assert!(
+            d.admit(1, key(1, 4), t0),
+            "one version behind: still trained on"
+        );
+        d.learner_at(key(1, 3));
+        d.learner_at(key(1, 6));
+        assert!(
+            !d.admit(2, key(1, 4), t0),
+            "two behind: the learner drops it"
+        );
+        assert!(d.admit(3, key(1, 6), t0));
+        d.learner_at(key(2, 1));
+        assert!(!d.admit(4, key(1, 6), t0), "another learner incarnation");
+        assert_eq!(d.dropped_stale, 2);
+        assert_eq!(
+            d.last_left().map(|(s, _)| s),
+            Some(4),
+            "a dropped chunk has left"
+        );
+        d.sent(5, t0);
+        assert_eq!(d.last_left().map(|(s, _)| s), Some(5));
     }
 
     /// The clock the actor uses: a share swapped in now is not re-sent at once.

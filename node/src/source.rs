@@ -4,7 +4,7 @@
 //! update the new weights are broadcast; statistics go out every `distributed.stats_every_s`
 //! (also while waiting for data) and with the last update; a completed run tells actors to stop.
 
-use crate::learner::{LearnerNode, NodeError};
+use crate::learner::{BatchChunks, Gathered, LearnerNode, NodeError};
 use dupac_common::metric;
 use dupac_common::policy::PolicyWeights;
 use dupac_common::validate::DropReason;
@@ -52,10 +52,18 @@ impl TrajectorySource for ZenohSource {
         let last_row = &self.last_row;
         let node = self.node.as_mut().ok_or("the learner node is closed")?;
         let p = *progress;
-        let batch = node.next_batch(policy.version, samples, &stop, &mut |node| {
-            let _ = node.publish_stats(p.update, p.num_updates, p.global_step, last_row, false);
-        });
-        let Some(batch) = batch else { return Ok(None) };
+        let mut batch = BatchChunks::default();
+        loop {
+            let until = node.stats_due_at();
+            match node.gather(&mut batch, policy.version, samples, &stop, until) {
+                Gathered::Full => break,
+                Gathered::Stopped => return Ok(None),
+                // Monitors hear from a learner waiting for data.
+                Gathered::Due => {
+                    node.publish_stats(p.update, p.num_updates, p.global_step, last_row, false)?;
+                }
+            }
+        }
         let mut metrics = BTreeMap::new();
         metrics.insert(metric::WAIT_S.into(), batch.wait_s);
         metrics.insert(metric::CHUNKS.into(), batch.chunks.len() as f64);

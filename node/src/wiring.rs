@@ -4,8 +4,9 @@
 //! query of the learner's weights queryable (for late joiners and missed publications).
 
 use crate::actor_error::{ActorError, z};
-use crate::intake::WeightsIntake;
+use crate::intake::{Answer, WeightsIntake, WeightsKey};
 use crate::netside::{Every, Latest, NetSide};
+use crate::outbox::Delivery;
 use crate::presence::{LOSS_GRACE, PresenceLog};
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
@@ -35,6 +36,8 @@ pub(crate) struct Wiring {
     pub(crate) actors: Arc<Mutex<HashSet<String>>>,
     pub(crate) stop: Arc<AtomicBool>,
     pub(crate) traj: Every,
+    /// What this process and its network side know about outgoing chunks.
+    pub(crate) delivery: Arc<Mutex<Delivery>>,
     pub(crate) stats: Latest,
     pub(crate) net: NetSide,
     _token: zenoh::liveliness::LivelinessToken,
@@ -96,6 +99,7 @@ impl Wiring {
         };
         let mut net = NetSide::new()
             .map_err(|e| ActorError::Zenoh(format!("cannot start the network side: {e}")))?;
+        let delivery = Arc::new(Mutex::new(Delivery::new(cfg.distributed.max_policy_lag)));
         let traj = Every::start(
             &mut net,
             session
@@ -104,6 +108,7 @@ impl Wiring {
                 .wait()
                 .map_err(z)?,
             CHUNKS_IN_FLIGHT,
+            delivery.clone(),
             "trajectory chunk",
         );
         let stats = Latest::start(
@@ -129,6 +134,7 @@ impl Wiring {
             actors,
             stop,
             traj,
+            delivery,
             stats,
             net,
             _token: token,
@@ -160,15 +166,20 @@ impl Wiring {
         self.learners.lock().map(|l| !l.is_empty()).unwrap_or(false)
     }
 
-    /// Asks the learner's queryable for its latest weights: the best reply by `intake`'s rules,
-    /// each reply checked as it arrives (none kept but the best).
+    /// Asks the learner's queryable for its latest weights, naming the weights `intake` holds
+    /// (the learner then answers in a few bytes when they are its newest): the best reply by
+    /// `intake`'s rules, each reply checked as it arrives (none kept but the best).
     pub(crate) fn query_weights(
         &self,
         intake: &mut WeightsIntake,
-    ) -> Result<Option<WeightsMsg>, ActorError> {
+    ) -> Result<Option<Answer>, ActorError> {
+        let selector = match intake.query_parameters() {
+            p if p.is_empty() => self.keys.weights(),
+            p => format!("{}?{p}", self.keys.weights()),
+        };
         let replies = self
             .session
-            .get(self.keys.weights())
+            .get(selector)
             .timeout(Duration::from_secs(2))
             .wait()
             .map_err(z)?;
@@ -200,6 +211,18 @@ impl Wiring {
                 .map_err(|m| ActorError::Refused(m.0)),
             _ => Ok(None),
         }
+    }
+
+    /// The learner is at `key` (or later): chunks older than it allows are not sent.
+    pub(crate) fn learner_at(&self, key: WeightsKey) {
+        if let Ok(mut d) = self.delivery.lock() {
+            d.learner_at(key);
+        }
+    }
+
+    /// The last chunk that left the network side, and when.
+    pub(crate) fn last_left(&self) -> Option<(u64, std::time::Instant)> {
+        self.delivery.lock().ok().and_then(|d| d.last_left())
     }
 
     /// The learner ended the run.
