@@ -24,7 +24,8 @@ use std::collections::BTreeMap;
 /// 12: that observation as TOML text, with the look-ahead keys (`env.observation.site_lookahead_m`).
 /// 13: [`WeightsHeld`], the small reply to a weights query from a process that holds the newest
 /// weights ([`HELD_PARAMETER`]).
-pub const SCHEMA_VERSION: u32 = 13;
+/// 14: the weights' dense layers in half precision ([`crate::policy::wire`]).
+pub const SCHEMA_VERSION: u32 = 14;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -285,10 +286,13 @@ impl TrajectoryChunk {
     }
 }
 
-/// New policy weights from the learner (also the reply of the weights queryable).
+/// New policy weights from the learner (also the reply of the weights queryable). On the wire
+/// the dense layers' weights are half precision ([`crate::policy::wire`]): a decoded message
+/// holds the rounded policy the actors act with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WeightsMsg {
     pub header: Header,
+    #[serde(with = "crate::policy::wire")]
     pub policy: PolicyWeights,
 }
 

@@ -20,6 +20,7 @@
 
 pub mod format8;
 pub mod mlp;
+pub mod wire;
 
 use crate::config::{Config, ObservationConfig};
 use crate::normalize::{ObsNormalizer, RewardScaler};

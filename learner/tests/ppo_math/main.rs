@@ -540,6 +540,46 @@ fn real_weights_fit_the_limits_derived_from_the_configuration() {
     }
 }
 
+/// An update's broadcast with the default configuration (30 sites, the default networks and
+/// observation) is at most 0.4 MB: the dense layers travel in half precision, and the policy
+/// an actor decodes is the learner's rounded to it (each weight within 2⁻¹¹ of itself).
+#[test]
+fn the_default_weights_message_is_at_most_0_4_mb() {
+    use dupac_common::config::Config;
+    use dupac_common::msg::{Header, MsgLimits, WeightsMsg, decode_msg, encode_msg};
+    use dupac_common::obs::ObsLayout;
+    let cfg = Config::default();
+    let n_sites = 30;
+    let obs_dim = ObsLayout::new(&cfg.env.observation, n_sites).len();
+    let learner =
+        dupac_learner::learner::Learner::new(cfg.clone(), obs_dim, n_sites, &Device::flex());
+    let policy = learner.policy();
+    let msg = WeightsMsg {
+        header: Header::new("dupac", 1, dupac_common::ids::ActorId::LEARNER, 2),
+        policy: policy.clone(),
+    };
+    let bytes = encode_msg(&msg).expect("encode");
+    println!("default weights message: {} bytes", bytes.len());
+    assert!(bytes.len() <= 400_000, "{} bytes", bytes.len());
+    let back: WeightsMsg = decode_msg(
+        &bytes,
+        MsgLimits::weights(&cfg, obs_dim, n_sites),
+        "weights",
+    )
+    .expect("decode");
+    let pairs = policy.actor.layers.iter().zip(&back.policy.actor.layers);
+    for (a, b) in pairs {
+        assert_eq!(a.bias, b.bias, "biases in full precision");
+        for (x, y) in a.weight.iter().zip(&b.weight) {
+            assert!(
+                (x - y).abs() <= x.abs() * 2f32.powi(-11) + 6.2e-8,
+                "{x} vs {y}"
+            );
+        }
+    }
+    assert_eq!(back.policy.obs_norm, policy.obs_norm);
+}
+
 /// The hidden layers' tanh on the CPU: its values are the actors' `tanh_f32` (to one rounding
 /// of the linearisation) and its gradient is exactly `1 − h²` of those values; against burn's
 /// own `tanh`, values and gradients agree to 1e-6.
