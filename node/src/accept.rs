@@ -97,10 +97,38 @@ pub fn is_stale(chunk_version: u64, version: u64, max_policy_lag: u64) -> bool {
     chunk_version > version || version - chunk_version > max_policy_lag
 }
 
+/// A valid chunk for `x` from `actor` with sequence number `seq`: one environment, one step
+/// (the node's unit tests).
+#[cfg(test)]
+pub(crate) fn one_step_chunk(x: &ChunkExpect, actor: u32, seq: u64) -> TrajectoryChunk {
+    use dupac_common::msg::{EnvTrajectory, Header};
+    let mut header = Header::new(&x.run_id, x.incarnation, ActorId(actor), x.fingerprint);
+    header.sender_incarnation = 11;
+    header.seq = seq;
+    TrajectoryChunk {
+        header,
+        trajectories: vec![EnvTrajectory {
+            obs_dim: x.obs_dim,
+            obs: vec![0.1; x.obs_dim],
+            moves: vec![0.0; 3],
+            sites: vec![0],
+            logprobs: vec![-1.0],
+            site_logprobs: vec![0.0],
+            values: vec![0.5],
+            rewards: vec![1.0],
+            terminated: vec![false],
+            truncated: vec![false],
+            next_values: vec![0.5],
+            bootstrap_obs: vec![0.1; x.obs_dim],
+            ..EnvTrajectory::default()
+        }],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dupac_common::msg::{EnvTrajectory, Header, encode_msg};
+    use dupac_common::msg::encode_msg;
 
     const RUN: &str = "run-a";
 
@@ -117,30 +145,8 @@ mod tests {
         }
     }
 
-    /// A valid chunk of `actor` with sequence number `seq`: one environment, one step.
     fn chunk(actor: u32, seq: u64) -> TrajectoryChunk {
-        let mut header = Header::new(RUN, 5, ActorId(actor), 7);
-        header.sender_incarnation = 11;
-        header.seq = seq;
-        TrajectoryChunk {
-            header,
-            trajectories: vec![EnvTrajectory {
-                env: 0,
-                obs_dim: 2,
-                obs: vec![0.1, 0.2],
-                moves: vec![0.0; 3],
-                sites: vec![0],
-                logprobs: vec![-1.0],
-                site_logprobs: vec![0.0],
-                values: vec![0.5],
-                rewards: vec![1.0],
-                terminated: vec![false],
-                truncated: vec![false],
-                next_values: vec![0.5],
-                bootstrap_obs: vec![0.1, 0.2],
-                ..EnvTrajectory::default()
-            }],
-        }
+        one_step_chunk(&expect(), actor, seq)
     }
 
     fn bytes(c: &TrajectoryChunk) -> Vec<u8> {

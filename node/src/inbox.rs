@@ -291,7 +291,7 @@ pub(crate) async fn decode_task(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dupac_common::msg::{EnvTrajectory, Header, encode_msg};
+    use dupac_common::msg::encode_msg;
     use dupac_common::validate::ChunkExpect;
 
     const RUN: &str = "run-a";
@@ -311,26 +311,7 @@ mod tests {
 
     /// The bytes of a valid one-step chunk of `actor` with sequence number `seq`.
     fn chunk(actor: u32, seq: u64) -> ZBytes {
-        let mut header = Header::new(RUN, 5, ActorId(actor), 7);
-        header.seq = seq;
-        let c = TrajectoryChunk {
-            header,
-            trajectories: vec![EnvTrajectory {
-                obs_dim: 1,
-                obs: vec![0.0],
-                moves: vec![0.0; 3],
-                sites: vec![0],
-                logprobs: vec![0.0],
-                site_logprobs: vec![0.0],
-                values: vec![0.0],
-                rewards: vec![0.0],
-                terminated: vec![false],
-                truncated: vec![false],
-                next_values: vec![0.0],
-                bootstrap_obs: vec![0.0],
-                ..EnvTrajectory::default()
-            }],
-        };
+        let c = crate::accept::one_step_chunk(&expect(), actor, seq);
         encode_msg(&c).expect("encode").into()
     }
 

@@ -12,7 +12,7 @@
 //! of the same incarnation.
 
 use dupac_common::msg::{MsgLimits, WeightsHeld, WeightsMsg, decode_msg, held_value, is_kind};
-use dupac_common::validate::{ChunkExpect, DropReason, check_header, validate_weights};
+use dupac_common::validate::{ChunkExpect, DropReason, Rejection, check_header, validate_weights};
 
 /// A learner incarnation and a policy version: which weights are in use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,23 +104,35 @@ impl WeightsIntake {
     /// when it is ignored (logged once at debug level and counted in `refused`), `Err` when it
     /// belongs to another run or environment.
     pub fn check(&mut self, bytes: &[u8], origin: &str) -> Result<Option<WeightsMsg>, Mismatch> {
-        let w: WeightsMsg = match decode_msg(bytes, self.limit, origin) {
-            Ok(w) => w,
-            Err(e) => {
+        let Some(w) = self.decode::<WeightsMsg>(bytes, origin) else {
+            return Ok(None);
+        };
+        Ok(self.judge(validate_weights(&w, &self.expect))?.then_some(w))
+    }
+
+    /// `M` decoded within this process's limits; `None` (counted, logged at debug) when it
+    /// cannot be.
+    fn decode<M: dupac_common::msg::Message>(&mut self, bytes: &[u8], origin: &str) -> Option<M> {
+        decode_msg(bytes, self.limit, origin)
+            .map_err(|e| {
                 self.refused += 1;
                 tracing::debug!("weights ignored: {e}");
-                return Ok(None);
-            }
-        };
-        match validate_weights(&w, &self.expect) {
-            Ok(()) => Ok(Some(w)),
+            })
+            .ok()
+    }
+
+    /// A check's verdict: `Ok(true)` passed, `Ok(false)` ignored (counted, logged at debug),
+    /// `Err` another run or environment (fatal).
+    fn judge(&mut self, checked: Result<(), Rejection>) -> Result<bool, Mismatch> {
+        match checked {
+            Ok(()) => Ok(true),
             Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
                 Err(Mismatch(r.detail))
             }
             Err(r) => {
                 self.refused += 1;
                 tracing::debug!("weights ignored: {r}");
-                Ok(None)
+                Ok(false)
             }
         }
     }
@@ -146,24 +158,11 @@ impl WeightsIntake {
                 .check(bytes, origin)?
                 .map(|w| Answer::Weights(Box::new(w))));
         }
-        let h: WeightsHeld = match decode_msg(bytes, self.limit, origin) {
-            Ok(h) => h,
-            Err(e) => {
-                self.refused += 1;
-                tracing::debug!("weights reply ignored: {e}");
-                return Ok(None);
-            }
+        let Some(h) = self.decode::<WeightsHeld>(bytes, origin) else {
+            return Ok(None);
         };
-        match check_header(&h.header, &self.expect) {
-            Ok(()) => {}
-            Err(r) if matches!(r.reason, DropReason::Fingerprint | DropReason::WrongRun) => {
-                return Err(Mismatch(r.detail));
-            }
-            Err(r) => {
-                self.refused += 1;
-                tracing::debug!("weights reply ignored: {r}");
-                return Ok(None);
-            }
+        if !self.judge(check_header(&h.header, &self.expect))? {
+            return Ok(None);
         }
         let key = WeightsKey {
             incarnation: h.header.learner_incarnation,
