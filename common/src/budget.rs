@@ -38,7 +38,7 @@ pub fn with_budget<R>(bytes: usize, f: impl FnOnce() -> R) -> (R, bool) {
 }
 
 /// Charges `bytes` to the running decode's budget; `what` names the collection in the error.
-fn charge<E: Error>(bytes: usize, what: &str) -> Result<(), E> {
+pub(crate) fn charge<E: Error>(bytes: usize, what: &str) -> Result<(), E> {
     LEFT.with(|l| match l.get() {
         None => Ok(()),
         Some(left) if bytes <= left => {

@@ -7,7 +7,8 @@
 //! cargo run -p dupac-node --example join_run -- tcp/127.0.0.1:PORT [RUN] [SECONDS]
 //! ```
 //!
-//! RUN is `distributed.run` (default `dupac`); SECONDS how long to watch (default 30).
+//! RUN is `distributed.run` (default `default`, as the configuration's); SECONDS how long to
+//! watch (default 30).
 
 use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::{KeySpace, Role};
@@ -24,7 +25,7 @@ fn main() -> zenoh::Result<()> {
     let endpoint = args
         .next()
         .ok_or("usage: join_run tcp/HOST:PORT [RUN] [SECONDS]")?;
-    let run = args.next().unwrap_or_else(|| "dupac".to_string());
+    let run = args.next().unwrap_or_else(|| "default".to_string());
     let seconds: u64 = args.next().map(|s| s.parse()).transpose()?.unwrap_or(30);
 
     // The connection arguments every DUPAC process takes.

@@ -417,8 +417,10 @@ pub fn run_actor(
             wiring.stats.set(encode_json(&s)?);
         }
     }
-    report.stale_unsent = wiring.delivery.lock().map_or(0, |d| d.dropped_stale);
+    let delivery = wiring.delivery.clone();
     wiring.close();
+    // After the close: chunks dropped while the queue drained count too.
+    report.stale_unsent = delivery.lock().map_or(0, |d| d.dropped_stale);
     report.refused_weights = acting.intake.refused;
     if let (Some(path), Some(recorded)) = (&opts.record, &rollouts.recorded) {
         write_recording(path, recorded)?;
@@ -431,6 +433,8 @@ pub fn run_actor(
 pub struct Follower {
     wiring: Wiring,
     intake: WeightsIntake,
+    /// When weights last arrived (or were asked for).
+    last_weights_at: Instant,
 }
 
 impl Follower {
@@ -447,6 +451,7 @@ impl Follower {
         Ok(Follower {
             wiring: Wiring::new_pilot(session, cfg, id)?,
             intake: weights_intake(cfg, fingerprint, obs_dim, n_sites),
+            last_weights_at: Instant::now(),
         })
     }
 
@@ -467,10 +472,24 @@ impl Follower {
         Ok(None)
     }
 
-    /// Newer weights than the ones in use, if any arrived.
+    /// Newer weights than the ones in use, if any arrived; after a second without any, while
+    /// the learner is alive and the run goes on, asked for (a publication dropped on a slow
+    /// link).
     pub fn newer(&mut self) -> Result<Option<PolicyWeights>, ActorError> {
-        match self.wiring.receive_weights(&mut self.intake, None)? {
-            Some(w) if self.intake.offer(WeightsKey::of(&w)) != Offer::Stale => Ok(Some(w.policy)),
+        let mut w = self.wiring.receive_weights(&mut self.intake, None)?;
+        let ask = self.wiring.learner_alive() && !self.wiring.stopped();
+        if w.is_none() && ask && self.last_weights_at.elapsed() > QUERY_AFTER {
+            self.last_weights_at = Instant::now();
+            w = self
+                .wiring
+                .query_weights(&mut self.intake)?
+                .and_then(Answer::into_weights);
+        }
+        match w {
+            Some(w) if self.intake.offer(WeightsKey::of(&w)) != Offer::Stale => {
+                self.last_weights_at = Instant::now();
+                Ok(Some(w.policy))
+            }
             _ => Ok(None),
         }
     }

@@ -9,7 +9,9 @@
 //!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
 //! - [`intake`]: which weights an actor or a pilot takes; [`outbox`]: an actor's chunk headers,
-//!   sequence numbers, share per version and re-send; `wiring`: their Zenoh side.
+//!   sequence numbers, share per version and re-send, and what its network side shares
+//!   (`Delivery`: stale chunks dropped before sending); `wiring`: their Zenoh side;
+//!   [`ratelog`]: the warnings a peer can cause, one line per kind per period.
 //! - [`presence`]: peers' departures and returns in the log (a blip at debug, a loss warned
 //!   once, then its return).
 //! - [`netside`]: a node's network side, tokio tasks apart from the compute threads.

@@ -8,7 +8,9 @@
 //! zenoh's receive path; a `Block` sender stalled 5 s loses its transport).
 //!
 //! zenoh 1.10's `put(..).await` and `reply(..).await` run its blocking call in place: a
-//! `Block` publication held up by a slow peer occupies the worker it runs on. Two workers
+//! `Block` publication (an actor's chunks) held up by a slow peer occupies the worker it runs
+//! on; the learner's weights replies therefore run on blocking threads of their own
+//! ([`crate::weights_server`]). Two workers
 //! keep the decode task going beside it, and the decode task yields after each message so
 //! that a backlog does not hold back the publishers.
 

@@ -44,7 +44,7 @@ pub struct ChunkOutbox {
 impl ChunkOutbox {
     /// The outbox of actor `actor` of `run` in world `fingerprint`; `sender_incarnation` is this
     /// process's random id; a share is sent again when the learner is still at its version
-    /// `resend_after` after the swap.
+    /// `resend_after` after the share's last chunk left.
     pub fn new(
         run: &str,
         actor: ActorId,
@@ -150,12 +150,14 @@ impl ChunkOutbox {
     }
 }
 
-/// Whether a chunk acted with `chunk` is too old for a learner at `learner`: another learner
-/// incarnation (its chunks are refused), or more than `max_policy_lag` versions behind (the
-/// learner's `stale` rule).
+/// Whether a chunk acted with `chunk` is too old for a learner known to be at `learner` (or
+/// later): another learner incarnation (its chunks are refused), or stale by the learner's rule
+/// ([`crate::accept::is_stale`]). A chunk of a version newer than the one known is not: the
+/// learner is there already.
 pub fn is_stale(chunk: WeightsKey, learner: WeightsKey, max_policy_lag: u64) -> bool {
     chunk.incarnation != learner.incarnation
-        || learner.version.saturating_sub(chunk.version) > max_policy_lag
+        || (chunk.version <= learner.version
+            && crate::accept::is_stale(chunk.version, learner.version, max_policy_lag))
 }
 
 /// What an actor's thread and its network side share about outgoing chunks: the newest weights

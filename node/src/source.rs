@@ -59,8 +59,10 @@ impl TrajectorySource for ZenohSource {
                 Gathered::Full => break,
                 Gathered::Stopped => return Ok(None),
                 // Monitors hear from a learner waiting for data.
+                // (A stats message that cannot be encoded is not worth stopping the wait for.)
                 Gathered::Due => {
-                    node.publish_stats(p.update, p.num_updates, p.global_step, last_row, false)?;
+                    let _ =
+                        node.publish_stats(p.update, p.num_updates, p.global_step, last_row, false);
                 }
             }
         }

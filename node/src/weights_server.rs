@@ -4,8 +4,8 @@
 //! * **What is answered**: a query that names the learner's newest weights in its `held`
 //!   parameter ([`dupac_common::msg::HELD_PARAMETER`]) gets the small
 //!   [`dupac_common::msg::WeightsHeld`] (the header alone); any other query gets the full
-//!   weights message. An actor at its share asks once a second: on a slow link the full weights
-//!   (≈ 0.8 MB) every second would fill it.
+//!   weights message. An actor that has heard no weights for a second asks, once a second: on a
+//!   slow link the full weights (≈ 0.4 MB) every second would fill it.
 //! * **Replies do not wait on each other**: each reply runs on a blocking thread of its own, at
 //!   most `parallel` at a time (zenoh's reply blocks while the asker's link is full: one slow
 //!   asker must not hold back the others). Queries beyond that wait in the node's bounded
@@ -49,7 +49,7 @@ pub trait WeightsQuery: Send + 'static {
     fn reply(self, bytes: Self::Bytes) -> Result<(), String>;
 }
 
-/// Replies sent, by kind (for the learner's stats).
+/// Replies sent, by kind ([`crate::learner::LearnerNode::weights_replies`]).
 #[derive(Debug, Default)]
 pub struct ReplyCounts {
     /// Full weights messages.
@@ -79,15 +79,16 @@ pub async fn serve<Q: WeightsQuery>(
 ) {
     let permits = Arc::new(Semaphore::new(parallel.max(1)));
     while let Some(query) = queries.recv().await {
+        let Ok(permit) = permits.clone().acquire_owned().await else {
+            break;
+        };
+        // The newest weights once a reply slot is free (not those of when the query came).
         let newest = served.borrow().clone();
         let Some(newest) = newest else {
             tracing::debug!("weights query left unanswered: no weights yet");
             continue;
         };
         let (bytes, small) = newest.answer(query.held().as_deref());
-        let Ok(permit) = permits.clone().acquire_owned().await else {
-            break;
-        };
         let counts = counts.clone();
         tokio::task::spawn_blocking(move || {
             match query.reply(bytes) {

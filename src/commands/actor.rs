@@ -119,13 +119,13 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         report.versions.last().copied().unwrap_or(0),
     );
     println!(
-        "actor {}: {} chunks, {} timesteps, {} weight swaps, {} shares re-sent, {} stale chunks not sent; acted with versions {first}..={last}",
+        "actor {}: {} chunks ({} stale, not sent), {} timesteps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
         opts.id,
         report.chunks_sent,
+        report.stale_unsent,
         report.env_steps,
         report.swaps,
         report.resent_shares,
-        report.stale_unsent,
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -44,14 +44,16 @@ pub struct DistributedConfig {
     /// An actor that published nothing for this long is reported silent (s).
     pub silent_after_s: f64,
     /// An actor that has sent its share for the current version and still sees the learner at
-    /// that version this many seconds after the swap sends another share: its chunks were lost
-    /// (router restart, partition; delivery is at most once). Longer than a PPO update.
+    /// that version this many seconds after the share's last chunk left sends another share:
+    /// its chunks were lost (router restart, partition; delivery is at most once). Longer than
+    /// a PPO update.
     pub resend_after_s: f64,
     /// Interval of the stats messages of learner and actors (s).
     pub stats_every_s: f64,
-    /// Replies per second the learner's weights queryable gives at most (each copies the whole
-    /// policy), with a burst of twice that: actors and pilots query once when they join, a
-    /// flood of queries is left unanswered.
+    /// Replies per second the learner's weights queryable gives at most (the whole policy, or
+    /// ≈ 100 bytes to an asker that holds the newest), with a burst of twice that: actors and
+    /// pilots query when they join and after a second without weights; a flood of queries is
+    /// left unanswered.
     pub weights_replies_per_s: f64,
 }
 

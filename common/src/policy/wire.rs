@@ -21,12 +21,51 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 struct WireDense {
     n_in: usize,
     n_out: usize,
-    /// `f16` values, little-endian, 2 bytes each (bytes: bincode writes a `u16` of 251 or
-    /// more in 3).
-    #[serde(deserialize_with = "crate::budget::vec")]
-    weight: Vec<u8>,
+    /// On the wire `f16` values, little-endian, 2 bytes each, as a sequence of bytes (bincode
+    /// writes a `u16` of 251 or more in 3); in memory the `f32` they round to.
+    #[serde(serialize_with = "half_bytes", deserialize_with = "f32_of_half_bytes")]
+    weight: Vec<f32>,
     #[serde(deserialize_with = "crate::budget::vec")]
     bias: Vec<f32>,
+}
+
+/// `w` as the bytes of its half-precision values.
+fn half_bytes<S: Serializer>(w: &[f32], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(w.iter().flat_map(|&x| to_f16(x).to_le_bytes()))
+}
+
+/// The `f32` values of a sequence of half-precision bytes, decoded as they arrive: what it
+/// allocates (4 bytes per value) is charged to the decode's budget before the allocation
+/// ([`crate::budget`]); an odd number of bytes is refused.
+fn f32_of_half_bytes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
+    struct Halves;
+    impl<'de> serde::de::Visitor<'de> for Halves {
+        type Value = Vec<f32>;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a sequence of half-precision bytes")
+        }
+
+        fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<f32>, A::Error> {
+            let n = seq.size_hint().unwrap_or(0) / 2;
+            crate::budget::charge::<A::Error>(n.saturating_mul(4), "half-precision weights")?;
+            let mut v = Vec::with_capacity(n);
+            while let Some(lo) = seq.next_element::<u8>()? {
+                let Some(hi) = seq.next_element::<u8>()? else {
+                    return Err(serde::de::Error::custom(
+                        "an odd number of half-precision bytes",
+                    ));
+                };
+                if v.len() >= n {
+                    // Beyond the announced length (formats without one): charge as it grows.
+                    crate::budget::charge::<A::Error>(4, "half-precision weights")?;
+                }
+                v.push(f16::from_le_bytes([lo, hi]).to_f32());
+            }
+            Ok(v)
+        }
+    }
+    d.deserialize_seq(Halves)
 }
 
 #[derive(Serialize, Deserialize)]
@@ -78,11 +117,7 @@ impl WireDense {
         WireDense {
             n_in: d.n_in,
             n_out: d.n_out,
-            weight: d
-                .weight
-                .iter()
-                .flat_map(|&w| to_f16(w).to_le_bytes())
-                .collect(),
+            weight: d.weight.clone(),
             bias: d.bias.clone(),
         }
     }
@@ -91,12 +126,7 @@ impl WireDense {
         Dense {
             n_in: self.n_in,
             n_out: self.n_out,
-            // An odd byte left over fails the layer's shape check on the receiving side.
-            weight: self
-                .weight
-                .chunks_exact(2)
-                .map(|b| f16::from_le_bytes([b[0], b[1]]).to_f32())
-                .collect(),
+            weight: self.weight,
             bias: self.bias,
         }
     }
@@ -161,6 +191,37 @@ pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<PolicyWeights, D::
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::{self, CodecError};
+
+    /// A layer of `n` weights encoded as the weights message encodes it.
+    fn layer(n: usize) -> Vec<u8> {
+        let d = Dense {
+            n_in: n,
+            n_out: 1,
+            weight: (0..n).map(|i| i as f32 * 0.01).collect(),
+            bias: vec![0.5],
+        };
+        codec::encode(b"TESTWIRE", 1, &WireDense::of(&d), "layer").expect("encode")
+    }
+
+    fn decode(bytes: &[u8], budget: usize) -> Result<WireDense, CodecError> {
+        codec::decode_budgeted(b"TESTWIRE", 1, bytes, 1 << 20, budget, "layer")
+    }
+
+    /// The f32 values a layer decodes to are what the budget pays for: 1 000 weights need
+    /// 4 000 bytes (+ the bias), though their bytes on the wire are ≈ 2 000.
+    #[test]
+    fn decoding_half_weights_charges_the_f32_they_become() {
+        let bytes = layer(1000);
+        assert!(bytes.len() < 2100, "{} bytes on the wire", bytes.len());
+        let d = decode(&bytes, 4100).expect("within budget").into_dense();
+        assert_eq!(d.weight.len(), 1000);
+        assert_eq!(d.weight[100], rounded(1.0));
+        assert!(
+            matches!(decode(&bytes, 3000), Err(CodecError::OverBudget { .. })),
+            "4 000 bytes of f32 against a budget of 3 000"
+        );
+    }
 
     #[test]
     fn half_precision_rounds_within_its_step_and_saturates_instead_of_overflowing() {
