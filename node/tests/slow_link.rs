@@ -217,8 +217,12 @@ fn a_query_for_weights_already_held_gets_a_small_reply() {
         "an older version gets the weights"
     );
     // The counts follow each reply on its own thread.
+    // (A query asked again after a reply too late to count adds a full one.)
     assert!(
-        wait_for(Duration::from_secs(10), || node.weights_replies() == (2, 1)),
+        wait_for(Duration::from_secs(10), || {
+            let (full, held) = node.weights_replies();
+            full >= 2 && held == 1
+        }),
         "replies (full, held): {:?}",
         node.weights_replies()
     );
