@@ -97,6 +97,22 @@ pub fn is_stale(chunk_version: u64, version: u64, max_policy_lag: u64) -> bool {
     chunk_version > version || version - chunk_version > max_policy_lag
 }
 
+/// What the node's unit tests' learner expects: run `run-a`, incarnation 5, fingerprint 7,
+/// `obs_dim` observations, no sites, up to 2 environments × 4 steps.
+#[cfg(test)]
+pub(crate) fn test_expect(obs_dim: usize) -> ChunkExpect {
+    ChunkExpect {
+        run_id: "run-a".into(),
+        incarnation: 5,
+        fingerprint: 7,
+        obs_dim,
+        n_sites: 0,
+        max_envs: 2,
+        max_steps: 4,
+        site_steps: None,
+    }
+}
+
 /// A valid chunk for `x` from `actor` with sequence number `seq`: one environment, one step
 /// (the node's unit tests).
 #[cfg(test)]
@@ -130,19 +146,8 @@ mod tests {
     use super::*;
     use dupac_common::msg::encode_msg;
 
-    const RUN: &str = "run-a";
-
     fn expect() -> ChunkExpect {
-        ChunkExpect {
-            run_id: RUN.into(),
-            incarnation: 5,
-            fingerprint: 7,
-            obs_dim: 2,
-            n_sites: 0,
-            max_envs: 2,
-            max_steps: 4,
-            site_steps: None,
-        }
+        test_expect(2)
     }
 
     fn chunk(actor: u32, seq: u64) -> TrajectoryChunk {

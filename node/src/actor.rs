@@ -204,7 +204,6 @@ impl Acting {
             }
         }
         if let Some(w) = incoming {
-            wiring.learner_at(WeightsKey::of(&w));
             let offer = self.intake.offer(WeightsKey::of(&w));
             if offer == Offer::NewIncarnation {
                 tracing::info!(
@@ -213,6 +212,9 @@ impl Acting {
                 );
             }
             if offer != Offer::Stale {
+                // Only weights taken say where the learner is (a late publication of an earlier
+                // incarnation would make every fresh chunk look stale).
+                wiring.learner_at(WeightsKey::of(&w));
                 self.last_weights_at = Instant::now();
                 self.policy = Some((Arc::new(w.policy), w.header.sent_unix_ms));
                 self.waiting_logged = false;

@@ -297,16 +297,7 @@ mod tests {
     const RUN: &str = "run-a";
 
     fn expect() -> ChunkExpect {
-        ChunkExpect {
-            run_id: RUN.into(),
-            incarnation: 5,
-            fingerprint: 7,
-            obs_dim: 1,
-            n_sites: 0,
-            max_envs: 1,
-            max_steps: 1,
-            site_steps: None,
-        }
+        crate::accept::test_expect(1)
     }
 
     /// The bytes of a valid one-step chunk of `actor` with sequence number `seq`.
