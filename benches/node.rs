@@ -1,17 +1,20 @@
-//! The wire: encode, decode and validate a trajectory chunk of the default size
-//! (`distributed.actor_envs` 4 × `chunk_steps` 128 steps, 101 observations, 30 sites) and a
-//! weights message of the default network (2 × 256 tanh actor and critic).
+//! The wire: encode, decode, validate and expand a compact trajectory chunk of the default size
+//! (`distributed.actor_envs` 4 × `chunk_steps` 128 decisions of 5 steps, 30 sites, random
+//! states) and a weights message of a 2 × 256 network over 101 observations.
 //!
 //! Run: `cargo bench --bench node`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use dupac_actor::expand::Expander;
+use dupac_common::config::Config;
+use dupac_common::geometry::{Bounds2, Point, Point2};
 use dupac_common::ids::ActorId;
 use dupac_common::msg::{
-    EnvTrajectory, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
+    ExpandedChunk, Header, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
 use dupac_common::normalize::{ObsNormalizer, RewardScaler};
 use dupac_common::policy::{MOVE_DIM, PolicyWeights};
-use dupac_common::validate::{ChunkExpect, validate_chunk};
+use dupac_common::validate::{ChunkExpect, SiteSteps, validate_chunk, validate_compact};
 use dupac_learner::model::init_plain;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -22,49 +25,52 @@ const SITES: usize = 30;
 const ENVS: usize = 4;
 const STEPS: usize = 128;
 
-fn chunk() -> TrajectoryChunk {
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let mut f = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.random_range(-2.0f32..2.0)).collect() };
-    let trajectories = (0..ENVS)
-        .map(|k| EnvTrajectory {
-            env: k as u32,
-            obs_dim: OBS,
-            obs: f(STEPS * OBS),
-            moves: f(STEPS * MOVE_DIM),
-            sites: (0..STEPS as u32).map(|t| t % SITES as u32).collect(),
-            logprobs: f(STEPS),
-            site_logprobs: f(STEPS),
-            site_rewards: f(STEPS * SITES),
-            decision_steps: vec![],
-            step_site_features: vec![],
-            step_site_rewards: vec![],
-            values: f(STEPS),
-            rewards: f(STEPS),
-            terminated: vec![false; STEPS],
-            truncated: vec![false; STEPS],
-            next_values: f(STEPS),
-            bootstrap_obs: f(OBS),
-            episodes: vec![],
+/// The default scenario's shape (30 sites, a site chosen at each of a decision's 5 steps, the
+/// path guide and the sensor fan) over 30 random sites in a 2 km square.
+fn expander() -> Expander {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let sites = (0..SITES)
+        .map(|_| {
+            Point::new(
+                rng.random_range(-1000.0..1000.0),
+                rng.random_range(-1000.0..1000.0),
+                rng.random_range(20.0..60.0),
+            )
         })
         .collect();
+    let area = Bounds2 {
+        min_m: Point2::new(-1000.0, -1000.0),
+        max_m: Point2::new(1000.0, 1000.0),
+    };
+    Expander::of_sites(&Config::default(), area, sites)
+}
+
+fn chunk(x: &Expander) -> TrajectoryChunk {
     TrajectoryChunk {
         header: Header::new("bench", 1, ActorId(0), 2),
-        trajectories,
+        trajectories: (0..ENVS)
+            .map(|k| {
+                let mut tr = x.sample_trajectory(STEPS, k as u64);
+                tr.env = k as u32;
+                tr
+            })
+            .collect(),
     }
 }
 
 fn benches(c: &mut Criterion) {
-    let ch = chunk();
+    let x = expander();
+    let ch = chunk(&x);
     let bytes = encode_msg(&ch).expect("encode");
     let expect = ChunkExpect {
         run_id: "bench".into(),
         incarnation: 1,
         fingerprint: 2,
-        obs_dim: OBS,
+        obs_dim: x.layout().len(),
         n_sites: SITES,
         max_envs: ENVS,
         max_steps: STEPS,
-        site_steps: None,
+        site_steps: SiteSteps::of(&Config::default()),
     };
     let mut g = c.benchmark_group("chunk_4x128");
     g.throughput(Throughput::Bytes(bytes.len() as u64));
@@ -81,7 +87,7 @@ fn benches(c: &mut Criterion) {
             .expect("decode")
         })
     });
-    g.bench_function("decode_and_validate", |b| {
+    g.bench_function("decode_validate_expand", |b| {
         b.iter(|| {
             let c = decode_msg::<TrajectoryChunk>(
                 black_box(&bytes),
@@ -89,8 +95,17 @@ fn benches(c: &mut Criterion) {
                 "bench",
             )
             .expect("decode");
-            validate_chunk(&c, &expect).expect("valid");
-            c
+            validate_compact(&c, &expect).expect("valid");
+            let e = ExpandedChunk {
+                header: c.header.clone(),
+                trajectories: c
+                    .trajectories
+                    .iter()
+                    .map(|t| x.trajectory(t, usize::MAX).expect("expands"))
+                    .collect(),
+            };
+            validate_chunk(&e, &expect).expect("valid");
+            e
         })
     });
     g.finish();

@@ -2,6 +2,7 @@
 //! planners (shortest flyable path, coverage-aware path) and the episode pairs.
 
 pub mod env;
+pub mod expand;
 pub mod metrics;
 pub mod pairs;
 pub mod pilot;

@@ -8,6 +8,7 @@ use crate::env::{Action, Env, EnvError, Episode, Step};
 use crate::metrics::EpisodeAccumulator;
 use crate::pairs::Pair;
 use crate::record::StepInfo;
+use dupac_common::compact::CompactTrajectory;
 use dupac_common::geometry::Vector;
 use dupac_common::ids::SiteId;
 use dupac_common::msg::{EnvTrajectory, EpisodeSummary, Outcome};
@@ -23,6 +24,8 @@ use std::sync::Arc;
 pub enum RolloutError {
     #[error(transparent)]
     Env(#[from] EnvError),
+    #[error(transparent)]
+    Expand(#[from] crate::expand::ExpandError),
     #[error("the episode pool is empty")]
     EmptyPool,
     #[error("the policy expects observations of {policy}, the environment gives {env}")]
@@ -151,13 +154,24 @@ impl Worker {
         Ok(())
     }
 
-    /// Steps the environment `steps` times with actions sampled from `policy`, starting new
-    /// episodes as they end.
-    pub fn collect(
+    /// [`Worker::collect`] expanded: the trajectory PPO trains on (a trainer without a wire).
+    pub fn collect_expanded(
         &mut self,
         policy: &PolicyWeights,
         steps: usize,
     ) -> Result<EnvTrajectory, RolloutError> {
+        let c = self.collect(policy, steps)?;
+        Ok(self.env.expander().trajectory(&c, usize::MAX)?)
+    }
+
+    /// Steps the environment `steps` times with actions sampled from `policy`, starting new
+    /// episodes as they end; returns the compact trajectory (what an actor sends; its
+    /// expansion, [`crate::expand::Expander::trajectory`], is what the policy acted on).
+    pub fn collect(
+        &mut self,
+        policy: &PolicyWeights,
+        steps: usize,
+    ) -> Result<CompactTrajectory, RolloutError> {
         let d = self.env.layout().len();
         if policy.obs_dim != d {
             return Err(RolloutError::ObsMismatch {
@@ -174,15 +188,13 @@ impl Worker {
         policy
             .check_observation(&self.env.config().observation)
             .map_err(RolloutError::ObservationMismatch)?;
-        let mut tr = EnvTrajectory {
+        let mut tr = CompactTrajectory {
             env: self.index,
-            obs_dim: d,
-            obs: Vec::with_capacity(steps * d),
             moves: Vec::with_capacity(steps * MOVE_DIM),
-            ..EnvTrajectory::default()
+            ..CompactTrajectory::default()
         };
         for _ in 0..steps {
-            tr.obs.extend_from_slice(&self.obs);
+            record_observation(&mut tr, &self.env);
             let rng = &mut self.rng;
             let a = policy.act_sample(&self.obs, &mut self.scratch, || rng.random::<f64>());
             // One decision: `env.action_repeat` steps of the environment.
@@ -201,19 +213,7 @@ impl Worker {
             tr.sites.push(a.site);
             tr.logprobs.push(a.logprob);
             tr.site_logprobs.push(a.site_logprob);
-            // Every site's reward, for the all-sites site gradient (learned association only):
-            // of the decision, or of each of its steps when the site is chosen every step.
-            if self.env.site_every_step() {
-                // At most env.action_repeat ≤ 1000 steps (config).
-                tr.decision_steps.push(self.env.substeps().len() as u16);
-                tr.step_site_features
-                    .extend_from_slice(self.env.step_site_features());
-                tr.step_site_rewards
-                    .extend(self.env.step_site_rewards().iter().map(|&r| r as f32));
-            } else if policy.n_sites != 0 {
-                tr.site_rewards
-                    .extend(self.env.site_rewards().iter().map(|&r| r as f32));
-            }
+            record_decision(&mut tr, &self.env);
             tr.values.push(a.value);
             tr.rewards.push(step.reward as f32);
             tr.terminated.push(step.terminated);
@@ -247,8 +247,39 @@ impl Worker {
                 };
             }
         }
-        tr.bootstrap_obs = self.obs.clone();
+        record_observation(&mut tr, &self.env);
         Ok(tr)
+    }
+}
+
+/// Appends to `c` the rows `env`'s current observation is the expansion of (before a decision,
+/// or the bootstrap state after the last).
+pub fn record_observation(c: &mut CompactTrajectory, env: &Env) {
+    let shape = env.expander().shape();
+    let (trunk, state) = env.observed_rows();
+    c.push_trunk(shape, trunk);
+    c.push_state(shape, state);
+}
+
+/// Appends to `c` what `env`'s last decision recorded beyond its observation: its steps,
+/// whether it crashed and, with a learned site, its later states, each step's progress and
+/// site-independent reward, and the RSRP codes its rewards score (the policy's outputs are the
+/// caller's).
+pub fn record_decision(c: &mut CompactTrajectory, env: &Env) {
+    let shape = env.expander().shape();
+    // At most env.action_repeat ≤ 1000 steps (config).
+    c.decision_steps.push(env.substeps().len() as u16);
+    let record = env.decision_record();
+    c.crashed.push(record.crashed);
+    if shape.learned {
+        for state in record.states.iter().skip(1) {
+            c.push_state(shape, state);
+        }
+        for s in &record.steps {
+            c.progress_m.push(s.progress_m);
+            c.common_reward.push(s.common);
+        }
+        c.reward_rsrp_codes.extend_from_slice(&record.reward_rsrp);
     }
 }
 

@@ -7,6 +7,7 @@
 
 pub mod budget;
 pub mod codec;
+pub mod compact;
 pub mod config;
 pub mod dedup;
 pub mod fault;

@@ -7,6 +7,7 @@
 //! on the wire and what decoding may allocate).
 
 use crate::codec::{self, CodecError};
+use crate::compact::CompactTrajectory;
 use crate::ids::ActorId;
 use crate::policy::PolicyWeights;
 use serde::{Deserialize, Serialize};
@@ -25,7 +26,8 @@ use std::collections::BTreeMap;
 /// 13: [`WeightsHeld`], the small reply to a weights query from a process that holds the newest
 /// weights ([`HELD_PARAMETER`]).
 /// 14: the weights' dense layers in half precision ([`crate::policy::wire`]).
-pub const SCHEMA_VERSION: u32 = 14;
+/// 15: trajectories in compact form ([`crate::compact::CompactTrajectory`]).
+pub const SCHEMA_VERSION: u32 = 15;
 
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -116,7 +118,8 @@ impl EpisodeSummary {
     }
 }
 
-/// One environment's steps of a rollout, time-ordered: what PPO needs.
+/// One environment's steps of a rollout, time-ordered: what PPO needs (the expansion of a
+/// [`crate::compact::CompactTrajectory`]; never on the wire).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct EnvTrajectory {
     /// Environment (stream) index within its actor: reward scaling keeps one discounted return
@@ -271,16 +274,31 @@ pub fn unix_ms() -> u64 {
         .unwrap_or(0)
 }
 
-/// An actor's trajectories of one chunk: `actor_envs` environments × `chunk_steps` steps.
+/// An actor's trajectories of one chunk: `actor_envs` environments × `chunk_steps` decisions,
+/// in compact form.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrajectoryChunk {
     pub header: Header,
     #[serde(deserialize_with = "crate::budget::vec")]
-    pub trajectories: Vec<EnvTrajectory>,
+    pub trajectories: Vec<CompactTrajectory>,
 }
 
 impl TrajectoryChunk {
-    /// Samples (environment steps) in the chunk.
+    /// Samples (decisions) in the chunk.
+    pub fn samples(&self) -> usize {
+        self.trajectories.iter().map(CompactTrajectory::len).sum()
+    }
+}
+
+/// A chunk as the learner trains on it: its header and the expansion of each trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExpandedChunk {
+    pub header: Header,
+    pub trajectories: Vec<EnvTrajectory>,
+}
+
+impl ExpandedChunk {
+    /// Samples (decisions) in the chunk.
     pub fn samples(&self) -> usize {
         self.trajectories.iter().map(EnvTrajectory::len).sum()
     }

@@ -6,8 +6,8 @@
 use crate::codec::CodecError;
 use crate::config::{Association, Config};
 use crate::msg::{
-    EnvTrajectory, EpisodeSummary, HEADER_BUDGET_BYTES, Header, MsgLimits, SCHEMA_VERSION,
-    STATS_BUDGET_BYTES, TrajectoryChunk, WeightsMsg,
+    EnvTrajectory, EpisodeSummary, ExpandedChunk, HEADER_BUDGET_BYTES, Header, MsgLimits,
+    SCHEMA_VERSION, STATS_BUDGET_BYTES, TrajectoryChunk, WeightsMsg,
 };
 use crate::policy::{MOVE_DIM, weights_budget_bytes};
 use std::fmt;
@@ -256,42 +256,78 @@ pub fn check_header(h: &Header, x: &ChunkExpect) -> Result<(), Rejection> {
     Ok(())
 }
 
-/// Validates a decoded chunk's header, sizes, dimensions and numbers (not its staleness, which
-/// depends on the learner's version at use).
-pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Rejection> {
-    check_header(&c.header, x)?;
-    if c.header.learner_incarnation != x.incarnation {
+/// Checks a received compact chunk before its expansion: the header, the learner incarnation,
+/// the number of environments and, per trajectory, its environment id, its decisions, sites and
+/// episodes (the columns' shapes and numbers are the expansion's to check,
+/// `dupac_actor::expand::Expander::trajectory`).
+pub fn validate_compact(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_chunk_header(&c.header, c.trajectories.len(), x)?;
+    let dims = |d: String| reject(DropReason::Dimensions, d);
+    for (k, tr) in c.trajectories.iter().enumerate() {
+        let at = |what: &str| format!("trajectory {k}: {what}");
+        check_counts(k, tr.env, tr.len(), tr.episodes.len(), x)?;
+        let max_site = x.n_sites.max(1) as u32;
+        if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
+            return Err(dims(at(&format!("site {s} outside 0..{max_site}"))));
+        }
+    }
+    Ok(())
+}
+
+/// The header, the learner incarnation and the number of environments of a chunk.
+fn check_chunk_header(h: &Header, envs: usize, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_header(h, x)?;
+    if h.learner_incarnation != x.incarnation {
         return Err(reject(
             DropReason::Incarnation,
             format!(
                 "acted with weights of learner incarnation {:016x}, this one is {:016x}",
-                c.header.learner_incarnation, x.incarnation
+                h.learner_incarnation, x.incarnation
             ),
         ));
     }
-    let dims = |d: String| reject(DropReason::Dimensions, d);
-    if c.trajectories.is_empty() || c.trajectories.len() > x.max_envs {
+    if envs == 0 || envs > x.max_envs {
+        return Err(reject(
+            DropReason::Dimensions,
+            format!("{envs} environments (1..={} allowed)", x.max_envs),
+        ));
+    }
+    Ok(())
+}
+
+/// Trajectory `k`'s environment id, decisions `t` and episodes.
+fn check_counts(
+    k: usize,
+    env: u32,
+    t: usize,
+    episodes: usize,
+    x: &ChunkExpect,
+) -> Result<(), Rejection> {
+    let dims = |d: String| reject(DropReason::Dimensions, format!("trajectory {k}: {d}"));
+    if env as usize >= x.max_envs {
         return Err(dims(format!(
-            "{} environments (1..={} allowed)",
-            c.trajectories.len(),
+            "environment id {env} outside 0..{}",
             x.max_envs
         )));
     }
+    if t == 0 || t > x.max_steps {
+        return Err(dims(format!("{t} steps (1..={} allowed)", x.max_steps)));
+    }
+    if episodes > t {
+        return Err(dims(format!("{episodes} episodes in {t} steps")));
+    }
+    Ok(())
+}
+
+/// Validates an expanded chunk's header, sizes, dimensions and numbers (not its staleness,
+/// which depends on the learner's version at use).
+pub fn validate_chunk(c: &ExpandedChunk, x: &ChunkExpect) -> Result<(), Rejection> {
+    check_chunk_header(&c.header, c.trajectories.len(), x)?;
+    let dims = |d: String| reject(DropReason::Dimensions, d);
     for (k, tr) in c.trajectories.iter().enumerate() {
         let t = tr.len();
         let at = |what: &str| format!("trajectory {k}: {what}");
-        if tr.env as usize >= x.max_envs {
-            return Err(dims(at(&format!(
-                "environment id {} outside 0..{}",
-                tr.env, x.max_envs
-            ))));
-        }
-        if t == 0 || t > x.max_steps {
-            return Err(dims(at(&format!(
-                "{t} steps (1..={} allowed)",
-                x.max_steps
-            ))));
-        }
+        check_counts(k, tr.env, t, tr.episodes.len(), x)?;
         if tr.obs_dim != x.obs_dim {
             return Err(dims(at(&format!(
                 "observation size {}, expected {}",
@@ -328,12 +364,6 @@ pub fn validate_chunk(c: &TrajectoryChunk, x: &ChunkExpect) -> Result<(), Reject
         let max_site = x.n_sites.max(1) as u32;
         if let Some(s) = tr.sites.iter().find(|&&s| s >= max_site) {
             return Err(dims(at(&format!("site {s} outside 0..{max_site}"))));
-        }
-        if tr.episodes.len() > t {
-            return Err(dims(at(&format!(
-                "{} episodes in {t} steps",
-                tr.episodes.len()
-            ))));
         }
         if let Some(what) = tr.first_non_finite() {
             return Err(reject(DropReason::NonFinite, at(&what)));
@@ -431,6 +461,7 @@ pub fn validate_weights(w: &WeightsMsg, x: &ChunkExpect) -> Result<(), Rejection
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::compact::{CompactShape, CompactTrajectory, StateRow, TrunkRow};
     use crate::ids::ActorId;
     use crate::msg::{
         Command, ControlMsg, EnvTrajectory, EpisodeSummary, Outcome, decode_msg, encode_msg,
@@ -456,10 +487,54 @@ mod tests {
         }
     }
 
-    fn chunk() -> TrajectoryChunk {
+    /// A compact chunk of two decisions, one state each (no learned site).
+    fn wire() -> TrajectoryChunk {
         let mut h = Header::new("r", 7, ActorId(1), 9);
         h.policy_version = 3;
+        let shape = CompactShape {
+            n_sites: 3,
+            path_guide: false,
+            path_offset: false,
+            sensor_fan: false,
+            learned: false,
+            lookahead: 0,
+            stay: false,
+            true_rsrp_every_step: false,
+        };
+        let mut tr = CompactTrajectory {
+            moves: vec![0.0; 6],
+            sites: vec![0, 2],
+            logprobs: vec![-1.0; 2],
+            site_logprobs: vec![0.0; 2],
+            values: vec![0.5; 2],
+            rewards: vec![1.0; 2],
+            terminated: vec![false, true],
+            truncated: vec![false; 2],
+            next_values: vec![0.5, 0.0],
+            decision_steps: vec![1, 1],
+            crashed: vec![false; 2],
+            ..CompactTrajectory::default()
+        };
+        let state = StateRow {
+            rsrp: vec![100, 0, 255],
+            los: vec![0],
+            ..StateRow::default()
+        };
+        for _ in 0..3 {
+            tr.push_trunk(&shape, &TrunkRow::default());
+            tr.push_state(&shape, &state);
+        }
+        assert_eq!(tr.shape_error(&shape, 1), None);
         TrajectoryChunk {
+            header: h,
+            trajectories: vec![tr],
+        }
+    }
+
+    fn chunk() -> ExpandedChunk {
+        let mut h = Header::new("r", 7, ActorId(1), 9);
+        h.policy_version = 3;
+        ExpandedChunk {
             header: h,
             trajectories: vec![EnvTrajectory {
                 env: 0,
@@ -486,17 +561,61 @@ mod tests {
 
     #[test]
     fn a_valid_chunk_round_trips_and_passes() {
-        let c = chunk();
+        let c = wire();
         let bytes = encode_msg(&c).expect("encode");
         let d: TrajectoryChunk = decode_msg(&bytes, lim(1 << 20), "k").expect("decode");
         assert_eq!(d, c);
-        assert_eq!(validate_chunk(&d, &expect()), Ok(()));
+        assert_eq!(validate_compact(&d, &expect()), Ok(()));
+        assert_eq!(validate_chunk(&chunk(), &expect()), Ok(()));
+    }
+
+    #[test]
+    fn every_defect_of_a_compact_chunk_has_its_reason() {
+        let x = expect();
+        let reason = |f: &dyn Fn(&mut TrajectoryChunk)| {
+            let mut c = wire();
+            f(&mut c);
+            validate_compact(&c, &x).map_err(|r| r.reason)
+        };
+        assert_eq!(reason(&|_| {}), Ok(()));
+        assert_eq!(
+            reason(&|c| c.header.run_id = "x".into()),
+            Err(DropReason::WrongRun)
+        );
+        assert_eq!(
+            reason(&|c| c.header.schema_version = 0),
+            Err(DropReason::Schema)
+        );
+        assert_eq!(
+            reason(&|c| c.header.config_fingerprint = 1),
+            Err(DropReason::Fingerprint)
+        );
+        assert_eq!(
+            reason(&|c| c.header.learner_incarnation = 1),
+            Err(DropReason::Incarnation)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].sites[1] = 3),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories = vec![c.trajectories[0].clone(); 5]),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].env = 4),
+            Err(DropReason::Dimensions)
+        );
+        assert_eq!(
+            reason(&|c| c.trajectories[0].rewards = vec![0.0; 9]),
+            Err(DropReason::Dimensions)
+        );
     }
 
     #[test]
     fn every_defect_has_its_reason() {
         let x = expect();
-        let reason = |f: &dyn Fn(&mut TrajectoryChunk)| {
+        let reason = |f: &dyn Fn(&mut ExpandedChunk)| {
             let mut c = chunk();
             f(&mut c);
             validate_chunk(&c, &x).map_err(|r| r.reason)
@@ -549,7 +668,7 @@ mod tests {
 
     #[test]
     fn decoding_names_garbage_schema_and_size() {
-        let bytes = encode_msg(&chunk()).expect("encode");
+        let bytes = encode_msg(&wire()).expect("encode");
         let e = decode_msg::<TrajectoryChunk>(b"not a message at all", lim(1 << 20), "k")
             .expect_err("garbage");
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
@@ -573,9 +692,9 @@ mod tests {
         assert_eq!(DropReason::of_codec(&e), DropReason::Garbage);
     }
 
-    /// A chunk with every vector at its largest: `max_envs × max_steps` steps, site rewards,
-    /// one episode per step.
-    fn maximal(x: &ChunkExpect) -> TrajectoryChunk {
+    /// A compact chunk with every vector at its largest for `shape`: `max_envs × max_steps`
+    /// decisions of `env.action_repeat` steps, one episode per decision.
+    fn maximal(x: &ChunkExpect, shape: &CompactShape, repeat: u16) -> TrajectoryChunk {
         let t = x.max_steps;
         let summary = EpisodeSummary {
             pair_id: u64::MAX,
@@ -598,82 +717,116 @@ mod tests {
         let mut h = Header::new(&"r".repeat(64), u64::MAX, ActorId(u32::MAX), u64::MAX);
         h.seq = u64::MAX;
         h.sender_incarnation = u64::MAX;
-        // Per-step site rows (every decision at its longest) or decision-level site rewards.
-        let (steps, rows, feats) = x.site_steps.map_or((0, 0, 0), |k| {
-            (k.per_decision, t * k.per_decision, k.features)
-        });
+        let m = shape.n_sites;
+        let state = StateRow {
+            position_m: [1.0; 3],
+            velocity_xy: [u16::MAX; 2],
+            serving: m as u16 - 1,
+            ping_pong: m as u16,
+            rsrp: vec![255; m],
+            los: vec![255; shape.los_bytes()],
+            lookahead: vec![255; m * shape.lookahead],
+            stay: vec![255; if shape.stay { m } else { 0 }],
+            choice: m as u16,
+        };
+        let trunk = TrunkRow {
+            velocity_z: u16::MAX,
+            ..TrunkRow::default()
+        };
+        let per = usize::from(repeat);
+        // Steps with site rows: every decision's, when the site is learned.
+        let rows = if shape.learned { t * per } else { 0 };
+        let states = if shape.learned { t * per } else { t };
         TrajectoryChunk {
             header: h,
             trajectories: (0..x.max_envs)
-                .map(|k| EnvTrajectory {
-                    env: k as u32,
-                    obs_dim: x.obs_dim,
-                    obs: vec![1.0; t * x.obs_dim],
-                    moves: vec![1.0; t * MOVE_DIM],
-                    sites: vec![x.n_sites as u32 - 1; t],
-                    logprobs: vec![1.0; t],
-                    site_logprobs: vec![1.0; t],
-                    site_rewards: if steps == 0 {
-                        vec![1.0; t * x.n_sites]
-                    } else {
-                        vec![]
-                    },
-                    decision_steps: vec![steps as u16; if steps == 0 { 0 } else { t }],
-                    step_site_features: vec![1.0; rows * x.n_sites * feats],
-                    step_site_rewards: vec![1.0; rows * x.n_sites],
-                    values: vec![1.0; t],
-                    rewards: vec![1.0; t],
-                    terminated: vec![true; t],
-                    truncated: vec![false; t],
-                    next_values: vec![1.0; t],
-                    bootstrap_obs: vec![1.0; x.obs_dim],
-                    episodes: vec![summary.clone(); t],
+                .map(|k| {
+                    let mut tr = CompactTrajectory {
+                        env: k as u32,
+                        moves: vec![1.0; t * MOVE_DIM],
+                        sites: vec![x.n_sites.max(1) as u32 - 1; t],
+                        logprobs: vec![1.0; t],
+                        site_logprobs: vec![1.0; t],
+                        values: vec![1.0; t],
+                        rewards: vec![1.0; t],
+                        terminated: vec![true; t],
+                        truncated: vec![false; t],
+                        next_values: vec![1.0; t],
+                        decision_steps: vec![repeat; t],
+                        crashed: vec![true; t],
+                        progress_m: vec![1.0; rows],
+                        common_reward: vec![1.0; rows],
+                        reward_rsrp_codes: vec![255; rows * m],
+                        episodes: vec![summary.clone(); t],
+                        ..CompactTrajectory::default()
+                    };
+                    for _ in 0..=t {
+                        tr.push_trunk(shape, &trunk);
+                    }
+                    for _ in 0..=states {
+                        tr.push_state(shape, &state);
+                    }
+                    assert_eq!(tr.shape_error(shape, per), None);
+                    tr
                 })
                 .collect(),
         }
     }
 
+    /// The budget derived from the expected shape ([`ChunkExpect::budget_bytes`], which also
+    /// bounds the expansion) admits the largest valid compact chunk, on the wire and decoded:
+    /// the default scenario's 30 sites, 5 steps per decision, three look-ahead distances, the
+    /// stay fractions and the true RSRP of every step (the largest per-state columns).
     #[test]
     fn the_largest_valid_chunk_fits_its_derived_limits() {
         let x = ChunkExpect {
             run_id: "r".repeat(64),
-            obs_dim: 404,
+            obs_dim: 108 + 30 * 15,
             n_sites: 30,
             max_envs: 4,
             max_steps: 128,
-            site_steps: None,
-            ..expect()
-        };
-        let c = maximal(&x);
-        let bytes = encode_msg(&c).expect("encode");
-        let need = x.budget_bytes();
-        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
-        let limits = MsgLimits {
-            bytes: need,
-            budget_bytes: need,
-        };
-        let d: TrajectoryChunk = decode_msg(&bytes, limits, "k").expect("fits its budget");
-        assert_eq!(d.samples(), 4 * 128);
-        // The bound is not wildly loose either: within 2× of the real size.
-        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
-        // With a site chosen every step (5 steps per decision, 10 features per site).
-        let per_step = ChunkExpect {
             site_steps: Some(SiteSteps {
                 per_decision: 5,
-                features: 10,
+                features: 15,
             }),
-            ..x.clone()
+            ..expect()
         };
-        let c = maximal(&per_step);
+        let shape = CompactShape {
+            n_sites: 30,
+            path_guide: true,
+            path_offset: true,
+            sensor_fan: true,
+            learned: true,
+            lookahead: 3,
+            stay: true,
+            true_rsrp_every_step: true,
+        };
+        let c = maximal(&x, &shape, 5);
         let bytes = encode_msg(&c).expect("encode");
-        let need = per_step.budget_bytes();
+        let need = x.budget_bytes();
         assert!(bytes.len() <= need, "{} > {need}", bytes.len());
         let d: TrajectoryChunk =
             decode_msg(&bytes, MsgLimits::both(need), "k").expect("fits its budget");
         assert_eq!(d, c);
-        assert!(need < 2 * bytes.len(), "{need} vs {}", bytes.len());
-        // The per-step budget does not admit it without per-step fields expected.
-        assert!(x.budget_bytes() < bytes.len());
+        assert_eq!(d.samples(), 4 * 128);
+        // The base method's: one state per decision, no site rows.
+        let base = ChunkExpect {
+            obs_dim: 108 + 30 * 11,
+            n_sites: 0,
+            site_steps: None,
+            ..x.clone()
+        };
+        let shape = CompactShape {
+            learned: false,
+            lookahead: 0,
+            stay: false,
+            ..shape
+        };
+        let c = maximal(&base, &shape, 5);
+        let bytes = encode_msg(&c).expect("encode");
+        let need = base.budget_bytes();
+        assert!(bytes.len() <= need, "{} > {need}", bytes.len());
+        decode_msg::<TrajectoryChunk>(&bytes, MsgLimits::both(need), "k").expect("fits");
     }
 
     /// The per-step site fields (`env.site_every_step`) are checked against their shape: each
@@ -688,7 +841,7 @@ mod tests {
             }),
             ..expect()
         };
-        let good = |c: &mut TrajectoryChunk| {
+        let good = |c: &mut ExpandedChunk| {
             let tr = &mut c.trajectories[0];
             tr.decision_steps = vec![2, 1];
             tr.step_site_features = vec![0.5; 3 * 3 * 4];
@@ -741,11 +894,11 @@ mod tests {
 
     #[test]
     fn an_amplifying_chunk_is_refused_while_decoding() {
-        // 200 000 empty trajectories: ≈ 3 MB on the wire, ≈ 70 MB decoded. Under a byte
+        // 200 000 empty trajectories: ≈ 6 MB on the wire, ≈ 150 MB decoded. Under a byte
         // limit that admits it, the budget of a 4 × 128-step chunk refuses it.
         let x = expect();
-        let mut c = chunk();
-        c.trajectories = vec![EnvTrajectory::default(); 200_000];
+        let mut c = wire();
+        c.trajectories = vec![CompactTrajectory::default(); 200_000];
         let bytes = encode_msg(&c).expect("encode");
         let limits = MsgLimits {
             bytes: 64 << 20,

@@ -6,13 +6,14 @@
 //! episode lists, site vectors) are decoded under a counting allocator, and what decoding
 //! allocates must stay within the budget derived from the configuration.
 
+use dupac_common::compact::{CompactShape, CompactTrajectory, StateRow, TrunkRow};
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::{decode_json, encode_json};
 use dupac_common::msg::{
-    ActorRow, ActorState, ControlMsg, EnvTrajectory, EpisodeSummary, Header, LearnerStats,
-    MsgLimits, Outcome, StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
+    ActorRow, ActorState, ControlMsg, EpisodeSummary, Header, LearnerStats, MsgLimits, Outcome,
+    StatsMsg, TrajectoryChunk, WeightsMsg, decode_msg, encode_msg,
 };
-use dupac_common::validate::{ChunkExpect, validate_chunk};
+use dupac_common::validate::{ChunkExpect, validate_compact};
 use proptest::prelude::*;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -69,28 +70,52 @@ fn valid() -> Vec<u8> {
     let mut h = Header::new("r", 7, ActorId(1), 9);
     h.policy_version = 3;
     let t = 6;
+    let shape = CompactShape {
+        n_sites: 3,
+        path_guide: true,
+        path_offset: false,
+        sensor_fan: true,
+        learned: true,
+        lookahead: 1,
+        stay: false,
+        true_rsrp_every_step: false,
+    };
+    let mut tr = CompactTrajectory {
+        moves: vec![0.1; t * 3],
+        sites: vec![1; t],
+        logprobs: vec![-1.0; t],
+        site_logprobs: vec![-0.5; t],
+        values: vec![0.5; t],
+        rewards: vec![1.0; t],
+        terminated: vec![false; t],
+        truncated: vec![false; t],
+        next_values: vec![0.5; t],
+        decision_steps: vec![2; t],
+        crashed: vec![false; t],
+        progress_m: vec![0.5; 2 * t],
+        common_reward: vec![-0.1; 2 * t],
+        reward_rsrp_codes: vec![120; 3 * t],
+        ..CompactTrajectory::default()
+    };
+    let state = StateRow {
+        position_m: [1.0, 2.0, 60.0],
+        rsrp: vec![100, 0, 255],
+        los: vec![5],
+        lookahead: vec![1, 2, 3],
+        choice: 3,
+        ping_pong: 3,
+        ..StateRow::default()
+    };
+    for _ in 0..=t {
+        tr.push_trunk(&shape, &TrunkRow::default());
+    }
+    for _ in 0..=2 * t {
+        tr.push_state(&shape, &state);
+    }
+    assert_eq!(tr.shape_error(&shape, 2), None);
     encode_msg(&TrajectoryChunk {
         header: h,
-        trajectories: vec![EnvTrajectory {
-            env: 0,
-            obs_dim: 4,
-            obs: (0..t * 4).map(|i| i as f32 * 0.5).collect(),
-            moves: vec![0.1; t * 3],
-            sites: vec![1; t],
-            logprobs: vec![-1.0; t],
-            site_logprobs: vec![-0.5; t],
-            site_rewards: vec![],
-            decision_steps: vec![],
-            step_site_features: vec![],
-            step_site_rewards: vec![],
-            values: vec![0.5; t],
-            rewards: vec![1.0; t],
-            terminated: vec![false; t],
-            truncated: vec![false; t],
-            next_values: vec![0.5; t],
-            bootstrap_obs: vec![0.0; 4],
-            episodes: vec![],
-        }],
+        trajectories: vec![tr],
     })
     .expect("encode")
 }
@@ -117,7 +142,7 @@ fn lim(bytes: usize) -> MsgLimits {
 
 fn judge(bytes: &[u8]) {
     if let Ok(c) = decode_msg::<TrajectoryChunk>(bytes, lim(1 << 20), "fuzz") {
-        let _ = validate_chunk(&c, &expect());
+        let _ = validate_compact(&c, &expect());
     }
     let _ = decode_msg::<WeightsMsg>(bytes, lim(1 << 20), "fuzz");
     let _ = decode_json::<StatsMsg>(bytes, lim(1 << 20), "fuzz");
@@ -173,13 +198,13 @@ fn summary() -> EpisodeSummary {
 }
 
 /// A chunk built to amplify: `n` trajectories, each with `sites` sites and `episodes` episode
-/// summaries (varint sites are 1 byte on the wire and 4 in memory; an empty trajectory ≈ 14
-/// and 330).
+/// summaries (varint sites are 1 byte on the wire and 4 in memory; an empty trajectory ≈ 31
+/// and 730).
 fn amplifying(n: usize, sites: usize, episodes: usize) -> Vec<u8> {
-    let tr = EnvTrajectory {
+    let tr = CompactTrajectory {
         sites: vec![0; sites],
         episodes: vec![summary(); episodes],
-        ..EnvTrajectory::default()
+        ..CompactTrajectory::default()
     };
     encode_msg(&TrajectoryChunk {
         header: Header::new("r", 7, ActorId(1), 9),

@@ -21,12 +21,11 @@ use crate::wiring::Wiring;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::Worker;
+use dupac_common::compact::CompactTrajectory;
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::encode_json;
-use dupac_common::msg::{
-    ActorStats, EnvTrajectory, MsgLimits, TrajectoryChunk, encode_msg, unix_ms,
-};
+use dupac_common::msg::{ActorStats, MsgLimits, TrajectoryChunk, encode_msg, unix_ms};
 use dupac_common::policy::PolicyWeights;
 use dupac_common::seed::stream_seed;
 use dupac_common::validate::{ChunkExpect, SiteSteps};
@@ -53,7 +52,7 @@ pub struct ActorOptions {
     /// Recorded chunks sent in turn instead of stepping the environments ([`read_recording`]):
     /// each under this actor's header as acted with the current version. An actor of unbounded
     /// speed, for the learner's scaling bench (`benches/learner_scaling.sh`).
-    pub replay: Option<Arc<Vec<Vec<EnvTrajectory>>>>,
+    pub replay: Option<Arc<Vec<Vec<CompactTrajectory>>>>,
     /// Where to write the trajectories of the chunks this actor sent, when it stops
     /// ([`write_recording`]).
     pub record: Option<std::path::PathBuf>,
@@ -67,7 +66,7 @@ const RECORDING_MAX_BYTES: usize = 1 << 30;
 /// Writes recorded chunks' trajectories to `path` (atomically).
 pub fn write_recording(
     path: &std::path::Path,
-    chunks: &[Vec<EnvTrajectory>],
+    chunks: &[Vec<CompactTrajectory>],
 ) -> Result<(), ActorError> {
     let bytes = dupac_common::codec::encode(
         RECORDING_MAGIC,
@@ -80,9 +79,9 @@ pub fn write_recording(
 }
 
 /// Reads chunks written by [`write_recording`]; at least one.
-pub fn read_recording(path: &std::path::Path) -> Result<Vec<Vec<EnvTrajectory>>, ActorError> {
+pub fn read_recording(path: &std::path::Path) -> Result<Vec<Vec<CompactTrajectory>>, ActorError> {
     let bytes = dupac_common::codec::read_limited(path, RECORDING_MAX_BYTES)?;
-    let chunks: Vec<Vec<EnvTrajectory>> = dupac_common::codec::decode_budgeted(
+    let chunks: Vec<Vec<CompactTrajectory>> = dupac_common::codec::decode_budgeted(
         RECORDING_MAGIC,
         RECORDING_VERSION,
         &bytes,
@@ -230,8 +229,8 @@ struct Rollouts {
     threads: rayon::ThreadPool,
     workers: Vec<Worker>,
     steps: usize,
-    replay: Option<Arc<Vec<Vec<EnvTrajectory>>>>,
-    recorded: Option<Vec<Vec<EnvTrajectory>>>,
+    replay: Option<Arc<Vec<Vec<CompactTrajectory>>>>,
+    recorded: Option<Vec<Vec<CompactTrajectory>>>,
 }
 
 impl Rollouts {
@@ -274,8 +273,8 @@ impl Rollouts {
         &mut self,
         policy: &Arc<PolicyWeights>,
         index: u64,
-    ) -> Result<Vec<EnvTrajectory>, ActorError> {
-        let trajectories: Vec<EnvTrajectory> = match &self.replay {
+    ) -> Result<Vec<CompactTrajectory>, ActorError> {
+        let trajectories: Vec<CompactTrajectory> = match &self.replay {
             Some(chunks) => chunks[(index % chunks.len() as u64) as usize].clone(),
             None => {
                 let (workers, steps) = (&mut self.workers, self.steps);

@@ -8,7 +8,7 @@ use crate::accept::{Acceptor, Refusal};
 use crate::ratelog::RateLog;
 use dupac_common::ids::ActorId;
 use dupac_common::keys::KeySpace;
-use dupac_common::msg::{MsgLimits, TrajectoryChunk};
+use dupac_common::msg::{ExpandedChunk, MsgLimits};
 use dupac_common::validate::DropReason;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,7 +19,7 @@ use zenoh::bytes::ZBytes;
 /// A chunk that passed validation, waiting for the PPO loop.
 #[derive(Debug)]
 pub struct Received {
-    pub chunk: TrajectoryChunk,
+    pub chunk: ExpandedChunk,
     pub at: Instant,
     /// The sender (from the key) and the bytes charged to it until the chunk is taken.
     pub(crate) sender: ActorId,
@@ -180,7 +180,7 @@ impl Inbox {
     }
 
     /// An accepted chunk joins the decoded queue (the oldest go past `max_chunks`).
-    fn decoded(&self, chunk: TrajectoryChunk, sender: ActorId, charge: usize) {
+    fn decoded(&self, chunk: ExpandedChunk, sender: ActorId, charge: usize) {
         let Ok(mut q) = self.queues.lock() else {
             return;
         };
@@ -297,7 +297,7 @@ mod tests {
     const RUN: &str = "run-a";
 
     fn expect() -> ChunkExpect {
-        crate::accept::test_expect(1)
+        crate::accept::test_expect()
     }
 
     /// The bytes of a valid one-step chunk of `actor` with sequence number `seq`.
@@ -331,7 +331,11 @@ mod tests {
             .build()
             .expect("runtime");
         let closing = Arc::new(AtomicBool::new(false));
-        let acceptor = Acceptor::new(expect(), MsgLimits::both(1 << 20));
+        let acceptor = Acceptor::new(
+            expect(),
+            MsgLimits::both(1 << 20),
+            crate::accept::test_expander(),
+        );
         let task = std::thread::spawn({
             let (i, closing) = (i.clone(), closing.clone());
             move || rt.block_on(decode_task(i, closing, acceptor))

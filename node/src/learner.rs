@@ -24,12 +24,13 @@ use crate::presence::{LOSS_GRACE, PresenceLog};
 use crate::ratelimit::TokenBucket;
 use crate::roster::Roster;
 use crate::weights_server::{self, ReplyCounts, Served, WeightsQuery};
+use dupac_actor::expand::Expander;
 use dupac_common::config::Config;
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::encode_json;
 use dupac_common::keys::{KeySpace, Role};
 use dupac_common::msg::{
-    Command, ControlMsg, HELD_PARAMETER, Header, LearnerStats, MsgLimits, TrajectoryChunk,
+    Command, ControlMsg, ExpandedChunk, HELD_PARAMETER, Header, LearnerStats, MsgLimits,
     WeightsHeld, WeightsMsg, encode_msg, unix_ms,
 };
 use dupac_common::policy::PolicyWeights;
@@ -145,7 +146,7 @@ pub struct LearnerNode {
 /// A batch being gathered from the inbox ([`LearnerNode::gather`]).
 #[derive(Default)]
 pub struct BatchChunks {
-    pub chunks: Vec<TrajectoryChunk>,
+    pub chunks: Vec<ExpandedChunk>,
     /// Samples in `chunks`.
     pub samples: usize,
     /// Time spent waiting for data (s).
@@ -165,15 +166,17 @@ pub enum Gathered {
 
 impl LearnerNode {
     /// Joins the run on `session` as its learner. `incarnation` is random per process start;
-    /// `fingerprint` is [`Config::env_fingerprint`].
+    /// `fingerprint` is [`Config::env_fingerprint`]; `expander` expands the received compact
+    /// trajectories (the scenario's, `Expander::new`).
     pub fn start(
         session: zenoh::Session,
         cfg: &Config,
-        obs_dim: usize,
+        expander: Expander,
         n_sites: usize,
         fingerprint: u64,
         incarnation: u64,
     ) -> Result<LearnerNode, NodeError> {
+        let obs_dim = expander.layout().len();
         let d = &cfg.distributed;
         let keys = KeySpace::new(&d.run);
         // One learner per run name: actors would flip between two.
@@ -196,7 +199,8 @@ impl LearnerNode {
         let mut net = NetSide::new()
             .map_err(|e| NodeError::Zenoh(format!("cannot start the network side: {e}")))?;
         let closing = Arc::new(AtomicBool::new(false));
-        let (inbox, traj_sub) = receive_chunks(&session, &keys, cfg, &expect, &mut net, &closing)?;
+        let (inbox, traj_sub) =
+            receive_chunks(&session, &keys, cfg, &expect, expander, &mut net, &closing)?;
         // Drop, not Block: a subscriber behind a slow link misses a publication (and asks the
         // queryable) rather than holding back everyone's weights.
         let weights = publisher(&session, keys.weights(), CongestionControl::Drop, None)?;
@@ -464,6 +468,7 @@ fn receive_chunks(
     keys: &KeySpace,
     cfg: &Config,
     expect: &ChunkExpect,
+    expander: Expander,
     net: &mut NetSide,
     closing: &Arc<AtomicBool>,
 ) -> Result<(Arc<Inbox>, zenoh::pubsub::Subscriber<()>), NodeError> {
@@ -490,7 +495,7 @@ fn receive_chunks(
             .wait()
             .map_err(z)?
     };
-    let acceptor = Acceptor::new(expect.clone(), limits);
+    let acceptor = Acceptor::new(expect.clone(), limits, Arc::new(expander));
     net.spawn(decode_task(inbox.clone(), closing.clone(), acceptor));
     Ok((inbox, sub))
 }

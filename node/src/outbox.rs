@@ -19,8 +19,9 @@
 //!   old (`distributed.max_policy_lag`) by the time it leaves is dropped instead of sent.
 
 use crate::intake::WeightsKey;
+use dupac_common::compact::CompactTrajectory;
 use dupac_common::ids::ActorId;
-use dupac_common::msg::{EnvTrajectory, Header, TrajectoryChunk};
+use dupac_common::msg::{Header, TrajectoryChunk};
 use std::time::{Duration, Instant};
 
 /// An actor's outgoing chunks.
@@ -138,7 +139,7 @@ impl ChunkOutbox {
 
     /// Wraps `trajectories` acted with the current weights into the next chunk (its sequence
     /// number taken, counted in the share); `None` before any weights.
-    pub fn wrap(&mut self, trajectories: Vec<EnvTrajectory>) -> Option<TrajectoryChunk> {
+    pub fn wrap(&mut self, trajectories: Vec<CompactTrajectory>) -> Option<TrajectoryChunk> {
         let key = self.acting()?;
         let chunk = TrajectoryChunk {
             header: self.header(key),

@@ -3,7 +3,9 @@
 //! behind a slow link delays nobody else's weights, and a query from a process that holds the
 //! newest weights is answered in a few bytes.
 
+use dupac_actor::expand::Expander;
 use dupac_common::config::Config;
+use dupac_common::geometry::{Bounds2, Point, Point2};
 use dupac_common::ids::ActorId;
 use dupac_common::msg::{MsgLimits, WeightsHeld, WeightsMsg, decode_msg, held_value, is_kind};
 use dupac_common::normalize::{ObsNormalizer, RewardScaler};
@@ -74,10 +76,16 @@ fn policy(version: u64, hidden: usize) -> PolicyWeights {
 fn learner(port: u16) -> LearnerNode {
     let mut cfg = Config::default();
     cfg.distributed.run = "slowlink".into();
+    // No trajectory flows in these tests: any scenario's expansion does.
+    let area = Bounds2 {
+        min_m: Point2::new(0.0, 0.0),
+        max_m: Point2::new(100.0, 100.0),
+    };
+    let expander = Expander::of_sites(&cfg, area, vec![Point::new(50.0, 50.0, 30.0)]);
     LearnerNode::start(
         open(Mode::Router, None, Some(port)),
         &cfg,
-        OBS,
+        expander,
         0,
         1,
         INCARNATION,

@@ -71,7 +71,7 @@ impl TrajectorySource for LocalWorkers {
         let trajs: Vec<EnvTrajectory> = self
             .workers
             .par_iter_mut()
-            .map(|w| w.collect(policy, steps))
+            .map(|w| w.collect_expanded(policy, steps))
             .collect::<Result<_, _>>()?;
         Ok(Some(Collected {
             trajectories: trajs

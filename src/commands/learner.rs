@@ -10,6 +10,7 @@ use super::training::Training;
 use crate::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
+use dupac_actor::expand::Expander;
 use dupac_common::msg::MsgLimits;
 use dupac_node::learner::{LearnerNode, new_incarnation};
 use dupac_node::source::ZenohSource;
@@ -34,7 +35,8 @@ pub fn run(global: &GlobalArgs, args: &LearnerArgs) -> Result<ExitCode> {
         .net
         .open_retrying(&stop, MsgLimits::run_max_bytes(cfg, obs_dim, n_sites))?;
     let incarnation = new_incarnation();
-    let node = LearnerNode::start(session, cfg, obs_dim, n_sites, fingerprint, incarnation)?;
+    let expander = Expander::new(cfg, &t.world);
+    let node = LearnerNode::start(session, cfg, expander, n_sites, fingerprint, incarnation)?;
     node.publish_weights(&l.policy())?;
     eprintln!(
         "learner {incarnation:016x} of run {:?}: {}, version {}, {} updates × {} samples, fingerprint {fingerprint:016x}",

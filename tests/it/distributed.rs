@@ -115,10 +115,10 @@ fn two_actors_train_survive_a_kill_and_every_rogue_message_is_counted() {
     // limit (distributed.max_message_mib = 1): dropped unread by the learner.
     w.publish(99, vec![0u8; 896 << 10]);
     let mut dims = good(now);
-    dims.trajectories[0].obs.pop();
+    dims.trajectories[0].rsrp_codes.pop();
     w.publish(99, encode_msg(&dims).expect("encode"));
     let mut nan = good(now);
-    nan.trajectories[0].rewards[2] = f32::NAN;
+    nan.trajectories[0].position_m[2] = f32::NAN;
     w.publish(99, encode_msg(&nan).expect("encode"));
     let mut inc = good(now);
     inc.header.learner_incarnation ^= 1;
@@ -246,8 +246,11 @@ fn peak_rss_bytes(pid: u32) -> u64 {
     kib * 1024
 }
 
+/// Bytes of one empty compact trajectory on the wire (≈ 730 bytes in memory once decoded).
+const EMPTY_TRAJECTORY_BYTES: usize = 31;
+
 /// A chunk of `n` empty trajectories, written straight as bytes (building it as a value would
-/// take the test `n × 330` bytes): an amplifying message.
+/// take the test `n × 730` bytes): an amplifying message.
 fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Vec<u8> {
     let mut c = valid_chunk(w, actor, w.policy.version);
     c.trajectories.clear();
@@ -261,10 +264,11 @@ fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Ve
     bytes.extend_from_slice(&n.to_le_bytes());
     let one = encode_msg(&dupac_common::msg::TrajectoryChunk {
         header: c.header.clone(),
-        trajectories: vec![dupac_common::msg::EnvTrajectory::default()],
+        trajectories: vec![dupac_common::compact::CompactTrajectory::default()],
     })
     .expect("encode");
     let empty = &one[bytes.len() - 4..]; // one empty trajectory's bytes
+    assert_eq!(empty.len(), EMPTY_TRAJECTORY_BYTES);
     for _ in 0..n {
         bytes.extend_from_slice(empty);
     }
@@ -324,9 +328,13 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
     };
 
     // 48 MiB on the wire: dropped by zenoh's receive limit before the learner sees it.
-    let huge = amplifying_chunk(&weights, 66, 48 * (1 << 20) / 14);
-    // ≈ 0.2 MB, under the chunk limit the learner derives (≈ 0.5 MB with the default per-step
-    // site fields): ≈ 5 MB if decoded, 10× that limit.
+    let huge = amplifying_chunk(
+        &weights,
+        66,
+        (48 * (1 << 20) / EMPTY_TRAJECTORY_BYTES) as u32,
+    );
+    // ≈ 0.37 MB, under the chunk limit the learner derives (≈ 0.5 MB with the default per-step
+    // site fields): ≈ 9 MB if decoded, 17× that limit.
     let amplifying = amplifying_chunk(&weights, 67, 12_000);
     let t0 = Instant::now();
     let mut sent = 0u64;
@@ -781,7 +789,13 @@ fn last_weights_before_stop(round: u32) -> u64 {
     }
     .open()
     .expect("learner session");
-    let node = LearnerNode::start(learner_session, &cfg, obs_dim, n_sites, 7, 11).expect("node");
+    let area = dupac_common::geometry::Bounds2 {
+        min_m: dupac_common::geometry::Point2::new(0.0, 0.0),
+        max_m: dupac_common::geometry::Point2::new(500.0, 500.0),
+    };
+    let sites = vec![dupac_common::geometry::Point::new(250.0, 250.0, 30.0); n_sites];
+    let expander = dupac_actor::expand::Expander::of_sites(&cfg, area, sites);
+    let node = LearnerNode::start(learner_session, &cfg, expander, n_sites, 7, 11).expect("node");
     let watcher = ConnectOpts {
         mode: Some(Mode::Client),
         connect: vec![endpoint],

@@ -6,9 +6,7 @@
 use dupac_common::ids::ActorId;
 use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::KeySpace;
-use dupac_common::msg::{
-    EnvTrajectory, Header, LearnerStats, TrajectoryChunk, WeightsMsg, decode_msg,
-};
+use dupac_common::msg::{Header, LearnerStats, TrajectoryChunk, WeightsMsg, decode_msg};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -621,13 +619,25 @@ pub fn drops(s: &LearnerStats, reason: &str) -> u64 {
     s.drops.get(reason).copied().unwrap_or(0)
 }
 
-/// A well-formed chunk for the learner that `w` came from, acted with `version`. The tests' runs
-/// use the default `env.site_every_step`: with the equivariant site head in the weights, each
-/// decision carries its per-step site fields (one step per decision here).
+/// A well-formed compact chunk for the learner that `w` came from, acted with `version`: four
+/// decisions of random states in the shape of the policy's observation with the default
+/// environment (a site chosen at each of a decision's 5 steps), over `w`'s sites.
 pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk {
-    let (d, t) = (w.policy.obs_dim, 4usize);
-    let (m, per_step) = (w.policy.n_sites, w.policy.site_head.as_ref());
-    let steps = |per_row: usize| per_step.map_or(vec![], |_| vec![0.0; t * m * per_row]);
+    let mut cfg = dupac_common::config::Config::default();
+    if let Some(o) = &w.policy.observation {
+        cfg.env.observation = o.clone();
+    }
+    let area = dupac_common::geometry::Bounds2 {
+        min_m: dupac_common::geometry::Point2::new(0.0, 0.0),
+        max_m: dupac_common::geometry::Point2::new(500.0, 500.0),
+    };
+    let sites = vec![dupac_common::geometry::Point::new(250.0, 250.0, 30.0); w.policy.n_sites];
+    let x = dupac_actor::expand::Expander::of_sites(&cfg, area, sites);
+    assert_eq!(
+        x.layout().len(),
+        w.policy.obs_dim,
+        "the policy's observation"
+    );
     let mut h = Header::new(
         &w.header.run_id,
         w.header.learner_incarnation,
@@ -635,28 +645,10 @@ pub fn valid_chunk(w: &WeightsMsg, actor: u32, version: u64) -> TrajectoryChunk 
         w.header.config_fingerprint,
     );
     h.policy_version = version;
+    let tr = x.sample_trajectory(4, u64::from(actor));
     TrajectoryChunk {
         header: h,
-        trajectories: vec![EnvTrajectory {
-            env: 0,
-            obs_dim: d,
-            obs: vec![0.1; t * d],
-            moves: vec![0.0; t * 3],
-            sites: vec![0; t],
-            logprobs: vec![-3.0; t],
-            site_logprobs: vec![0.0; t],
-            site_rewards: vec![],
-            decision_steps: per_step.map_or(vec![], |_| vec![1; t]),
-            step_site_features: steps(per_step.map_or(0, |h| h.features)),
-            step_site_rewards: steps(1),
-            values: vec![0.0; t],
-            rewards: vec![0.0; t],
-            terminated: vec![false; t],
-            truncated: vec![false; t],
-            next_values: vec![0.0; t],
-            bootstrap_obs: vec![0.1; d],
-            episodes: vec![],
-        }],
+        trajectories: vec![tr],
     }
 }
 

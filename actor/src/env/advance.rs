@@ -4,17 +4,19 @@
 //! `association.rs`; every reward term, each site's counterfactual included, in `reward.rs`).
 
 use super::association::Link;
-use super::reward::{StepTerms, Switch};
+use super::reward::StepTerms;
 use super::{Action, Env, EnvError, Step};
+use crate::expand::StepRecord;
 use crate::record::StepInfo;
+use dupac_common::compact::code;
 use dupac_common::config::{ActionClip, Association, Progress};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::msg::Outcome;
 
 impl Env {
-    /// One step without writing the observation; `first` = the first step of a decision (the
-    /// only one at which a choice of site can be a handover).
-    pub(super) fn advance(&mut self, action: &Action, first: bool) -> Result<Step, EnvError> {
+    /// One step without writing the observation (a decision's record gets the step's progress,
+    /// site-independent reward and, where it is not the next state's, the true RSRP after it).
+    pub(super) fn advance(&mut self, action: &Action) -> Result<Step, EnvError> {
         let destination_m = self.check(action)?;
         self.step += 1;
         let from = self.position_m;
@@ -34,14 +36,16 @@ impl Env {
             link.best_rsrp_dbm,
         );
         let reward = terms.reward(link.serving_rsrp_dbm, link.handover, link.ping_pong);
-        if !self.site_rewards.is_empty() {
-            let switch = Switch {
-                first,
-                before: link.before,
-                counter: link.counter,
-                step: self.step,
-            };
-            terms.add_site_rewards(&mut self.site_rewards, &self.rsrp_dbm, &switch);
+        if self.learned {
+            self.record.steps.push(StepRecord {
+                progress_m: progress_m as f32,
+                common: terms.common() as f32,
+            });
+            if self.expander.shape().true_rsrp_every_step {
+                self.record
+                    .reward_rsrp
+                    .extend(self.rsrp_dbm.iter().map(|&d| code::rsrp(d)));
+            }
         }
         let (terminated, truncated) = self.terminate(&mut outcome);
         let info = self.record(to, step_length_m, &link, reward, outcome);

@@ -2,7 +2,6 @@
 //! ([`Associator`]) and the step's associate stage ([`Env::associate`]).
 
 use super::Env;
-use crate::metrics::HandoverCounter;
 use dupac_common::config::Association;
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
@@ -81,14 +80,9 @@ pub struct Measured<'a> {
 }
 
 /// What the associate stage produced: the serving site's link and the strongest site's after
-/// the step, whether the step was a handover (and a ping-pong), and what a counterfactual
-/// site's handover is measured from.
+/// the step, whether the step was a handover (and a ping-pong).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Link {
-    /// The site serving before the step.
-    pub before: SiteId,
-    /// The handover counter before the step (whether serving site k now would be a ping-pong).
-    pub counter: HandoverCounter,
     pub handover: bool,
     pub ping_pong: bool,
     /// RSRP (dBm) and class of the site serving after the step.
@@ -133,15 +127,12 @@ impl Env {
             },
         };
         self.serving = self.associator.next(site, measured, &self.rsrp_dbm);
-        let counter = self.handovers;
         let (handover, ping_pong) = self.handovers.step(before.0, self.serving.0, self.step);
         let serving_rsrp_dbm = self.rsrp_dbm[self.serving.index()];
         let class = self.thresholds.classify(serving_rsrp_dbm);
         let best_site = argmax(&self.rsrp_dbm);
         Link {
             measured_serving_rsrp_dbm: self.measured_dbm[self.serving.index()],
-            before,
-            counter,
             handover,
             ping_pong,
             serving_rsrp_dbm,

@@ -22,16 +22,17 @@ mod reward;
 mod route_ahead;
 mod serving_plan;
 
+use crate::expand::{DecisionRecord, Expander};
 use crate::metrics::HandoverCounter;
 use crate::record::StepInfo;
 pub use advance::bounded_move;
 pub use association::{Associator, argmax};
 pub use guide::{GuideFix, PathGuide};
-use observe::Slots;
 pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 pub use route_ahead::{Ahead, RouteMap};
 pub use serving_plan::serving_plan;
 
+use dupac_common::compact::{StateRow, TrunkRow};
 use dupac_common::config::{Association, Config, EnvConfig, WeightDraw};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::ids::SiteId;
@@ -148,8 +149,10 @@ pub struct Env {
     rsrp: Arc<dyn RsrpSource + Send + Sync>,
     thresholds: RsrpThresholds,
     a3: A3Params,
-    layout: ObsLayout,
-    slots: Slots,
+    /// The observation's expansion from the state ([`crate::expand`]).
+    expander: Expander,
+    /// The site is the policy's (`env.association = "learned"`): decisions keep their record.
+    learned: bool,
     sensor_dirs: [Vector; 26],
     /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
     route_penalty: [f64; 2],
@@ -214,14 +217,21 @@ pub struct Env {
     done: bool,
     seed: u64,
     obs: Vec<f32>,
+    /// The rows `obs` is the expansion of.
+    obs_trunk: TrunkRow,
+    obs_state: StateRow,
     /// Step records of the last `act`.
     substeps: Vec<StepInfo>,
-    /// Every site's reward of the last `act` (learned association only; empty otherwise).
+    /// The compact record of the last decision (learned association only).
+    record: DecisionRecord,
+    /// The last decision chose the site at every step ([`Env::act_site_every_step`]).
+    record_every_step: bool,
+    /// Every site's reward of the last decision (learned association only): `M` values, or `M`
+    /// per step when the site is chosen every step.
     site_rewards: Vec<f64>,
     /// Of the last [`Env::act_site_every_step`]: each step's site features (`M × features` per
-    /// step) and every site's reward of that step (`M` per step).
+    /// step).
     step_site_features: Vec<f32>,
-    step_site_rewards: Vec<f64>,
 }
 
 impl Env {
@@ -240,8 +250,8 @@ impl Env {
             });
         }
         let env = cfg.env.clone();
-        let layout = ObsLayout::new(&env.observation, m);
-        let slots = Slots::new(&layout);
+        let expander = Expander::new(cfg, &world);
+        let layout = expander.layout();
         let mut sensor_dirs = [Vector::zeros(); 26];
         for (d, s) in sensor_dirs.iter_mut().zip(SENSOR_DIRECTIONS) {
             let v = Vector::new(f64::from(s[0]), f64::from(s[1]), f64::from(s[2]));
@@ -266,10 +276,10 @@ impl Env {
         let ping_pong_steps = (env.ping_pong_window_s / dt).ceil().max(1.0) as u32;
         let obs = vec![0.0; layout.len()];
         Ok(Env {
+            learned: env.association == Association::Learned,
             thresholds: RsrpThresholds::from_config(&cfg.radio),
             a3,
-            layout,
-            slots,
+            expander,
             sensor_dirs,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
             handover_costs: [env.reward.handover_reward, env.reward.ping_pong_reward],
@@ -310,14 +320,13 @@ impl Env {
             done: true,
             seed: 0,
             obs,
+            obs_trunk: TrunkRow::default(),
+            obs_state: StateRow::default(),
             substeps: Vec::new(),
+            record: DecisionRecord::default(),
+            record_every_step: false,
             step_site_features: Vec::new(),
-            step_site_rewards: Vec::new(),
-            site_rewards: if env.association == Association::Learned {
-                vec![0.0; m]
-            } else {
-                Vec::new()
-            },
+            site_rewards: Vec::new(),
             cfg: env,
             world,
             rsrp,
@@ -326,7 +335,13 @@ impl Env {
 
     /// The observation layout (length, field ranges).
     pub fn layout(&self) -> &ObsLayout {
-        &self.layout
+        self.expander.layout()
+    }
+
+    /// The expansion this environment's observation is written with (and the learner expands
+    /// its compact trajectories with).
+    pub fn expander(&self) -> &Expander {
+        &self.expander
     }
 
     /// M, the number of sites (size of the discrete action).
@@ -343,7 +358,7 @@ impl Env {
             | dupac_common::config::Association::BestRsrp
             | dupac_common::config::Association::Predictive => 0,
         };
-        (self.layout.len(), n_sites)
+        (self.layout().len(), n_sites)
     }
 
     /// The current observation.

@@ -1,57 +1,14 @@
-//! The observation (spec/env.md "Observation", docs/env.md): the sensor fan with the nearest
-//! surface (the area edge sensed as a wall), the goal direction, the radio block and the
-//! per-site features the equivariant site head reads, written once per decision.
+//! The observation (spec/env.md "Observation", docs/env.md): the state it is computed from, as
+//! the compact trajectory carries it ([`TrunkRow`], [`StateRow`]): the sensor fan with the
+//! nearest surface (the area edge sensed as a wall), the goal, the planned path, every site's
+//! measured RSRP and line of sight and the look-ahead's predictions; the observation and the
+//! site features are its expansion ([`crate::expand::Expander`]).
 
-use super::{Env, RSRP_FLOOR_DBM, argmax};
+use super::{Env, RSRP_FLOOR_DBM};
+use dupac_common::compact::{StateRow, TrunkRow, code};
 use dupac_common::config::{NearestObstacle, PATH_OFFSET_SCALE_M, SiteLos};
 use dupac_common::geometry::{Bounds2, Point, Vector};
 use dupac_common::ids::SiteId;
-use dupac_common::obs::{ObsLayout, field, site_feature, site_features_per_site};
-use std::ops::Range;
-
-/// Observation slices resolved once from the layout.
-#[derive(Debug, Clone)]
-pub(super) struct Slots {
-    position: Range<usize>,
-    velocity: Range<usize>,
-    goal_vector: Option<Range<usize>>,
-    goal_distance: Option<Range<usize>>,
-    goal_direction: Option<Range<usize>>,
-    path_guide: Option<Range<usize>>,
-    path_offset: Option<Range<usize>>,
-    handover_weight: Option<Range<usize>>,
-    obstacle_distance: Range<usize>,
-    obstacle_direction: Range<usize>,
-    sensor_fan: Option<Range<usize>>,
-    serving_one_hot: Range<usize>,
-    rsrp_all: Option<Range<usize>>,
-    rsrp_serving: Option<Range<usize>>,
-    pub(super) site_features: Option<Range<usize>>,
-}
-
-impl Slots {
-    /// The slices of `layout` (an absent required field: an empty range).
-    pub(super) fn new(layout: &ObsLayout) -> Slots {
-        let req = |name: &str| layout.range(name).unwrap_or(0..0);
-        Slots {
-            position: req(field::POSITION),
-            velocity: req(field::VELOCITY),
-            goal_vector: layout.range(field::GOAL_VECTOR),
-            goal_distance: layout.range(field::GOAL_DISTANCE),
-            goal_direction: layout.range(field::GOAL_DIRECTION),
-            path_guide: layout.range(field::PATH_GUIDE),
-            path_offset: layout.range(field::PATH_OFFSET),
-            handover_weight: layout.range(field::HANDOVER_WEIGHT),
-            obstacle_distance: req(field::OBSTACLE_DISTANCE),
-            obstacle_direction: req(field::OBSTACLE_DIRECTION),
-            sensor_fan: layout.range(field::SENSOR_FAN),
-            serving_one_hot: req(field::SERVING_ONE_HOT),
-            rsrp_all: layout.range(field::RSRP_ALL),
-            rsrp_serving: layout.range(field::RSRP_SERVING),
-            site_features: layout.range(field::SITE_FEATURES),
-        }
-    }
-}
 
 impl Env {
     /// Nearest obstacle along the sensor fan: writes normalised distances into `fan` and returns
@@ -85,16 +42,10 @@ impl Env {
         best
     }
 
-    pub(super) fn write_observation(&mut self) {
-        let s = self.slots.clone();
+    /// The trunk's own quantities at the current state.
+    fn trunk_row(&self) -> TrunkRow {
         let o = &self.cfg.observation;
-        let a = self.world.city.area_m;
-        let (cx, cy) = (0.5 * (a.min_m.x + a.max_m.x), 0.5 * (a.min_m.y + a.max_m.y));
-        let (hx, hy) = (0.5 * (a.max_m.x - a.min_m.x), 0.5 * (a.max_m.y - a.min_m.y));
-        let zc = 0.5 * (self.cfg.z_min_m + self.cfg.z_max_m);
-        let hz = 0.5 * (self.cfg.z_max_m - self.cfg.z_min_m);
         let p = self.position_m;
-        let pos = [(p[0] - cx) / hx, (p[1] - cy) / hy, (p[2] - zc) / hz];
         let mut fan = [1.0f32; 26];
         let (mut c_t, nearest) = self.sense(&mut fan);
         let mut dir = nearest
@@ -104,7 +55,7 @@ impl Env {
             let range = o.sensor_range_m;
             let mut nearest = self.world.city.mesh.nearest_surface_m(p, range);
             if o.geofence {
-                let (d, u) = nearest_edge_m(a, p);
+                let (d, u) = nearest_edge_m(self.world.city.area_m, p);
                 if d <= range && nearest.is_none_or(|(t, _)| d < t) {
                     nearest = Some((d, u));
                 }
@@ -114,170 +65,124 @@ impl Env {
                 None => (1.0, Vector::zeros()),
             };
         }
-        let rsrp_norm = |v: f64| {
-            let x = (v - o.rsrp_centre_dbm) / o.rsrp_scale_db;
-            // −∞ (a site that cannot be measured) and extreme nulls are clipped.
-            x.clamp(-10.0, 10.0) as f32
+        let mut r = TrunkRow {
+            handover_weight: self.handover_weight as f32,
+            velocity_z: code::signed(self.velocity_per_max_step[2]),
+            obstacle_distance: code::unit(f64::from(c_t)),
+            obstacle_direction: [0, 1, 2].map(|k| code::signed(dir[k])),
+            sensor_fan: fan.map(|v| code::unit(f64::from(v))),
+            path_direction: [code::signed(0.0); 3],
+            ..TrunkRow::default()
         };
-        let obs = &mut self.obs;
-        for (k, v) in pos.iter().enumerate() {
-            obs[s.position.start + k] = *v as f32;
-        }
-        for k in 0..3 {
-            obs[s.velocity.start + k] = self.velocity_per_max_step[k] as f32;
-        }
-        if let (Some(gv), Some(gd), Some(ep)) = (&s.goal_vector, &s.goal_distance, &self.episode) {
-            for k in 0..3 {
-                obs[gv.start + k] = ((ep.destination_m[k] - p[k]) / o.goal_scale_m) as f32;
-            }
-            obs[gd.start] = (self.distance_to_goal_m / o.goal_scale_m) as f32;
-            if let Some(u) = &s.goal_direction {
-                let d = self.distance_to_goal_m;
-                for k in 0..3 {
-                    let v = if d > 1e-9 {
-                        (ep.destination_m[k] - p[k]) / d
-                    } else {
-                        0.0
-                    };
-                    obs[u.start + k] = v as f32;
-                }
-            }
-        }
-        if let (Some(r), Some(g)) = (
-            &s.path_guide,
-            self.episode.as_ref().and_then(|e| e.guide.as_ref()),
-        ) {
+        let Some(ep) = &self.episode else {
+            return r;
+        };
+        r.destination_m = [0, 1, 2].map(|k| ep.destination_m[k] as f32);
+        if let Some(g) = &ep.guide {
             let to = g.point_at(self.path_s_m + o.path_lookahead_m) - p;
             let n = to.norm();
-            for k in 0..3 {
-                obs[r.start + k] = if n > 1e-9 { (to[k] / n) as f32 } else { 0.0 };
-            }
-            obs[r.start + 3] = (self.path_to_go_m / o.goal_scale_m) as f32;
-            if let Some(r) = &s.path_offset {
-                let off = g.point_at(self.path_s_m) - p;
-                for k in 0..3 {
-                    obs[r.start + k] = (off[k] / PATH_OFFSET_SCALE_M).clamp(-3.0, 3.0) as f32;
-                }
-            }
+            r.path_direction =
+                [0, 1, 2].map(|k| code::signed(if n > 1e-9 { to[k] / n } else { 0.0 }));
+            r.path_to_go = (self.path_to_go_m / o.goal_scale_m) as f32;
+            let off = g.point_at(self.path_s_m) - p;
+            r.path_offset =
+                [0, 1, 2].map(|k| (off[k] / PATH_OFFSET_SCALE_M).clamp(-3.0, 3.0) as f32);
         }
-        if let Some(r) = &s.handover_weight {
-            obs[r.start] = self.handover_weight.ln_1p() as f32;
-        }
-        obs[s.obstacle_distance.start] = c_t;
-        for k in 0..3 {
-            obs[s.obstacle_direction.start + k] = dir[k] as f32;
-        }
-        if let Some(f) = &s.sensor_fan {
-            obs[f.clone()].copy_from_slice(&fan);
-        }
-        obs[s.serving_one_hot.clone()].fill(0.0);
-        obs[s.serving_one_hot.start + self.serving.index()] = 1.0;
-        if let Some(r) = &s.rsrp_all {
-            for (i, v) in self.measured_dbm.iter().enumerate() {
-                obs[r.start + i] = rsrp_norm(*v);
-            }
-        }
-        if let Some(r) = &s.rsrp_serving {
-            obs[r.start] = rsrp_norm(self.measured_dbm[self.serving.index()]);
-        }
-        if let Some(r) = &s.site_features {
-            let mut obs = std::mem::take(&mut self.obs);
-            if self.site_rewards.is_empty() {
-                // Not a learned association: nothing reads them.
-                obs[r.clone()].fill(0.0);
-            } else {
-                self.site_features_into(&mut obs[r.clone()]);
-            }
-            self.obs = obs;
-        }
+        r
     }
 
-    /// The `site_features` field (obs::site_feature) at the current state into `out`
-    /// (`M × features`, site-major): each site's own features on fixed physical scales, for the
-    /// equivariant site head.
-    pub(super) fn site_features_into(&self, out: &mut [f32]) {
+    /// The state at the current step: the UAV's place and heading, the serving and ping-pong
+    /// sites, every site's measured RSRP and, with `full` (the site features will be read), its
+    /// line of sight and the look-ahead's predictions.
+    pub(super) fn state_row(&self, full: bool) -> StateRow {
         let o = &self.cfg.observation;
         let p = self.position_m;
-        let best = self.measured_dbm[argmax(&self.measured_dbm).index()].max(RSRP_FLOOR_DBM);
-        let unit2 = |x: f64, y: f64| {
-            let n = x.hypot(y);
-            (n > 1e-9).then(|| [x / n, y / n])
-        };
-        let goal = self
-            .episode
-            .as_ref()
-            .and_then(|e| unit2(e.destination_m[0] - p[0], e.destination_m[1] - p[1]));
-        let heading = unit2(self.velocity_per_max_step[0], self.velocity_per_max_step[1])
-            .or(goal)
-            .unwrap_or([1.0, 0.0]);
-        let goal = goal.unwrap_or(heading);
+        let m = self.world.sites.len();
         let serving = self.serving.index();
-        let per_site = site_features_per_site(o);
-        let ping_pong_at = site_feature::ping_pong(o);
-        let lookahead_at = site_feature::lookahead(o);
-        let stay_at = site_feature::stay(o);
-        let choice = site_feature::predictive_choice(o).map(|i| {
-            let cost = o.site_prediction.handover_cost_db_m * self.handover_weight;
-            (i, self.ahead.choice(self.serving, cost).index())
-        });
-        // The predicted RSRP of every site, and the predicted best, at each look-ahead distance.
-        let n_sites = self.world.sites.len();
-        let mut ahead_dbm = vec![f64::NEG_INFINITY; n_sites * o.site_lookahead_m.len()];
-        let mut ahead_best = vec![RSRP_FLOOR_DBM; o.site_lookahead_m.len()];
-        for ((row, best), &d) in ahead_dbm
-            .chunks_mut(n_sites.max(1))
-            .zip(&mut ahead_best)
-            .zip(&o.site_lookahead_m)
-        {
-            self.ahead.at(d, row);
-            *best = row.iter().copied().fold(RSRP_FLOOR_DBM, f64::max);
+        let v = self.velocity_per_max_step;
+        let ping_pong = (0..m)
+            .find(|&k| {
+                self.handovers
+                    .would_ping_pong(serving as u16, k as u16, self.step + 1)
+            })
+            .unwrap_or(m);
+        let mut s = StateRow {
+            position_m: [0, 1, 2].map(|k| p[k] as f32),
+            velocity_xy: [code::signed(v[0]), code::signed(v[1])],
+            serving: serving as u16,
+            ping_pong: ping_pong as u16,
+            rsrp: self.measured_dbm.iter().map(|&d| code::rsrp(d)).collect(),
+            los: vec![0; m.div_ceil(8)],
+            lookahead: vec![
+                0;
+                if self.learned {
+                    m * o.site_lookahead_m.len()
+                } else {
+                    0
+                }
+            ],
+            stay: vec![
+                0;
+                if self.learned && o.site_lookahead_stay {
+                    m
+                } else {
+                    0
+                }
+            ],
+            choice: m as u16,
+        };
+        if !full {
+            return s;
         }
-        let mut los = vec![0.0; self.world.sites.len()];
+        let mut los = vec![0.0; m];
         if o.site_los == SiteLos::Ray || !self.rsrp.los_all(p, &mut los) {
             for (k, l) in los.iter_mut().enumerate() {
                 *l = f64::from(u8::from(self.world.los(SiteId(k as u16), p)));
             }
         }
-        for (k, site) in self.world.sites.iter().enumerate() {
-            let f = &mut out[k * per_site..][..per_site];
-            let w = self.measured_dbm[k].max(RSRP_FLOOR_DBM);
-            let q = site.position_m;
-            let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-            let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
-            let u = unit2(d[0], d[1]).unwrap_or(heading);
-            let rel = |h: [f64; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
-            let (ch, sh) = rel(heading);
-            let (cg, sg) = rel(goal);
-            use site_feature::*;
-            f[RSRP] = ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32;
-            f[RSRP_MINUS_BEST] = ((w - best) / 10.0).clamp(-6.0, 0.0) as f32;
-            f[SERVING] = f32::from(u8::from(k == serving));
-            f[LOG_DISTANCE] = (d3d / 100.0).ln_1p() as f32;
-            f[SIN_ELEVATION] = (d[2] / d3d) as f32;
-            f[COS_BEARING_HEADING] = ch as f32;
-            f[SIN_BEARING_HEADING] = sh as f32;
-            f[COS_BEARING_GOAL] = cg as f32;
-            f[SIN_BEARING_GOAL] = sg as f32;
-            f[LOS] = los[k] as f32;
-            if let Some(i) = ping_pong_at {
-                // Serving k at the next step (step + 1) would be a ping-pong.
-                let pp = self
-                    .handovers
-                    .would_ping_pong(serving as u16, k as u16, self.step + 1);
-                f[i] = f32::from(u8::from(pp));
-            }
-            for (j, i) in lookahead_at.clone().enumerate() {
-                let v = ahead_dbm[j * n_sites + k].max(RSRP_FLOOR_DBM);
-                f[i] = ((v - ahead_best[j]) / 10.0).clamp(-6.0, 0.0) as f32;
-            }
-            if let Some(i) = stay_at {
-                let h = o.site_prediction.horizon_m;
-                f[i] = (self.ahead.stay_m(k, o.site_stay_within_db) / h).clamp(0.0, 1.0) as f32;
-            }
-            if let Some((i, c)) = choice {
-                f[i] = f32::from(u8::from(k == c));
+        for (k, l) in los.iter().enumerate() {
+            if *l > 0.5 {
+                s.los[k / 8] |= 1 << (k % 8);
             }
         }
+        // The predicted RSRP of every site, and the predicted best, at each look-ahead distance.
+        let n_ahead = o.site_lookahead_m.len();
+        let mut row = vec![f64::NEG_INFINITY; m];
+        for (j, &d) in o.site_lookahead_m.iter().enumerate() {
+            self.ahead.at(d, &mut row);
+            let best = row.iter().copied().fold(RSRP_FLOOR_DBM, f64::max);
+            for (k, v) in row.iter().enumerate() {
+                let rel = ((v.max(RSRP_FLOOR_DBM) - best) / 10.0).clamp(-6.0, 0.0);
+                s.lookahead[k * n_ahead + j] = code::byte(-rel / 6.0);
+            }
+        }
+        if o.site_lookahead_stay {
+            let h = o.site_prediction.horizon_m;
+            for k in 0..m {
+                s.stay[k] = code::byte(self.ahead.stay_m(k, o.site_stay_within_db) / h);
+            }
+        }
+        if o.site_predictive_choice {
+            let cost = o.site_prediction.handover_cost_db_m * self.handover_weight;
+            s.choice = self.ahead.choice(self.serving, cost).0;
+        }
+        s
+    }
+
+    /// Writes the observation: the expansion of the current state's rows, kept for the compact
+    /// trajectory ([`Env::observed_rows`]).
+    pub(super) fn write_observation(&mut self) {
+        self.obs_trunk = self.trunk_row();
+        self.obs_state = self.state_row(self.learned);
+        let mut obs = std::mem::take(&mut self.obs);
+        self.expander
+            .observation(&self.obs_trunk, &self.obs_state, &mut obs);
+        self.obs = obs;
+    }
+
+    /// The rows the current observation is the expansion of.
+    pub fn observed_rows(&self) -> (&TrunkRow, &StateRow) {
+        (&self.obs_trunk, &self.obs_state)
     }
 }
 

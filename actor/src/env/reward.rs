@@ -1,11 +1,9 @@
 //! Every reward term of a step (spec/env.md "Reward", docs/env.md): the paper's Eq. (8) with the
 //! RSRP classes of spec/radio.md §3, the terminal rewards, the route's connectivity term, the
 //! handover and ping-pong costs and the site regret; [`StepTerms`] sums them for the site that
-//! serves and for every site's counterfactual.
+//! serves (every site's counterfactual: [`crate::expand::Expander::site_rows`]).
 
-use crate::metrics::HandoverCounter;
 use dupac_common::config::RewardConfig;
-use dupac_common::ids::SiteId;
 use dupac_common::msg::Outcome;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
 
@@ -84,16 +82,6 @@ pub(super) struct StepTerms<'a> {
     best_rsrp_dbm: f64,
 }
 
-/// Where a counterfactual site's handover is measured from: a decision's choice takes effect at
-/// its `first` step (a handover only there) from the site serving `before` it, a ping-pong per
-/// the handover `counter` before it, at episode step `step`.
-pub(super) struct Switch {
-    pub first: bool,
-    pub before: SiteId,
-    pub counter: HandoverCounter,
-    pub step: u32,
-}
-
 impl<'a> StepTerms<'a> {
     /// The terms of a step with `outcome` (collision, out of bounds or goal; none yet for the
     /// time limit) that flew `step_length_m` (m) with `progress_m` (m) of progress, the
@@ -151,19 +139,9 @@ impl<'a> StepTerms<'a> {
             )
     }
 
-    /// Adds to `acc[k]` the step's reward had site k served from the decision's first step on
-    /// (`rsrp_dbm[k]` its RSRP, dBm): the flight is the same (the site does not move the UAV);
-    /// a handover if `switch` is the decision's first step and k is not the site serving before
-    /// it, a ping-pong if the counter says so.
-    pub fn add_site_rewards(&self, acc: &mut [f64], rsrp_dbm: &[f64], switch: &Switch) {
-        for (k, acc) in acc.iter_mut().enumerate() {
-            let handover = switch.first && k != switch.before.index();
-            let pp = handover
-                && switch
-                    .counter
-                    .would_ping_pong(switch.before.0, k as u16, switch.step);
-            *acc += self.reward(rsrp_dbm[k], handover, pp);
-        }
+    /// The step's site-independent reward (terminal rewards, the route term, the goal).
+    pub fn common(&self) -> f64 {
+        self.common
     }
 }
 

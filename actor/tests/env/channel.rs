@@ -4,6 +4,7 @@
 use super::*;
 use dupac_actor::metrics::{MetricRules, flight_metrics};
 use dupac_actor::record::{FlightRecord, StepRecord};
+use dupac_common::compact::code;
 use dupac_common::config::ChannelModel;
 use dupac_radio::channel::FieldSplit;
 
@@ -69,14 +70,16 @@ fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
     assert_eq!(fly_in(&mut again, split, 9), steps);
     let (mut eval, split) = real_env(Association::A3, FieldSplit::Eval);
     assert_ne!(fly_in(&mut eval, split, 9), steps);
-    // The observation carries the measured RSRP, not the true one.
+    // The observation carries the measured RSRP, not the true one (its code: the 0.5 dB grid
+    // value at or below it).
     let o = e.observation();
     let r = e.layout().range(field::RSRP_ALL);
     if let Some(r) = r {
         let c = e.config().observation.rsrp_centre_dbm;
         let sc = e.config().observation.rsrp_scale_db;
         for k in 0..2 {
-            let want = ((e.measured_dbm()[k] - c) / sc) as f32;
+            let coded = code::rsrp_dbm(code::rsrp(e.measured_dbm()[k]));
+            let want = ((coded - c) / sc) as f32;
             assert!((o[r.start + k] - want).abs() < 1e-5);
         }
     }
