@@ -2,16 +2,17 @@
 # How far one learner process scales with its actors: the real learner (`dupac
 # learner`, router on loopback) against N actor processes that replay recorded chunks
 # (`dupac actor --replay`: actors of unbounded speed, each sending its share of every version
-# as soon as the weights arrive), N = 1 2 4 8 16, with today's default configuration.
+# as soon as the weights arrive), N = 2 8 32 64, with today's default configuration.
 #
 # First one real actor records 16 chunks (`dupac actor --record --max-chunks 16`); then for each
 # N a fresh learner runs UPDATES updates of 4 096 samples. Per N it prints: accepted samples/s
 # and updates/s in the steady state (updates 6..UPDATES, Δglobal_step / Δtime_s from the run's
-# metrics), the chunks the learner dropped (all reasons, `dist/dropped_*`) and the learner's peak
-# resident memory.
+# metrics), the bytes/s of trajectory messages arriving at the learner over the same updates
+# (`dist/received_mb`), the chunks the learner dropped (all reasons, `dist/dropped_*`) and the
+# learner's peak resident memory.
 #
 # Usage: benches/learner_scaling.sh [path/to/dupac] [--device cpu|cuda|wgpu]
-#        UPDATES=30 NS="1 2 4 8 16"
+#        UPDATES=30 NS="2 8 32 64"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 B=target/release/dupac
@@ -23,7 +24,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 U=${UPDATES:-30}
-NS=${NS:-"1 2 4 8 16"}
+NS=${NS:-"2 8 32 64"}
 OUT=$(mktemp -d)
 trap 'pkill -P $$ 2>/dev/null || true; rm -rf "$OUT"' EXIT
 "$B" -q config \
@@ -52,7 +53,7 @@ actor 0 "$EP" --max-chunks 16 --record "$OUT/chunks.bin" > "$OUT/record-actor.lo
 pkill -INT -f -- "learner --out $OUT/record" || true
 wait $L 2>/dev/null || true
 echo "recorded $(du -h "$OUT/chunks.bin" | cut -f1) of chunks ($DEVICE learner, $U updates per N, $(nproc) cores)"
-printf "%4s %14s %10s %8s %12s\n" N "samples/s" "updates/s" drops "learner RSS"
+printf "%4s %14s %10s %10s %8s %12s\n" N "samples/s" "updates/s" "MB/s in" drops "learner RSS"
 
 for n in $NS; do
   EP="tcp/127.0.0.1:$(port)"
@@ -74,8 +75,9 @@ a, b = rows[min(5, len(rows) - 2)], rows[-1]
 dt = b["time_s"] - a["time_s"]
 sps = (b["global_step"] - a["global_step"]) / dt
 ups = (b["update"] - a["update"]) / dt
+mbps = (b["dist/received_mb"] - a["dist/received_mb"]) / dt
 drops = sum(v for k, v in b.items() if k.startswith("dist/dropped_") and v)
 rss_kb = float(open(sys.argv[2]).read().split()[-1])
-print(f"{sys.argv[3]:>4} {sps:14.0f} {ups:10.2f} {drops:8.0f} {rss_kb / 1024:9.0f} MB")
+print(f"{sys.argv[3]:>4} {sps:14.0f} {ups:10.2f} {mbps:10.2f} {drops:8.0f} {rss_kb / 1024:9.0f} MB")
 PY
 done

@@ -58,5 +58,7 @@ older = sum(r.get("charts/older_policy_frac", 0) for r in rows) / len(rows)
 print(f"drops {drops or 'none'}; older_policy_frac mean {older:.2f}")
 EOF
 grep -h "done:\|held-out" "$O/learner.out" "$O/learner.err" | tail -2 >>"$O/summary.txt"
+# Each actor's exit line: chunks, stale chunks not sent, bytes per decision, shares re-sent.
+grep -h "^actor [0-9]*:" "$O"/actor*.out >>"$O/summary.txt"
 for id in 1 2; do [ -f "$O/relay$id.log" ] && tail -1 "$O/relay$id.log" >>"$O/summary.txt"; done
 cat "$O/summary.txt"

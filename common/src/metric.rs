@@ -36,6 +36,8 @@ pub const WAIT_S: &str = "time/wait_s";
 pub const PUBLISH_S: &str = "time/publish_s";
 pub const CHUNKS: &str = "dist/chunks";
 pub const ALIVE_ACTORS: &str = "dist/alive_actors";
+/// Trajectory messages received by the learner since its start (MB, 10⁶ bytes; accepted or not).
+pub const RECEIVED_MB: &str = "dist/received_mb";
 
 /// The key of drops for `reason` (`dist/dropped_<reason>`).
 pub fn dropped(reason: &str) -> String {

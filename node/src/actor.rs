@@ -102,6 +102,8 @@ pub fn read_recording(path: &std::path::Path) -> Result<Vec<Vec<CompactTrajector
 #[derive(Debug, Clone, Default)]
 pub struct ActorReport {
     pub chunks_sent: u64,
+    /// Bytes of the chunks sent (as encoded, before zenoh's framing).
+    pub chunk_bytes: u64,
     pub env_steps: u64,
     pub swaps: u64,
     /// Policy versions acted with, in order of first use (the hot-swaps).
@@ -413,6 +415,7 @@ pub fn run_actor(
             seq: chunk.header.seq,
             key,
         };
+        report.chunk_bytes += out.bytes.len() as u64;
         wiring.traj.send(out).map_err(ActorError::Zenoh)?;
         if let Some(s) = stats.due(&report, &outbox, d.actor_envs) {
             wiring.stats.set(encode_json(&s)?);

@@ -138,6 +138,8 @@ pub(crate) struct Inbox {
     /// A raw message arrived, or the node closes (decode task).
     pub(crate) arrived: tokio::sync::Notify,
     pub(crate) drops: Mutex<BTreeMap<DropReason, u64>>,
+    /// Bytes of every trajectory message that arrived (accepted or not).
+    pub(crate) received_bytes: std::sync::atomic::AtomicU64,
     pub(crate) budget: InboxBudget,
     /// The drops' warnings: one line per kind per [`WARN_PERIOD`], with counts.
     pub(crate) warnings: RateLog,
@@ -153,6 +155,7 @@ impl Inbox {
             ready: Condvar::new(),
             arrived: tokio::sync::Notify::new(),
             drops: Mutex::default(),
+            received_bytes: std::sync::atomic::AtomicU64::new(0),
             budget,
             warnings: RateLog::new(WARN_PERIOD),
         }
@@ -224,6 +227,8 @@ impl Inbox {
     /// [`Inbox::admit`] of `payload` received on `key`.
     pub(crate) fn push(&self, keys: &KeySpace, key: &str, payload: &ZBytes) {
         let len = payload.len();
+        self.received_bytes
+            .fetch_add(len as u64, std::sync::atomic::Ordering::Relaxed);
         let Some(sender) = keys.actor_of_traj(key) else {
             self.drop_one(DropReason::Garbage);
             return;

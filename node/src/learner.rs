@@ -351,6 +351,13 @@ impl LearnerNode {
             .collect()
     }
 
+    /// Bytes of every trajectory message received so far (accepted or not).
+    pub fn received_bytes(&self) -> u64 {
+        self.inbox
+            .received_bytes
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Actors whose liveliness token is present.
     pub fn alive_actors(&self) -> usize {
         self.roster.lock().map_or(0, |r| r.alive())

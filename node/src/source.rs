@@ -98,6 +98,10 @@ impl TrajectorySource for ZenohSource {
         node.publish_weights(policy)?;
         row.insert(metric::PUBLISH_S.into(), t.elapsed().as_secs_f64());
         row.insert(metric::ALIVE_ACTORS.into(), node.alive_actors() as f64);
+        row.insert(
+            metric::RECEIVED_MB.into(),
+            node.received_bytes() as f64 / 1e6,
+        );
         let drops = node.drops();
         for r in DropReason::ALL {
             row.insert(

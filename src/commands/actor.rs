@@ -119,10 +119,11 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
         report.versions.last().copied().unwrap_or(0),
     );
     println!(
-        "actor {}: {} chunks ({} stale, not sent), {} timesteps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
+        "actor {}: {} chunks ({} stale, not sent; {:.0} bytes per decision), {} timesteps, {} weight swaps, {} shares re-sent; acted with versions {first}..={last}",
         opts.id,
         report.chunks_sent,
         report.stale_unsent,
+        report.chunk_bytes as f64 / report.env_steps.max(1) as f64,
         report.env_steps,
         report.swaps,
         report.resent_shares,

@@ -158,7 +158,7 @@ fn mutate(c: &mut CompactTrajectory, which: usize, how: u8) {
         }
     }
     match which % 12 {
-        0 if how % 2 == 0 => c.rsrp_codes.push(how),
+        0 if how.is_multiple_of(2) => c.rsrp_codes.push(how),
         0 => drop(c.rsrp_codes.pop()),
         1 => set(&mut c.serving, how, u16::from(how) + 2),
         2 => set(&mut c.ping_pong, how, u16::MAX),
