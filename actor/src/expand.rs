@@ -114,7 +114,8 @@ pub struct Expander {
     area: Bounds2,
     /// Centre and half height of the altitude band (m).
     band_m: (f64, f64),
-    sites_m: Vec<Point>,
+    /// The sites' positions (m), in `f32` as the site features compute with them.
+    sites_f32: Vec<[f32; 3]>,
     /// Most steps of a decision (`env.action_repeat`).
     max_repeat: usize,
     /// The site chosen at every step (`env.site_every_step` with the learned association and
@@ -156,7 +157,10 @@ impl Expander {
             thresholds: RsrpThresholds::from_config(&cfg.radio),
             area,
             band_m: (0.5 * (e.z_min_m + e.z_max_m), 0.5 * (e.z_max_m - e.z_min_m)),
-            sites_m,
+            sites_f32: sites_m
+                .iter()
+                .map(|q| [q[0] as f32, q[1] as f32, q[2] as f32])
+                .collect(),
             max_repeat: e.action_repeat.max(1) as usize,
         }
     }
@@ -261,18 +265,17 @@ impl Expander {
     /// equivariant site head.
     pub fn site_features(&self, destination_m: [f32; 3], s: &StateRow, out: &mut [f32]) {
         let o = &self.obs;
-        let p = s.position_m.map(f64::from);
-        let dest = destination_m.map(f64::from);
-        let dbm = |k: usize| code::rsrp_dbm(s.rsrp[k]).max(RSRP_FLOOR_DBM);
-        let best = (0..self.sites_m.len())
-            .map(dbm)
-            .fold(RSRP_FLOOR_DBM, f64::max);
-        let unit2 = |x: f64, y: f64| {
-            let n = x.hypot(y);
+        let p = s.position_m;
+        // The codes are monotone in RSRP: the strongest site has the largest code.
+        let dbm = |c: u8| code::rsrp_dbm(c).max(RSRP_FLOOR_DBM);
+        let best = dbm(s.rsrp.iter().copied().max().unwrap_or(0));
+        // The geometry in `f32` (what the features are): half the expansion's time in `f64`.
+        let unit2 = |x: f32, y: f32| {
+            let n = (x * x + y * y).sqrt();
             (n > 1e-9).then(|| [x / n, y / n])
         };
-        let goal = unit2(dest[0] - p[0], dest[1] - p[1]);
-        let [vx, vy] = s.velocity_xy.map(code::signed_value);
+        let goal = unit2(destination_m[0] - p[0], destination_m[1] - p[1]);
+        let [vx, vy] = s.velocity_xy.map(|c| code::signed_value(c) as f32);
         let heading = unit2(vx, vy).or(goal).unwrap_or([1.0, 0.0]);
         let goal = goal.unwrap_or(heading);
         let per_site = site_features_per_site(o);
@@ -281,25 +284,26 @@ impl Expander {
         let stay_at = site_feature::stay(o);
         let choice_at = site_feature::predictive_choice(o);
         let n_ahead = lookahead_at.len();
-        for (k, q) in self.sites_m.iter().enumerate() {
+        for (k, q) in self.sites_f32.iter().enumerate() {
             let f = &mut out[k * per_site..][..per_site];
-            let w = dbm(k);
+            let w = dbm(s.rsrp[k]);
             let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
             let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
             let u = unit2(d[0], d[1]).unwrap_or(heading);
-            let rel = |h: [f64; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
+            let rel = |h: [f32; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
             let (ch, sh) = rel(heading);
             let (cg, sg) = rel(goal);
             use site_feature::*;
             f[RSRP] = ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32;
             f[RSRP_MINUS_BEST] = ((w - best) / 10.0).clamp(-6.0, 0.0) as f32;
             f[SERVING] = f32::from(u8::from(k == usize::from(s.serving)));
-            f[LOG_DISTANCE] = (d3d / 100.0).ln_1p() as f32;
-            f[SIN_ELEVATION] = (d[2] / d3d) as f32;
-            f[COS_BEARING_HEADING] = ch as f32;
-            f[SIN_BEARING_HEADING] = sh as f32;
-            f[COS_BEARING_GOAL] = cg as f32;
-            f[SIN_BEARING_GOAL] = sg as f32;
+            // ln(1 + d / 100 m) (`ln`, not `ln_1p`: d ≥ 1 mm, and `ln_1p` is slower).
+            f[LOG_DISTANCE] = (1.0 + d3d / 100.0).ln();
+            f[SIN_ELEVATION] = d[2] / d3d;
+            f[COS_BEARING_HEADING] = ch;
+            f[SIN_BEARING_HEADING] = sh;
+            f[COS_BEARING_GOAL] = cg;
+            f[SIN_BEARING_GOAL] = sg;
             f[LOS] = f32::from(u8::from(s.los(k)));
             if let Some(i) = ping_pong_at {
                 f[i] = f32::from(u8::from(k == usize::from(s.ping_pong)));
@@ -318,14 +322,14 @@ impl Expander {
 
     /// Every site's reward of one step (appended to `out`, `M` values): the step's
     /// site-independent reward `common` plus [`site_term`] of the site with the episode's
-    /// handover weight `w`, scored with every site's RSRP codes after the step, the site serving
-    /// before it, the site that would be a ping-pong (M: none), and whether a change of site at
+    /// handover costs (`reward`, at the episode's weight), scored with every site's RSRP codes
+    /// after the step, the site serving before it, the site that would be a ping-pong (M: none), and whether a change of site at
     /// it is a handover (`first`).
     #[allow(clippy::too_many_arguments)]
     fn step_site_rewards(
         &self,
         out: &mut [f64],
-        w: f64,
+        reward: &RewardConfig,
         step: &StepRecord,
         crashed: bool,
         rsrp_after: &[u8],
@@ -333,19 +337,14 @@ impl Expander {
         ping_pong: usize,
         first: bool,
     ) {
-        let mut reward = self.reward.clone();
-        reward.handover_reward *= w;
-        reward.ping_pong_reward *= w;
-        let best = rsrp_after
-            .iter()
-            .map(|&c| code::rsrp_dbm(c))
-            .fold(f64::NEG_INFINITY, f64::max);
+        // The codes are monotone in RSRP.
+        let best = code::rsrp_dbm(rsrp_after.iter().copied().max().unwrap_or(0));
         for (k, out) in out.iter_mut().enumerate() {
             let handover = first && k != before;
             let pp = handover && k == ping_pong;
             *out += f64::from(step.common)
                 + site_term(
-                    &reward,
+                    reward,
                     &self.thresholds,
                     crashed,
                     f64::from(step.progress_m),
@@ -359,7 +358,8 @@ impl Expander {
 
     /// The site rows of one decision of a learned site: with the site chosen every step
     /// (`every_step`, this configuration's [`Expander::every_step`] on the wire), each
-    /// step's site features (appended to `features`, when given) and every site's reward of that step
+    /// step's site features (appended to `features`, when given; the first step's copied from
+    /// the observation's when that is given too) and every site's reward of that step
     /// (appended to `rewards`, `M` per step); otherwise every site's reward of the decision, had
     /// it served from the decision's first step on (`M` values).
     pub fn site_rows(
@@ -367,22 +367,30 @@ impl Expander {
         trunk: &TrunkRow,
         d: &DecisionRecord,
         every_step: bool,
-        mut features: Option<&mut Vec<f32>>,
+        mut features: Option<(&mut Vec<f32>, Option<&[f32]>)>,
         rewards: &mut Vec<f64>,
     ) {
         let m = self.shape.n_sites;
         let per_site = site_features_per_site(&self.obs);
         let w = f64::from(trunk.handover_weight);
+        let mut reward = self.reward.clone();
+        reward.handover_reward *= w;
+        reward.ping_pong_reward *= w;
         let n = d.states.len();
         if !every_step {
             rewards.resize(rewards.len() + m, 0.0);
         }
         for (k, (state, step)) in d.states.iter().zip(&d.steps).enumerate() {
             if every_step {
-                if let Some(features) = features.as_deref_mut() {
+                if let Some((features, first)) = features.as_mut() {
                     let from = features.len();
-                    features.resize(from + m * per_site, 0.0);
-                    self.site_features(trunk.destination_m, state, &mut features[from..]);
+                    match first.filter(|_| k == 0) {
+                        Some(f) => features.extend_from_slice(f),
+                        None => {
+                            features.resize(from + m * per_site, 0.0);
+                            self.site_features(trunk.destination_m, state, &mut features[from..]);
+                        }
+                    }
                 }
                 rewards.resize(rewards.len() + m, 0.0);
             }
@@ -396,7 +404,7 @@ impl Expander {
             let at = rewards.len() - m;
             self.step_site_rewards(
                 &mut rewards[at..],
-                w,
+                &reward,
                 step,
                 d.crashed && k + 1 == n,
                 after,
@@ -472,37 +480,50 @@ impl Expander {
         };
         let mut at = 0;
         let mut rewards = Vec::new();
+        let mut record = DecisionRecord::default();
+        let m = sh.n_sites;
+        let steps: usize = (0..n).map(|t| c.states_of(sh, t)).sum();
+        if self.every_step {
+            tr.step_site_features
+                .reserve_exact(steps * m * site_features_per_site(&self.obs));
+            tr.step_site_rewards.reserve_exact(steps * m);
+        }
+        let tail = self.slots.site_features.clone();
         for t in 0..n {
             let trunk = c.trunk(sh, t);
             let states = c.states_of(sh, t);
-            let first = c.state(sh, at);
-            self.observation(&trunk, &first, &mut tr.obs[t * d..(t + 1) * d]);
+            record.states.resize_with(states, StateRow::default);
+            for (k, s) in record.states.iter_mut().enumerate() {
+                c.state_into(sh, at + k, s);
+            }
+            let obs = &mut tr.obs[t * d..(t + 1) * d];
+            self.observation(&trunk, &record.states[0], obs);
             if sh.learned {
-                let m = sh.n_sites;
                 let rows = if sh.true_rsrp_every_step {
                     at * m..(at + states) * m
                 } else {
                     t * m..(t + 1) * m
                 };
-                let record = DecisionRecord {
-                    states: std::iter::once(first)
-                        .chain((1..states).map(|k| c.state(sh, at + k)))
-                        .collect(),
-                    steps: (at..at + states)
-                        .map(|i| StepRecord {
-                            progress_m: c.progress_m[i],
-                            common: c.common_reward[i],
-                        })
-                        .collect(),
-                    reward_rsrp: c.reward_rsrp_codes[rows].to_vec(),
-                    crashed: c.crashed[t],
-                };
+                record.steps.clear();
+                record.steps.extend((at..at + states).map(|i| StepRecord {
+                    progress_m: c.progress_m[i],
+                    common: c.common_reward[i],
+                }));
+                record.reward_rsrp.clear();
+                record
+                    .reward_rsrp
+                    .extend_from_slice(&c.reward_rsrp_codes[rows]);
+                record.crashed = c.crashed[t];
                 rewards.clear();
+                // The first step's features are the observation's own.
+                let first = tail
+                    .as_ref()
+                    .map(|r| &tr.obs[t * d..(t + 1) * d][r.clone()]);
                 self.site_rows(
                     &trunk,
                     &record,
                     self.every_step,
-                    Some(&mut tr.step_site_features),
+                    Some((&mut tr.step_site_features, first)),
                     &mut rewards,
                 );
                 if self.every_step {

@@ -29,6 +29,7 @@ pub mod code {
     /// The code of `dbm`: the grid value at or below it (−80 and −100 dBm are grid values, so
     /// the class of the code's RSRP is the class of `dbm`), saturated to
     /// [`RSRP_BOTTOM_DBM`, `RSRP_TOP_DBM`]; −∞ and NaN are [`RSRP_UNMEASURED`].
+    #[inline]
     pub fn rsrp(dbm: f64) -> u8 {
         if dbm.is_nan() || dbm == f64::NEG_INFINITY {
             return RSRP_UNMEASURED;
@@ -38,6 +39,7 @@ pub mod code {
     }
 
     /// The RSRP (dBm) of a code (−∞ for [`RSRP_UNMEASURED`]).
+    #[inline]
     pub fn rsrp_dbm(c: u8) -> f64 {
         if c == RSRP_UNMEASURED {
             f64::NEG_INFINITY
@@ -47,10 +49,12 @@ pub mod code {
     }
 
     /// A value in [0, 1] (clamped) as a 16-bit code (resolution 1.5·10⁻⁵).
+    #[inline]
     pub fn unit(v: f64) -> u16 {
         (v.clamp(0.0, 1.0) * 65535.0).round() as u16
     }
 
+    #[inline]
     pub fn unit_value(c: u16) -> f64 {
         f64::from(c) / 65535.0
     }
@@ -60,20 +64,24 @@ pub mod code {
 
     /// A value in [−1, 1] (clamped) as a 16-bit code (resolution 3.1·10⁻⁵; −1, 0 and 1
     /// exact).
+    #[inline]
     pub fn signed(v: f64) -> u16 {
         (v.clamp(-1.0, 1.0) * SIGNED_ZERO + SIGNED_ZERO).round() as u16
     }
 
     /// The value of a [`signed`] code (65535, never written, reads as 1).
+    #[inline]
     pub fn signed_value(c: u16) -> f64 {
         ((f64::from(c) - SIGNED_ZERO) / SIGNED_ZERO).min(1.0)
     }
 
     /// A value in [0, 1] (clamped) as an 8-bit code (resolution 0.004).
+    #[inline]
     pub fn byte(v: f64) -> u8 {
         (v.clamp(0.0, 1.0) * 255.0).round() as u8
     }
 
+    #[inline]
     pub fn byte_value(c: u8) -> f64 {
         f64::from(c) / 255.0
     }
@@ -153,7 +161,8 @@ pub struct StateRow {
     pub ping_pong: u16,
     /// Each site's measured RSRP, [`code::rsrp`].
     pub rsrp: Vec<u8>,
-    /// Each site's geometric line of sight, one bit per site (site k: byte k / 8, bit k % 8).
+    /// Each site's geometric line of sight, one bit per site (site k: byte k / 8, bit k % 8;
+    /// the RSRP cache's value, interpolated near a shadow edge, rounded).
     pub los: Vec<u8>,
     /// Per site (site-major) each look-ahead distance's predicted RSRP minus the predicted best
     /// (/ 10 dB in [−6, 0]), [`code::byte`] of its negation / 6.
@@ -353,28 +362,39 @@ impl CompactTrajectory {
 
     /// State `i`; the columns must hold it ([`CompactTrajectory::shape_error`]).
     pub fn state(&self, shape: &CompactShape, i: usize) -> StateRow {
-        let m = shape.n_sites;
         let mut s = StateRow::default();
+        self.state_into(shape, i, &mut s);
+        s
+    }
+
+    /// State `i` into `s`, reusing its buffers.
+    pub fn state_into(&self, shape: &CompactShape, i: usize, s: &mut StateRow) {
+        let m = shape.n_sites;
         s.position_m
             .copy_from_slice(&self.position_m[3 * i..3 * i + 3]);
         s.velocity_xy = read_codes(&self.velocity_codes, &mut (4 * i));
         s.serving = self.serving[i];
         s.ping_pong = self.ping_pong[i];
-        s.rsrp = self.rsrp_codes[i * m..(i + 1) * m].to_vec();
+        let fill = |v: &mut Vec<u8>, from: &[u8]| {
+            v.clear();
+            v.extend_from_slice(from);
+        };
+        fill(&mut s.rsrp, &self.rsrp_codes[i * m..(i + 1) * m]);
         if shape.learned {
             let lb = shape.los_bytes();
-            s.los = self.los_bits[i * lb..(i + 1) * lb].to_vec();
+            fill(&mut s.los, &self.los_bits[i * lb..(i + 1) * lb]);
             let l = m * shape.lookahead;
-            s.lookahead = self.lookahead_codes[i * l..(i + 1) * l].to_vec();
-            if shape.stay {
-                s.stay = self.stay_codes[i * m..(i + 1) * m].to_vec();
-            }
+            fill(&mut s.lookahead, &self.lookahead_codes[i * l..(i + 1) * l]);
+            let st = m * usize::from(shape.stay);
+            fill(&mut s.stay, &self.stay_codes[i * st..(i + 1) * st]);
             s.choice = self.choice[i];
         } else {
-            s.los = vec![0; shape.los_bytes()];
+            s.los.clear();
+            s.los.resize(shape.los_bytes(), 0);
+            s.lookahead.clear();
+            s.stay.clear();
             s.choice = m as u16;
         }
-        s
     }
 
     /// States of decision `t` (`decision_steps[t]` with a learned site, else 1).

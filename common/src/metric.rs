@@ -34,6 +34,10 @@ pub const SKIPPED_UPDATES: &str = "numerics/skipped_updates";
 pub const PPO_S: &str = "time/ppo_s";
 pub const WAIT_S: &str = "time/wait_s";
 pub const PUBLISH_S: &str = "time/publish_s";
+/// Seconds the learner's network side spent accepting trajectory messages since its start
+/// (decoding, validating and expanding them, beside the update), and of them expanding.
+pub const ACCEPT_S: &str = "time/accept_s";
+pub const EXPAND_S: &str = "time/expand_s";
 pub const CHUNKS: &str = "dist/chunks";
 pub const ALIVE_ACTORS: &str = "dist/alive_actors";
 /// Trajectory messages received by the learner since its start (MB, 10⁶ bytes; accepted or not).

@@ -43,6 +43,8 @@ pub struct Acceptor {
     limits: MsgLimits,
     expander: Arc<Expander>,
     seqs: SeqTracker,
+    /// Time spent expanding since [`Acceptor::take_expand_time`] was last called.
+    expand_time: std::time::Duration,
 }
 
 impl Acceptor {
@@ -54,6 +56,7 @@ impl Acceptor {
             limits,
             expander,
             seqs: SeqTracker::new(),
+            expand_time: std::time::Duration::ZERO,
         }
     }
 
@@ -82,7 +85,10 @@ impl Acceptor {
             detail: r.to_string(),
         };
         validate_compact(&chunk, &self.expect).map_err(rejected)?;
-        let chunk = self.expand(chunk)?;
+        let t0 = std::time::Instant::now();
+        let chunk = self.expand(chunk);
+        self.expand_time += t0.elapsed();
+        let chunk = chunk?;
         validate_chunk(&chunk, &self.expect).map_err(rejected)?;
         let h = &chunk.header;
         match self.seqs.accept(h.actor, h.sender_incarnation, h.seq) {
@@ -102,6 +108,11 @@ impl Acceptor {
 }
 
 impl Acceptor {
+    /// The time spent expanding since the last call (zero after it).
+    pub fn take_expand_time(&mut self) -> std::time::Duration {
+        std::mem::take(&mut self.expand_time)
+    }
+
     /// Each trajectory of `chunk` expanded, all of them within the decoding budget.
     fn expand(&self, chunk: TrajectoryChunk) -> Result<ExpandedChunk, Refusal> {
         let mut left = self.limits.budget_bytes;

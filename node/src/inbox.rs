@@ -140,6 +140,10 @@ pub(crate) struct Inbox {
     pub(crate) drops: Mutex<BTreeMap<DropReason, u64>>,
     /// Bytes of every trajectory message that arrived (accepted or not).
     pub(crate) received_bytes: std::sync::atomic::AtomicU64,
+    /// Time the decode task spent accepting messages (decoding, validating, expanding; ns), and
+    /// of it expanding the compact trajectories.
+    pub(crate) accept_ns: std::sync::atomic::AtomicU64,
+    pub(crate) expand_ns: std::sync::atomic::AtomicU64,
     pub(crate) budget: InboxBudget,
     /// The drops' warnings: one line per kind per [`WARN_PERIOD`], with counts.
     pub(crate) warnings: RateLog,
@@ -156,6 +160,8 @@ impl Inbox {
             arrived: tokio::sync::Notify::new(),
             drops: Mutex::default(),
             received_bytes: std::sync::atomic::AtomicU64::new(0),
+            accept_ns: std::sync::atomic::AtomicU64::new(0),
+            expand_ns: std::sync::atomic::AtomicU64::new(0),
             budget,
             warnings: RateLog::new(WARN_PERIOD),
         }
@@ -286,7 +292,16 @@ pub(crate) async fn decode_task(
         // A backlog (or a flood of refused messages) is worked through a message at a time
         // between the other tasks' turns.
         tokio::task::yield_now().await;
-        match acceptor.accept(raw.sender, &raw.key, &raw.payload.to_bytes()) {
+        let t0 = std::time::Instant::now();
+        let accepted = acceptor.accept(raw.sender, &raw.key, &raw.payload.to_bytes());
+        let ns = |d: Duration| d.as_nanos().min(u128::from(u64::MAX)) as u64;
+        inbox
+            .accept_ns
+            .fetch_add(ns(t0.elapsed()), Ordering::Relaxed);
+        inbox
+            .expand_ns
+            .fetch_add(ns(acceptor.take_expand_time()), Ordering::Relaxed);
+        match accepted {
             Ok(chunk) => inbox.decoded(chunk, raw.sender, raw.charge),
             Err(r) => inbox.refuse(&raw, r),
         }

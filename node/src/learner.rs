@@ -358,6 +358,15 @@ impl LearnerNode {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// Seconds the network side spent accepting trajectory messages so far (decoding,
+    /// validating, expanding), and of them expanding.
+    pub fn accept_s(&self) -> (f64, f64) {
+        let s = |a: &std::sync::atomic::AtomicU64| {
+            a.load(std::sync::atomic::Ordering::Relaxed) as f64 / 1e9
+        };
+        (s(&self.inbox.accept_ns), s(&self.inbox.expand_ns))
+    }
+
     /// Actors whose liveliness token is present.
     pub fn alive_actors(&self) -> usize {
         self.roster.lock().map_or(0, |r| r.alive())

@@ -102,6 +102,9 @@ impl TrajectorySource for ZenohSource {
             metric::RECEIVED_MB.into(),
             node.received_bytes() as f64 / 1e6,
         );
+        let (accept_s, expand_s) = node.accept_s();
+        row.insert(metric::ACCEPT_S.into(), accept_s);
+        row.insert(metric::EXPAND_S.into(), expand_s);
         let drops = node.drops();
         for r in DropReason::ALL {
             row.insert(
