@@ -71,13 +71,20 @@ for n in $NS; do
   python3 - "$R/metrics.jsonl" "$R.time" "$n" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-a, b = rows[min(5, len(rows) - 2)], rows[-1]
+n = int(sys.argv[3])
+# The steady state: from update 6, or from the first update with every actor alive (N actor
+# processes take a while to load the world on a small machine), to the last.
+alive = [r for r in rows if r.get("dist/alive_actors", 0) >= n]
+start = max(5, rows.index(alive[0]) if alive else 5)
+a, b = rows[min(start, len(rows) - 2)], rows[-1]
 dt = b["time_s"] - a["time_s"]
 sps = (b["global_step"] - a["global_step"]) / dt
 ups = (b["update"] - a["update"]) / dt
 mbps = (b["dist/received_mb"] - a["dist/received_mb"]) / dt
 drops = sum(v for k, v in b.items() if k.startswith("dist/dropped_") and v)
 rss_kb = float(open(sys.argv[2]).read().split()[-1])
-print(f"{sys.argv[3]:>4} {sps:14.0f} {ups:10.2f} {mbps:10.2f} {drops:8.0f} {rss_kb / 1024:9.0f} MB")
+most = max(r.get("dist/alive_actors", 0) for r in rows)
+print(f"{n:>4} {sps:14.0f} {ups:10.2f} {mbps:10.2f} {drops:8.0f} {rss_kb / 1024:9.0f} MB"
+      f"   (updates {a['update']:.0f}..{b['update']:.0f}, at most {most:.0f} actors alive)")
 PY
 done

@@ -4,6 +4,7 @@
 //! [`DropReason`] (counted by the learner) with the detail of what was wrong ([`Rejection`]).
 
 use crate::codec::CodecError;
+use crate::compact::CompactTrajectory;
 use crate::config::{Association, Config};
 use crate::msg::{
     EnvTrajectory, EpisodeSummary, ExpandedChunk, HEADER_BUDGET_BYTES, Header, MsgLimits,
@@ -143,11 +144,14 @@ impl SiteSteps {
 }
 
 impl ChunkExpect {
-    /// Upper bound (bytes) on what a valid chunk allocates when decoded, and on its encoded size:
-    /// `max_envs` trajectories of `max_steps` steps with every per-step vector full and one
-    /// episode summary per step, plus the header. A wire value is never larger than its
-    /// decoded form here (f32 4 → 4 bytes, bool 1 → 1, varint lengths ≤ 9 bytes against a
-    /// 24-byte `Vec`), so the same figure caps the message size and the decoding budget.
+    /// Upper bound (bytes) on what a valid chunk allocates once expanded: `max_envs`
+    /// trajectories of `max_steps` decisions with every per-step vector full and one episode
+    /// summary per decision, plus the header. The compact form is smaller, on the wire and
+    /// decoded (per decision a trunk row of ≤ 100 bytes against the observation's 4 per value,
+    /// per state ≤ 30 + M·(3 + look-ahead distances) bytes against 4·M·(features + 1); a wire
+    /// value is never larger than its decoded form: f32 4 → 4 bytes, u8 1 → 1, bool 1 → 1,
+    /// varint lengths ≤ 9 bytes against a 24-byte `Vec`), so the same figure caps the message
+    /// size, the decoding budget and the expansion's (`dupac_actor::expand`).
     pub fn budget_bytes(&self) -> usize {
         let f = size_of::<f32>();
         let per_step = f * (self.obs_dim + MOVE_DIM + self.n_sites)
@@ -159,8 +163,9 @@ impl ChunkExpect {
                 // A u16 of 251 or more takes 3 bytes as a bincode varint.
                 3 + f * k.per_decision * self.n_sites * (k.features + 1)
             });
-        let per_env =
-            size_of::<EnvTrajectory>() + f * self.obs_dim + self.max_steps.saturating_mul(per_step);
+        let per_env = size_of::<EnvTrajectory>().max(size_of::<CompactTrajectory>())
+            + f * self.obs_dim
+            + self.max_steps.saturating_mul(per_step);
         self.max_envs
             .saturating_mul(per_env)
             .saturating_add(HEADER_BUDGET_BYTES)
@@ -569,6 +574,24 @@ mod tests {
         assert_eq!(validate_chunk(&chunk(), &expect()), Ok(()));
     }
 
+    /// Each defect of a chunk's header has its reason, whatever the chunk (`reason` validates
+    /// one with the header changed by its argument).
+    fn header_defects(reason: &dyn Fn(&dyn Fn(&mut Header)) -> Result<(), DropReason>) {
+        assert_eq!(
+            reason(&|h| h.run_id = "x".into()),
+            Err(DropReason::WrongRun)
+        );
+        assert_eq!(reason(&|h| h.schema_version = 0), Err(DropReason::Schema));
+        assert_eq!(
+            reason(&|h| h.config_fingerprint = 1),
+            Err(DropReason::Fingerprint)
+        );
+        assert_eq!(
+            reason(&|h| h.learner_incarnation = 1),
+            Err(DropReason::Incarnation)
+        );
+    }
+
     #[test]
     fn every_defect_of_a_compact_chunk_has_its_reason() {
         let x = expect();
@@ -578,22 +601,7 @@ mod tests {
             validate_compact(&c, &x).map_err(|r| r.reason)
         };
         assert_eq!(reason(&|_| {}), Ok(()));
-        assert_eq!(
-            reason(&|c| c.header.run_id = "x".into()),
-            Err(DropReason::WrongRun)
-        );
-        assert_eq!(
-            reason(&|c| c.header.schema_version = 0),
-            Err(DropReason::Schema)
-        );
-        assert_eq!(
-            reason(&|c| c.header.config_fingerprint = 1),
-            Err(DropReason::Fingerprint)
-        );
-        assert_eq!(
-            reason(&|c| c.header.learner_incarnation = 1),
-            Err(DropReason::Incarnation)
-        );
+        header_defects(&|f| reason(&|c| f(&mut c.header)));
         assert_eq!(
             reason(&|c| c.trajectories[0].sites[1] = 3),
             Err(DropReason::Dimensions)
@@ -620,22 +628,7 @@ mod tests {
             f(&mut c);
             validate_chunk(&c, &x).map_err(|r| r.reason)
         };
-        assert_eq!(
-            reason(&|c| c.header.run_id = "x".into()),
-            Err(DropReason::WrongRun)
-        );
-        assert_eq!(
-            reason(&|c| c.header.schema_version = 0),
-            Err(DropReason::Schema)
-        );
-        assert_eq!(
-            reason(&|c| c.header.config_fingerprint = 1),
-            Err(DropReason::Fingerprint)
-        );
-        assert_eq!(
-            reason(&|c| c.header.learner_incarnation = 1),
-            Err(DropReason::Incarnation)
-        );
+        header_defects(&|f| reason(&|c| f(&mut c.header)));
         assert_eq!(
             reason(&|c| c.trajectories[0].obs.push(0.0)),
             Err(DropReason::Dimensions)
