@@ -10,7 +10,7 @@
 //! left out: the site head reads only `r_k − max_j r_j`, in which they cancel), scored with the
 //! RSRP codes: the classes are exact, each value up to 0.5 dB low ([`code::rsrp`]).
 
-use crate::env::{RSRP_FLOOR_DBM, site_term};
+use crate::reward::{RSRP_FLOOR_DBM, site_term};
 use dupac_common::compact::{CompactShape, CompactTrajectory, StateRow, TrunkRow, code};
 use dupac_common::config::{Association, Config, ObservationConfig, RewardConfig};
 use dupac_common::geometry::{Bounds2, Point};

@@ -8,4 +8,5 @@ pub mod pairs;
 pub mod pilot;
 pub mod planner;
 pub mod record;
+pub mod reward;
 pub mod rollout;

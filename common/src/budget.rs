@@ -1,7 +1,7 @@
 //! Decoding under an allocation budget ("memory bounded by design").
 //!
 //! A cap on a message's bytes is not a cap on what decoding it allocates: an empty
-//! [`crate::compact::CompactTrajectory`] is ≈ 31 bytes on the wire and ≈ 730 in memory, a `u32`
+//! [`crate::compact::CompactTrajectory`] is 29 bytes on the wire and ≈ 730 in memory, a `u32`
 //! site 1 byte and 4. [`crate::codec::decode_budgeted`] therefore runs the decoder with a budget
 //! in bytes (derived from the run's configuration, e.g. [`crate::validate::ChunkExpect::budget_bytes`])
 //! and every collection of a network message is decoded through [`vec`] or [`map`], which

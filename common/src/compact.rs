@@ -12,7 +12,7 @@
 //! look-ahead features as 8-bit fixed point; positions, progress, the planned path's distance
 //! and the handover weight in `f32` as before.
 
-use crate::msg::EpisodeSummary;
+use crate::episode::EpisodeSummary;
 use serde::{Deserialize, Serialize};
 
 /// The fixed-point codes of the compact trajectory.

@@ -10,6 +10,7 @@ pub mod codec;
 pub mod compact;
 pub mod config;
 pub mod dedup;
+pub mod episode;
 pub mod fault;
 pub mod fingerprint;
 pub mod fsio;

@@ -576,7 +576,10 @@ mod tests {
 
     /// Each defect of a chunk's header has its reason, whatever the chunk (`reason` validates
     /// one with the header changed by its argument).
-    fn header_defects(reason: &dyn Fn(&dyn Fn(&mut Header)) -> Result<(), DropReason>) {
+    /// A validation of a chunk whose header its argument changes.
+    type HeaderCase<'a> = &'a dyn Fn(&dyn Fn(&mut Header)) -> Result<(), DropReason>;
+
+    fn header_defects(reason: HeaderCase<'_>) {
         assert_eq!(
             reason(&|h| h.run_id = "x".into()),
             Err(DropReason::WrongRun)

@@ -198,8 +198,8 @@ fn summary() -> EpisodeSummary {
 }
 
 /// A chunk built to amplify: `n` trajectories, each with `sites` sites and `episodes` episode
-/// summaries (varint sites are 1 byte on the wire and 4 in memory; an empty trajectory ≈ 31
-/// and 730).
+/// summaries (varint sites are 1 byte on the wire and 4 in memory; an empty trajectory 29
+/// and ≈ 730).
 fn amplifying(n: usize, sites: usize, episodes: usize) -> Vec<u8> {
     let tr = CompactTrajectory {
         sites: vec![0; sites],

@@ -247,7 +247,7 @@ fn peak_rss_bytes(pid: u32) -> u64 {
 }
 
 /// Bytes of one empty compact trajectory on the wire (≈ 730 bytes in memory once decoded).
-const EMPTY_TRAJECTORY_BYTES: usize = 31;
+const EMPTY_TRAJECTORY_BYTES: usize = 29;
 
 /// A chunk of `n` empty trajectories, written straight as bytes (building it as a value would
 /// take the test `n × 730` bytes): an amplifying message.
@@ -333,7 +333,7 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
         66,
         (48 * (1 << 20) / EMPTY_TRAJECTORY_BYTES) as u32,
     );
-    // ≈ 0.37 MB, under the chunk limit the learner derives (≈ 0.5 MB with the default per-step
+    // ≈ 0.35 MB, under the chunk limit the learner derives (≈ 0.5 MB with the default per-step
     // site fields): ≈ 9 MB if decoded, 17× that limit.
     let amplifying = amplifying_chunk(&weights, 67, 12_000);
     let t0 = Instant::now();

@@ -25,10 +25,10 @@ mod serving_plan;
 use crate::expand::{DecisionRecord, Expander};
 use crate::metrics::HandoverCounter;
 use crate::record::StepInfo;
+pub use crate::reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 pub use advance::bounded_move;
 pub use association::{Associator, argmax};
 pub use guide::{GuideFix, PathGuide};
-pub use reward::{MAX_REGRET_DB, RSRP_FLOOR_DBM, site_term, step_reward};
 pub use route_ahead::{Ahead, RouteMap};
 pub use serving_plan::serving_plan;
 
