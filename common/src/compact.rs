@@ -491,11 +491,8 @@ impl CompactTrajectory {
             }
         }
         let too_far = |v: &[u16]| v.iter().position(|&k| usize::from(k) > m);
-        for (name, v) in [
-            ("serving", &self.serving),
-            ("ping_pong", &self.ping_pong),
-            ("choice", &self.choice),
-        ] {
+        // The serving site must be a site (below); the others may say "none" (M).
+        for (name, v) in [("ping_pong", &self.ping_pong), ("choice", &self.choice)] {
             if let Some(i) = too_far(v) {
                 return Some(format!("{name}[{i}] = {} (M = {m})", v[i]));
             }
