@@ -2,7 +2,9 @@
 # Training over a bad WAN, rehearsed on one machine without sch_netem: a router, a learner and two
 # actors, the actors either straight to the router (`clean`) or each through its own
 # `dupac relay` (`wan`) with LINK (default: 50 ms ± 20 ms one way, no rate cap) and a fault
-# schedule per relay (actor 1: a 5 s stall, a reset, a 20 s partition; actor 2: a reset, a stall).
+# schedule per relay (actor 1: a 5 s stall, a reset, a 20 s partition; actor 2: a reset, a stall),
+# counted from the learner's third update (`relay --faults-on-signal`: the preparation of a
+# slow binary would otherwise outlast the schedule).
 # The figures in docs/reliability.md "Over a WAN" and BENCHMARKS.md come from it.
 #
 # Usage: benches/wan_rehearsal.sh clean|wan [BIN] [OUT]
@@ -10,6 +12,9 @@
 #   OUT  the output directory (default out/wan/MODE): logs, the run, summary.txt
 #   LINK=delay=50ms,jitter=20ms,rate=10mbit  the relays' link (`dupac relay --help`)
 #   TIMESTEPS=1048576                         train.total_timesteps (256 updates)
+#   SETS="a.b=v …"                            more settings for the learner and the actors, e.g.
+#                                             SETS=distributed.max_chunks_per_version=5 (actors
+#                                             one chunk ahead: docs/distributed.md "Staleness")
 # Decisions/s: Δ global_step / Δ time_s of OUT/run/metrics.jsonl, update 1 to the last.
 set -uo pipefail
 MODE=${1:?usage: $0 clean|wan [BIN] [OUT]}
@@ -17,6 +22,7 @@ B=${2:-target/release/dupac}
 O=${3:-out/wan/$MODE}
 LINK=${LINK:-delay=50ms,jitter=20ms}
 SET=(--set "train.total_timesteps=${TIMESTEPS:-1048576}")
+for kv in ${SETS:-}; do SET+=(--set "$kv"); done
 case $MODE in clean | wan) ;; *) echo "mode: clean or wan" >&2; exit 2 ;; esac
 rm -rf "$O"; mkdir -p "$O"
 PR=$((20000 + RANDOM % 10000)); R=tcp/127.0.0.1:$PR
@@ -29,9 +35,9 @@ for id in 1 2; do
     EP=$R
     if [ "$MODE" = wan ]; then
         PA=$((PR + id))
-        if [ $id = 1 ]; then F="stall@170s+5s,reset@190s,partition@210s+20s"; else F="reset@180s,stall@220s+5s"; fi
+        if [ $id = 1 ]; then F="stall@20s+5s,reset@40s,partition@60s+20s"; else F="reset@30s,stall@70s+5s"; fi
         "$B" --no-progress relay --listen "127.0.0.1:$PA" --upstream "127.0.0.1:$PR" --link "$LINK" \
-            --faults "$F" >"$O/relay$id.log" 2>&1 &
+            --faults "$F" --faults-on-signal >"$O/relay$id.log" 2>&1 &
         RPS+=($!)
         EP=tcp/127.0.0.1:$PA
     fi
@@ -40,6 +46,16 @@ for id in 1 2; do
     APS+=($!)
 done
 T0=$(date +%s)
+if [ "$MODE" = wan ]; then
+    # The fault schedules start once the learner has written its third update.
+    (while kill -0 $LP 2>/dev/null; do
+        if [ "$(grep -c '"update"' "$O/run/metrics.jsonl" 2>/dev/null)" -ge 3 ]; then
+            echo "faults from $(($(date +%s) - T0)) s" >"$O/faults_at.txt"
+            kill -USR1 "${RPS[@]}"; break
+        fi
+        sleep 1
+    done) &
+fi
 wait $LP
 echo "learner exit $? after $(($(date +%s) - T0)) s" >"$O/summary.txt"
 sleep 3
@@ -60,5 +76,6 @@ EOF
 grep -h "done:\|held-out" "$O/learner.out" "$O/learner.err" | tail -2 >>"$O/summary.txt"
 # Each actor's exit line: chunks, stale chunks not sent, bytes per decision, shares re-sent.
 grep -h "^actor [0-9]*:" "$O"/actor*.out >>"$O/summary.txt"
+[ -f "$O/faults_at.txt" ] && cat "$O/faults_at.txt" >>"$O/summary.txt"
 for id in 1 2; do [ -f "$O/relay$id.log" ] && tail -1 "$O/relay$id.log" >>"$O/summary.txt"; done
 cat "$O/summary.txt"

@@ -42,6 +42,10 @@ pub const CHUNKS: &str = "dist/chunks";
 pub const ALIVE_ACTORS: &str = "dist/alive_actors";
 /// Trajectory messages received by the learner since its start (MB, 10⁶ bytes; accepted or not).
 pub const RECEIVED_MB: &str = "dist/received_mb";
+/// Replies of the learner's weights queryable since its start: the whole weights, and the small
+/// reply to an asker that holds the newest.
+pub const WEIGHTS_REPLIES_FULL: &str = "dist/weights_replies_full";
+pub const WEIGHTS_REPLIES_HELD: &str = "dist/weights_replies_held";
 
 /// The key of drops for `reason` (`dist/dropped_<reason>`).
 pub fn dropped(reason: &str) -> String {

@@ -308,15 +308,37 @@ mod tests {
         nan.trajectories[0].position_m[1] = f32::NAN;
         let r = a.accept(ActorId(3), "k", &bytes(&nan)).expect_err("NaN");
         assert_eq!(r.reason, DropReason::NonFinite);
-        // The message decodes in 4 kB; its expansion needs more.
-        let c = chunk(3, 2);
-        let need = test_expander().expanded_bytes(&c.trajectories[0]);
-        let mut tight = Acceptor::new(expect(), MsgLimits::both(need - 1), test_expander());
+        // With the site learned every step, the expansion (every step's site features and
+        // rewards) needs far more than decoding the message (its compressed body and compact
+        // columns): a budget between the two.
+        let mut cfg = dupac_common::config::Config::default();
+        cfg.env.association = dupac_common::config::Association::Learned;
+        let learned = Arc::new(Expander::of_sites(
+            &cfg,
+            dupac_common::geometry::Bounds2 {
+                min_m: dupac_common::geometry::Point2::new(0.0, 0.0),
+                max_m: dupac_common::geometry::Point2::new(1000.0, 1000.0),
+            },
+            vec![
+                dupac_common::geometry::Point::new(400.0, 500.0, 30.0),
+                dupac_common::geometry::Point::new(600.0, 500.0, 30.0),
+            ],
+        ));
+        let x = ChunkExpect {
+            obs_dim: learned.layout().len(),
+            n_sites: 2,
+            site_steps: dupac_common::validate::SiteSteps::of(&cfg),
+            ..expect()
+        };
+        let mut c = chunk(3, 2);
+        c.trajectories = vec![learned.sample_trajectory(4, 9)];
+        let need = learned.expanded_bytes(&c.trajectories[0]);
+        let mut tight = Acceptor::new(x.clone(), MsgLimits::both(need - 1), learned.clone());
         let r = tight
             .accept(ActorId(3), "k", &bytes(&c))
             .expect_err("over the expansion budget");
         assert_eq!(r.reason, DropReason::Overflow, "{r}");
-        let mut enough = Acceptor::new(expect(), MsgLimits::both(need), test_expander());
+        let mut enough = Acceptor::new(x, MsgLimits::both(need), learned);
         assert!(enough.accept(ActorId(3), "k", &bytes(&c)).is_ok());
     }
 

@@ -102,6 +102,9 @@ impl TrajectorySource for ZenohSource {
             metric::RECEIVED_MB.into(),
             node.received_bytes() as f64 / 1e6,
         );
+        let (full, held) = node.weights_replies();
+        row.insert(metric::WEIGHTS_REPLIES_FULL.into(), full as f64);
+        row.insert(metric::WEIGHTS_REPLIES_HELD.into(), held as f64);
         let (accept_s, expand_s) = node.accept_s();
         row.insert(metric::ACCEPT_S.into(), accept_s);
         row.insert(metric::EXPAND_S.into(), expand_s);

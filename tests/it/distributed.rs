@@ -246,15 +246,20 @@ fn peak_rss_bytes(pid: u32) -> u64 {
     kib * 1024
 }
 
-/// Bytes of one empty compact trajectory on the wire (≈ 730 bytes in memory once decoded).
+/// Bytes of one empty compact trajectory in a chunk's body (≈ 730 bytes in memory once decoded).
 const EMPTY_TRAJECTORY_BYTES: usize = 29;
 
-/// A chunk of `n` empty trajectories, written straight as bytes (building it as a value would
-/// take the test `n × 730` bytes): an amplifying message.
+/// A chunk of `n` empty trajectories, its body written straight as bytes (building it as a value
+/// would take the test `n × 730` bytes) and compressed: an amplifying message.
 fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Vec<u8> {
+    use dupac_common::codec;
+    use dupac_common::msg::{Message, SCHEMA_VERSION, TrajectoryChunk};
+    let plain = |c: &TrajectoryChunk| {
+        codec::encode(TrajectoryChunk::MAGIC, SCHEMA_VERSION, c, "chunk").expect("encode")
+    };
     let mut c = valid_chunk(w, actor, w.policy.version);
     c.trajectories.clear();
-    let mut bytes = encode_msg(&c).expect("encode");
+    let mut bytes = plain(&c);
     assert_eq!(
         bytes.pop(),
         Some(0),
@@ -262,21 +267,21 @@ fn amplifying_chunk(w: &dupac_common::msg::WeightsMsg, actor: u32, n: u32) -> Ve
     );
     bytes.push(0xfc); // bincode varint: a u32 follows
     bytes.extend_from_slice(&n.to_le_bytes());
-    let one = encode_msg(&dupac_common::msg::TrajectoryChunk {
+    let one = plain(&TrajectoryChunk {
         header: c.header.clone(),
         trajectories: vec![dupac_common::compact::CompactTrajectory::default()],
-    })
-    .expect("encode");
+    });
     let empty = &one[bytes.len() - 4..]; // one empty trajectory's bytes
     assert_eq!(empty.len(), EMPTY_TRAJECTORY_BYTES);
     for _ in 0..n {
         bytes.extend_from_slice(empty);
     }
-    bytes
+    // On the wire, compressed: 48 MiB of body in a few kB.
+    codec::compress(&bytes, "chunk").expect("compress")
 }
 
 /// A hostile peer: a client of the learner's router sends, for a bounded time,
-/// messages at the configured cap (48 MiB of empty trajectories: 1.6 GB if decoded), amplifying
+/// compressed bombs (48 MiB of empty trajectories: 1.6 GB if decoded), amplifying
 /// chunks just under the learner's chunk limit, garbage, well-formed chunks under 300 invented
 /// actor ids and replays of a real actor's chunk. The learner's peak resident memory stays
 /// within its normal footprint + 64 MiB, the replays are counted and never trained, and the
@@ -327,7 +332,8 @@ fn a_hostile_peer_cannot_grow_the_learner_or_replay_a_chunk() {
             .map_or(0, |a| a.chunks)
     };
 
-    // 48 MiB on the wire: dropped by zenoh's receive limit before the learner sees it.
+    // 48 MiB of body in a few kB on the wire (compressed): refused on the frame's stated size,
+    // before anything is decompressed.
     let huge = amplifying_chunk(
         &weights,
         66,
