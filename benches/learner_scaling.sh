@@ -13,6 +13,9 @@
 #
 # Usage: benches/learner_scaling.sh [path/to/dupac] [--device cpu|cuda|wgpu]
 #        UPDATES=30 NS="2 8 32 64"
+#        POOL=train_pool.jsonl: the actors' training pairs (as `dupac train` writes them for the
+#        default configuration), read by every actor instead of drawn by each (minutes per
+#        actor process: with N = 64 on a small machine, most of the bench)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 B=target/release/dupac
@@ -38,11 +41,12 @@ learner() { # out-dir endpoint
     "$B" -q --config "$OUT/config.toml" learner --out "$1" --device "$DEVICE" \
     --mode router --listen "$2" --no-multicast-scouting > "$1.log" 2>&1
 }
+POOLARG=(); [ -n "${POOL:-}" ] && POOLARG=(--pool "$POOL")
 actor() { # id endpoint extra…
   local id=$1 ep=$2
   shift 2
   "$B" -q --config "$OUT/config.toml" actor --id "$id" --threads 1 \
-    --mode client --connect "$ep" --no-multicast-scouting "$@"
+    --mode client --connect "$ep" --no-multicast-scouting "${POOLARG[@]}" "$@"
 }
 
 # Record.

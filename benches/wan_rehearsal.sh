@@ -12,6 +12,9 @@
 #   OUT  the output directory (default out/wan/MODE): logs, the run, summary.txt
 #   LINK=delay=50ms,jitter=20ms,rate=10mbit  the relays' link (`dupac relay --help`)
 #   TIMESTEPS=1048576                         train.total_timesteps (256 updates)
+#   POOL=train_pool.jsonl                     the actors' training pairs (as `dupac train` writes
+#                                             them for the same configuration and seed): each
+#                                             actor reads them instead of drawing its own (minutes)
 #   SETS="a.b=v …"                            more settings for the learner and the actors, e.g.
 #                                             SETS=distributed.max_chunks_per_version=5 (actors
 #                                             one chunk ahead: docs/distributed.md "Staleness")
@@ -23,6 +26,7 @@ O=${3:-out/wan/$MODE}
 LINK=${LINK:-delay=50ms,jitter=20ms}
 SET=(--set "train.total_timesteps=${TIMESTEPS:-1048576}")
 for kv in ${SETS:-}; do SET+=(--set "$kv"); done
+APOOL=(); [ -n "${POOL:-}" ] && APOOL=(--pool "$POOL")
 case $MODE in clean | wan) ;; *) echo "mode: clean or wan" >&2; exit 2 ;; esac
 rm -rf "$O"; mkdir -p "$O"
 PR=$((20000 + RANDOM % 10000)); R=tcp/127.0.0.1:$PR
@@ -42,7 +46,7 @@ for id in 1 2; do
         EP=tcp/127.0.0.1:$PA
     fi
     "$B" --no-progress "${SET[@]}" actor --id $id --threads 1 --mode client --connect "$EP" \
-        --no-multicast-scouting >"$O/actor$id.out" 2>"$O/actor$id.err" &
+        --no-multicast-scouting "${APOOL[@]}" >"$O/actor$id.out" 2>"$O/actor$id.err" &
     APS+=($!)
 done
 T0=$(date +%s)

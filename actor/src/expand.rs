@@ -116,6 +116,10 @@ pub struct Expander {
     band_m: (f64, f64),
     /// The sites' positions (m), in `f32` as the site features compute with them.
     sites_f32: Vec<[f32; 3]>,
+    /// Per RSRP code: the RSRP the site features and rewards score (dBm, floored at
+    /// [`RSRP_FLOOR_DBM`]) and the site features' RSRP value.
+    code_dbm: Box<[f64; 256]>,
+    code_feature: Box<[f32; 256]>,
     /// Most steps of a decision (`env.action_repeat`).
     max_repeat: usize,
     /// The site chosen at every step (`env.site_every_step` with the learned association and
@@ -161,6 +165,13 @@ impl Expander {
                 .iter()
                 .map(|q| [q[0] as f32, q[1] as f32, q[2] as f32])
                 .collect(),
+            code_dbm: Box::new(std::array::from_fn(|c| {
+                code::rsrp_dbm(c as u8).max(RSRP_FLOOR_DBM)
+            })),
+            code_feature: Box::new(std::array::from_fn(|c| {
+                let w = code::rsrp_dbm(c as u8).max(RSRP_FLOOR_DBM);
+                ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32
+            })),
             max_repeat: e.action_repeat.max(1) as usize,
         }
     }
@@ -267,7 +278,7 @@ impl Expander {
         let o = &self.obs;
         let p = s.position_m;
         // The codes are monotone in RSRP: the strongest site has the largest code.
-        let dbm = |c: u8| code::rsrp_dbm(c).max(RSRP_FLOOR_DBM);
+        let dbm = |c: u8| self.code_dbm[usize::from(c)];
         let best = dbm(s.rsrp.iter().copied().max().unwrap_or(0));
         // The geometry in `f32` (what the features are): half the expansion's time in `f64`.
         let unit2 = |x: f32, y: f32| {
@@ -286,20 +297,29 @@ impl Expander {
         let n_ahead = lookahead_at.len();
         for (k, q) in self.sites_f32.iter().enumerate() {
             let f = &mut out[k * per_site..][..per_site];
-            let w = dbm(s.rsrp[k]);
+            let code = usize::from(s.rsrp[k]);
+            let w = self.code_dbm[code];
             let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-            let d3d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
-            let u = unit2(d[0], d[1]).unwrap_or(heading);
+            let h2 = d[0] * d[0] + d[1] * d[1];
+            let d3d = (h2 + d[2] * d[2]).sqrt().max(1e-3);
+            // One division per site: the horizontal unit vector and the elevation by reciprocals.
+            let h = h2.sqrt();
+            let u = if h > 1e-9 {
+                let inv = 1.0 / h;
+                [d[0] * inv, d[1] * inv]
+            } else {
+                heading
+            };
             let rel = |h: [f32; 2]| (h[0] * u[0] + h[1] * u[1], h[0] * u[1] - h[1] * u[0]);
             let (ch, sh) = rel(heading);
             let (cg, sg) = rel(goal);
             use site_feature::*;
-            f[RSRP] = ((w - o.rsrp_centre_dbm) / o.rsrp_scale_db).clamp(-10.0, 10.0) as f32;
-            f[RSRP_MINUS_BEST] = ((w - best) / 10.0).clamp(-6.0, 0.0) as f32;
+            f[RSRP] = self.code_feature[code];
+            f[RSRP_MINUS_BEST] = ((w - best) * 0.1).clamp(-6.0, 0.0) as f32;
             f[SERVING] = f32::from(u8::from(k == usize::from(s.serving)));
             // ln(1 + d / 100 m), d ≥ 1 mm.
-            f[LOG_DISTANCE] = ln_at_least_one(1.0 + d3d / 100.0);
-            f[SIN_ELEVATION] = d[2] / d3d;
+            f[LOG_DISTANCE] = ln_at_least_one(1.0 + d3d * 0.01);
+            f[SIN_ELEVATION] = d[2] * (1.0 / d3d);
             f[COS_BEARING_HEADING] = ch;
             f[SIN_BEARING_HEADING] = sh;
             f[COS_BEARING_GOAL] = cg;
@@ -338,7 +358,8 @@ impl Expander {
         first: bool,
     ) {
         // The codes are monotone in RSRP.
-        let best = code::rsrp_dbm(rsrp_after.iter().copied().max().unwrap_or(0));
+        // (The table's values are floored as `site_term` floors them.)
+        let best = self.code_dbm[usize::from(rsrp_after.iter().copied().max().unwrap_or(0))];
         for (k, out) in out.iter_mut().enumerate() {
             let handover = first && k != before;
             let pp = handover && k == ping_pong;
@@ -348,7 +369,7 @@ impl Expander {
                     &self.thresholds,
                     crashed,
                     f64::from(step.progress_m),
-                    code::rsrp_dbm(rsrp_after[k]),
+                    self.code_dbm[usize::from(rsrp_after[k])],
                     best,
                     handover,
                     pp,

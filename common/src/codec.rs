@@ -73,9 +73,8 @@ pub fn encode<T: Serialize>(
     Ok(out)
 }
 
-/// zstd level of [`encode_compressed`]: level 3 (zstd's default) took the compact trajectory
-/// chunks of a default run from 461 to 253 bytes per decision; level 9 to 247, at a third of
-/// the speed.
+/// zstd level of [`encode_compressed`]: zstd's default, which takes the trajectory chunks of a
+/// default run from 461 to 228 bytes per decision (docs/distributed.md "The compact trajectory").
 const ZSTD_LEVEL: i32 = 3;
 
 /// [`encode`] with the body compressed by zstd (a frame that states its decompressed size):

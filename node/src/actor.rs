@@ -8,12 +8,13 @@
 //! the last one is sent, and wait only when two are queued.
 //! Weights arrive on a ring channel of 1 (only the newest matters) and are swapped between
 //! chunks; publications may be dropped on a full link, so an actor that has heard none for a
-//! second asks the queryable, naming the weights it holds (an unchanged version costs a few
-//! bytes). The actor refuses weights whose configuration fingerprint differs from its own,
+//! while ([`crate::ask_clock`]: twice the run's interval between versions, 1 to 5 s) asks the
+//! queryable, naming the weights it holds (an unchanged version costs a few bytes). The actor refuses weights whose configuration fingerprint differs from its own,
 //! waits while no learner is alive, and follows a restarted learner (a new incarnation's
 //! weights replace the old ones even with a lower version). Its stats, and the learner's
 //! `Stop`, are JSON ([`dupac_common::jsonmsg`], zenoh encoding `application/json`).
 
+use crate::ask_clock::AskClock;
 use crate::intake::{Answer, Offer, WeightsIntake, WeightsKey};
 use crate::netside::Outgoing;
 use crate::outbox::ChunkOutbox;
@@ -37,9 +38,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 pub use crate::actor_error::ActorError;
-
-/// An actor that has heard no weights for this long asks the learner's queryable.
-const QUERY_AFTER: Duration = Duration::from_secs(1);
 
 /// How one actor process runs.
 #[derive(Debug, Clone)]
@@ -139,7 +137,7 @@ struct Acting {
     intake: WeightsIntake,
     /// The policy in use and when the learner sent it (Unix ms).
     policy: Option<(Arc<PolicyWeights>, u64)>,
-    last_weights_at: Instant,
+    ask: AskClock,
     waiting_logged: bool,
 }
 
@@ -148,7 +146,7 @@ impl Acting {
         Acting {
             intake,
             policy: None,
-            last_weights_at: Instant::now(),
+            ask: AskClock::new(Instant::now()),
             waiting_logged: false,
         }
     }
@@ -168,10 +166,10 @@ impl Acting {
         let wait = at_cap.then_some(Duration::from_millis(50));
         let mut incoming = wiring.receive_weights(&mut self.intake, wait)?;
         // Publications may be dropped on a slow link: an actor that has heard nothing for a
-        // second asks (a few bytes when it holds the newest weights).
-        if incoming.is_none() && self.last_weights_at.elapsed() > QUERY_AFTER {
+        // while asks (a few bytes when it holds the newest weights).
+        if incoming.is_none() && self.ask.due(Instant::now()) {
             let answer = wiring.query_weights(&mut self.intake)?;
-            self.last_weights_at = Instant::now();
+            self.ask.asked(Instant::now());
             if let Some(a) = &answer {
                 wiring.learner_at(a.learner_at());
                 if let Some((seq, at)) = wiring.last_left() {
@@ -216,7 +214,7 @@ impl Acting {
                 // Only weights taken say where the learner is (a late publication of an earlier
                 // incarnation would make every fresh chunk look stale).
                 wiring.learner_at(WeightsKey::of(&w));
-                self.last_weights_at = Instant::now();
+                self.ask.took(Instant::now());
                 self.policy = Some((Arc::new(w.policy), w.header.sent_unix_ms));
                 self.waiting_logged = false;
             }
@@ -437,8 +435,8 @@ pub fn run_actor(
 pub struct Follower {
     wiring: Wiring,
     intake: WeightsIntake,
-    /// When weights last arrived (or were asked for).
-    last_weights_at: Instant,
+    /// When to ask for weights.
+    ask: AskClock,
 }
 
 impl Follower {
@@ -455,7 +453,7 @@ impl Follower {
         Ok(Follower {
             wiring: Wiring::new_pilot(session, cfg, id)?,
             intake: weights_intake(cfg, fingerprint, obs_dim, n_sites),
-            last_weights_at: Instant::now(),
+            ask: AskClock::new(Instant::now()),
         })
     }
 
@@ -476,14 +474,15 @@ impl Follower {
         Ok(None)
     }
 
-    /// Newer weights than the ones in use, if any arrived; after a second without any, while
+    /// Newer weights than the ones in use, if any arrived; after a while without any
+    /// ([`AskClock`]), while
     /// the learner is alive and the run goes on, asked for (a publication dropped on a slow
     /// link).
     pub fn newer(&mut self) -> Result<Option<PolicyWeights>, ActorError> {
         let mut w = self.wiring.receive_weights(&mut self.intake, None)?;
         let ask = self.wiring.learner_alive() && !self.wiring.stopped();
-        if w.is_none() && ask && self.last_weights_at.elapsed() > QUERY_AFTER {
-            self.last_weights_at = Instant::now();
+        if w.is_none() && ask && self.ask.due(Instant::now()) {
+            self.ask.asked(Instant::now());
             w = self
                 .wiring
                 .query_weights(&mut self.intake)?
@@ -491,7 +490,7 @@ impl Follower {
         }
         match w {
             Some(w) if self.intake.offer(WeightsKey::of(&w)) != Offer::Stale => {
-                self.last_weights_at = Instant::now();
+                self.ask.took(Instant::now());
                 Ok(Some(w.policy))
             }
             _ => Ok(None),

@@ -8,7 +8,7 @@
 //!   answered within a rate ([`ratelimit`]); [`source`]: the node as a
 //!   [`dupac_learner::source::TrajectorySource`] for the one training loop.
 //! - [`follow`]: a flight with live weights (`dupac fly --follow`).
-//! - [`intake`]: which weights an actor or a pilot takes; [`outbox`]: an actor's chunk headers,
+//! - [`intake`]: which weights an actor or a pilot takes; [`ask_clock`]: when it asks for them; [`outbox`]: an actor's chunk headers,
 //!   sequence numbers, share per version and re-send, and what its network side shares
 //!   (`Delivery`: stale chunks dropped before sending); `wiring`: their Zenoh side;
 //!   [`ratelog`]: the warnings a peer can cause, one line per kind per period.
@@ -21,6 +21,7 @@
 pub mod accept;
 pub mod actor;
 pub(crate) mod actor_error;
+pub mod ask_clock;
 pub mod follow;
 pub mod inbox;
 pub mod intake;

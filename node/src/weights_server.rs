@@ -4,8 +4,8 @@
 //! * **What is answered**: a query that names the learner's newest weights in its `held`
 //!   parameter ([`dupac_common::msg::HELD_PARAMETER`]) gets the small
 //!   [`dupac_common::msg::WeightsHeld`] (the header alone); any other query gets the full
-//!   weights message. An actor that has heard no weights for a second asks, once a second: on a
-//!   slow link the full weights (≈ 0.4 MB) every second would fill it.
+//!   weights message. An actor that has heard no weights for a while asks
+//!   ([`crate::ask_clock`]): on a slow link the full weights (≈ 0.4 MB) every time would fill it.
 //! * **Replies do not wait on each other**: each reply runs on a blocking thread of its own, at
 //!   most `parallel` at a time (zenoh's reply blocks while the asker's link is full: one slow
 //!   asker must not hold back the others). Queries beyond that wait in the node's bounded
