@@ -142,16 +142,9 @@ pub fn decode_compressed_budgeted<T: DeserializeOwned>(
             body.len()
         )));
     }
-    let left = budget_bytes - size;
-    let (out, exceeded) = crate::budget::with_budget(left, || decode_body(&body, what));
-    match out {
-        Err(CodecError::Decode { what, message }) if exceeded => Err(CodecError::OverBudget {
-            what,
-            budget: budget_bytes,
-            message,
-        }),
-        out => out,
-    }
+    within_budget(budget_bytes - size, budget_bytes, || {
+        decode_body(&body, what)
+    })
 }
 
 /// Decodes a blob written by [`encode`] with the same `magic` and `version`, at most `limit`
@@ -176,9 +169,19 @@ pub fn decode_budgeted<T: DeserializeOwned>(
     budget_bytes: usize,
     what: &str,
 ) -> Result<T, CodecError> {
-    let (out, exceeded) = crate::budget::with_budget(budget_bytes, || {
+    within_budget(budget_bytes, budget_bytes, || {
         decode_inner(magic, version, bytes, limit, what)
-    });
+    })
+}
+
+/// `decode` with `left` bytes of allocation budget; a decoding error it caused by running out
+/// is reported as over the message's `budget_bytes`.
+fn within_budget<T>(
+    left: usize,
+    budget_bytes: usize,
+    decode: impl FnOnce() -> Result<T, CodecError>,
+) -> Result<T, CodecError> {
+    let (out, exceeded) = crate::budget::with_budget(left, decode);
     match out {
         Err(CodecError::Decode { what, message }) if exceeded => Err(CodecError::OverBudget {
             what,
