@@ -52,7 +52,7 @@ pub struct DistributedConfig {
     pub stats_every_s: f64,
     /// Replies per second the learner's weights queryable gives at most (the whole policy, or
     /// ≈ 100 bytes to an asker that holds the newest), with a burst of twice that: actors and
-    /// pilots query when they join and after a second without weights; a flood of queries is
+    /// pilots query when they join and after a while without weights (`node::ask_clock`); a flood of queries is
     /// left unanswered.
     pub weights_replies_per_s: f64,
 }
