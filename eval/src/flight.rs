@@ -3,9 +3,10 @@
 //! flight ends ([`replay_outcome`]). Below `fly` (every method over every pair), `refly` (the
 //! re-flights) and `trace` (A3 re-run from one recorded trace), which all use it.
 
+use crate::error::refused;
 use crate::hindsight::hindsight_association;
 use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
-use crate::{Kind, Method, refused};
+use crate::{Kind, Method};
 use dupac_actor::env::{Env, PathGuide};
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};

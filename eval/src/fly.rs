@@ -2,11 +2,12 @@
 //! learned site choice's moves re-flown with other associations and the fronts of every rule
 //! ([`crate::refly`]: route against association).
 
+use crate::error::refused;
 use crate::flight::{fly_one, true_rsrp};
 use crate::front::write_front;
 use crate::records::{RecordsFile, write_records, write_split};
 use crate::refly::{Fronts, fronts_of, replay_associations};
-use crate::{EvalPlan, Kind, methods, parse_hindsight, refused, select};
+use crate::{EvalPlan, Kind, methods, parse_hindsight, select};
 use dupac_actor::env::Env;
 use dupac_actor::metrics::MetricRules;
 use dupac_actor::pairs::{Pair, Split};

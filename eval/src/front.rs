@@ -165,7 +165,7 @@ pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
                 &p.display().to_string(),
             )?;
             if let Some(q) = f.points.iter().find(|q| q.setting.rule() != f.rule) {
-                return Err(crate::refused!(
+                return Err(crate::error::refused!(
                     "{}: a {} front holds the setting {}",
                     p.display(),
                     f.rule.name(),

@@ -11,6 +11,7 @@
 //! The figures are `dupac-plot`'s; training's periodic held-out check is `dupac_run::held_out`.
 
 pub mod a3_setting;
+mod error;
 pub mod flight;
 pub mod fly;
 pub mod front;
@@ -27,6 +28,7 @@ pub mod trace;
 pub mod tune_a3;
 
 use crate::a3_setting::{A3Grid, A3Setting};
+use crate::error::refused;
 use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
@@ -41,12 +43,6 @@ const MAX_HANDOVER_WEIGHT: f64 = 100.0;
 /// The largest handover cost of `--hindsight-front` and `--predictive-front` (the bound of
 /// `--hindsight` and of `env.predictive.handover_cost_db_m`).
 const MAX_HANDOVER_COST: f64 = 1e6;
-
-/// A refusal with a formatted reason.
-macro_rules! refused {
-    ($($t:tt)*) => { dupac_run::error::RunError::Refused(format!($($t)*)) };
-}
-pub(crate) use refused;
 
 /// What to evaluate (the options of `dupac eval`, validated here).
 #[derive(Debug, Clone, Default)]

@@ -2,7 +2,7 @@
 //! the one codec with its own magic and version), every step of every flight, with what the
 //! metrics need from the configuration; the report is computed from these alone.
 
-use crate::refused;
+use crate::error::refused;
 use dupac_actor::metrics::MetricRules;
 use dupac_actor::record::FlightRecord;
 use dupac_common::codec;

@@ -104,7 +104,7 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
     let mut guide_cfg = cfg.clone();
     guide_cfg.env.observation.path_guide = true;
     guide_cfg.env.observation.path_guide_lambda = lambda;
-    guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs)?;
+    guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs, quiet)?;
     let rules = dupac_actor::metrics::MetricRules::from_config(cfg);
     let pb = progress_bar(pairs.len() as u64, "A3 settings × pairs", quiet);
     // metrics[pair][setting]: each pair's guide path flown once, re-associated by every setting.

@@ -5,11 +5,9 @@
 //! comparable; the RSRP class boundaries −80 and −100 dBm (spec/radio.md §3, the defaults of
 //! `radio.rsrp_excellent_dbm` / `radio.rsrp_poor_dbm`) are marked on the colour bar.
 
-use crate::error::{Context, PlotError, Result};
-use crate::{
-    FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, ensure_font, fmt_num, pe,
-    write_png_atomic,
-};
+use crate::draw::{clip_ring, draw_halo_text, draw_site_marker, write_png_atomic};
+use crate::error::{Context, PlotError, Result, pe};
+use crate::style::{FONT, class_bands, ensure_font, fmt_num};
 use dupac_common::geometry::Bounds2;
 use dupac_radio::city::Building;
 use dupac_radio::class::RsrpThresholds;

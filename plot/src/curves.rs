@@ -1,8 +1,9 @@
 //! Learning-curve PNGs from the metrics rows of `dupac train`: one small panel per metric,
 //! against timesteps (decisions of the policy, `env.action_repeat` environment steps each).
 
-use super::{FONT, series_colour};
+use crate::draw::write_png_atomic;
 use crate::error::{Context, Result};
+use crate::style::{FONT, ensure_font, series_colour};
 use dupac_common::metric;
 use plotters::prelude::*;
 use std::path::Path;
@@ -51,8 +52,8 @@ pub fn render_curves(
     title: &str,
     path: &Path,
 ) -> Result<()> {
-    crate::ensure_font()?;
-    crate::write_png_atomic(path, |tmp| draw(points, title, tmp))
+    ensure_font()?;
+    write_png_atomic(path, |tmp| draw(points, title, tmp))
         .with_context(|| format!("cannot write learning curves {}", path.display()))
 }
 

@@ -58,3 +58,9 @@ impl<T, E: Into<PlotError>> Context<T> for std::result::Result<T, E> {
         })
     }
 }
+
+/// Plotters' errors carry the backend type; flatten them into [`PlotError::Draw`] with their
+/// message.
+pub(crate) fn pe<E: std::fmt::Display>(e: E) -> PlotError {
+    PlotError::Draw(e.to_string())
+}

@@ -4,8 +4,9 @@
 //! statistics of `dupac_eval::report`, thresholds from the configuration.
 
 use super::plan::{FlightTrace, render_world_plan};
-use super::{CLASS_COLOURS, FONT, series_colour};
+use crate::draw::write_png_atomic;
 use crate::error::{Context, Result};
+use crate::style::{CLASS_COLOURS, FONT, series_colour};
 use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
@@ -19,7 +20,7 @@ use std::path::Path;
 
 pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
     let path = out.join("fig3.png");
-    crate::write_png_atomic(&path, |tmp| {
+    write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1800, 620)).into_drawing_area();
         root.fill(&WHITE)?;
         let panels = root.split_evenly((1, 3));
@@ -115,7 +116,7 @@ pub fn draw_fig3(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
 
 pub fn draw_fig4(out: &Path, data: &[MethodData], bins: &[f64]) -> Result<()> {
     let path = out.join("fig4.png");
-    crate::write_png_atomic(&path, |tmp| {
+    write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1800, 700)).into_drawing_area();
         root.fill(&WHITE)?;
         let nm = data.len().max(1) as f64;
@@ -215,7 +216,7 @@ pub fn draw_pareto(out: &Path, data: &[MethodData]) -> Result<()> {
         }
         Ok(())
     })?;
-    crate::write_png_atomic(&path, |tmp| {
+    write_png_atomic(&path, |tmp| {
         let root = BitMapBackend::new(tmp, (1100, 800)).into_drawing_area();
         root.fill(&WHITE)?;
         let hw = |c: &MeanCi| {
@@ -418,7 +419,7 @@ pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> R
         .filter(|y| y.is_finite());
     let y_lo = (ys.fold(100.0, f64::min) - 2.0).max(0.0);
     let xy = |r: &FrontRow| (r.measures.handovers_per_km, r.measures.excellent_pct);
-    crate::write_png_atomic(&out.join("fronts.png"), |tmp| {
+    write_png_atomic(&out.join("fronts.png"), |tmp| {
         let root = BitMapBackend::new(tmp, (1100, 800)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)

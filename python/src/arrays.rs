@@ -2,7 +2,7 @@
 //! or float dtype), converted as `numpy.asarray` converts it ([`Real`]); the shape is then
 //! checked here, with errors naming the argument and the expected shape.
 
-use crate::value_error;
+use crate::errors::value_error;
 use numpy::ndarray::{ArrayView1, ArrayView2, Ix1, Ix2};
 use numpy::{AllowTypeChange, Element, PyArrayLikeDyn};
 use pyo3::prelude::*;

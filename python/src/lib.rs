@@ -8,10 +8,13 @@
 
 mod arrays;
 mod env;
+mod env_core;
+mod errors;
 mod planner;
 mod policy;
 mod scenario;
 mod threads;
+mod vec_env;
 
 use pyo3::prelude::*;
 
@@ -21,21 +24,11 @@ fn _dupac(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<scenario::Scenario>()?;
     m.add_class::<env::Env>()?;
-    m.add_class::<env::VecEnv>()?;
+    m.add_class::<vec_env::VecEnv>()?;
     m.add_class::<policy::Policy>()?;
     m.add_class::<planner::Planner>()?;
     m.add_function(wrap_pyfunction!(planner::fly_path, m)?)?;
     m.add_function(wrap_pyfunction!(policy::fly, m)?)?;
     m.add_function(wrap_pyfunction!(scenario::default_config_toml, m)?)?;
     Ok(())
-}
-
-/// A `ValueError` carrying `e`'s message and the chain of its causes (bad input).
-pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
-    pyo3::exceptions::PyValueError::new_err(e.to_string())
-}
-
-/// A `RuntimeError` carrying `e`'s message (a failure that is not the caller's input).
-pub(crate) fn runtime_error(e: impl std::fmt::Display) -> PyErr {
-    pyo3::exceptions::PyRuntimeError::new_err(e.to_string())
 }

@@ -3,9 +3,9 @@
 //! scripted pilot with the A3 rule choosing the site (what `dupac eval` reports for the planners).
 
 use crate::arrays::{Real, view1};
+use crate::errors::{runtime_error, value_error};
 use crate::policy::summary_dict;
 use crate::scenario::{Scenario, Shared, Split};
-use crate::{runtime_error, value_error};
 use dupac_actor::planner::{Endpoint, Path, Planner as RustPlanner};
 use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpThresholds;

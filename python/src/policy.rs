@@ -3,8 +3,8 @@
 //! flies it.
 
 use crate::arrays::{Real, view1, view2};
+use crate::errors::{runtime_error, value_error};
 use crate::scenario::{Scenario, Split};
-use crate::{runtime_error, value_error};
 use dupac_actor::env::Env as RustEnv;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::msg::EpisodeSummary;

@@ -2,7 +2,7 @@
 //! episodes are drawn from, and the radio queries on NumPy arrays (spec/radio.md).
 
 use crate::arrays::{Real, view2};
-use crate::{runtime_error, value_error};
+use crate::errors::{runtime_error, value_error};
 use dupac_actor::pairs::Pair;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
@@ -81,7 +81,7 @@ impl Shared {
         }
         .map_err(runtime_error)?;
         drop(planners);
-        guide_sets_cached(&self.cfg, &self.world, &self.rsrp, &mut [&mut pairs])
+        guide_sets_cached(&self.cfg, &self.world, &self.rsrp, &mut [&mut pairs], true)
             .map_err(runtime_error)?;
         let _ = cell.set(Arc::new(pairs));
         Ok(cell.get().expect("set above").clone())

@@ -4,7 +4,7 @@
 //! never sits idle waiting for a pool to wake up, and one thread means no pool at all. Written
 //! over rayon's `in_place_scope`.
 
-use crate::runtime_error;
+use crate::errors::runtime_error;
 use pyo3::PyErr;
 use pyo3::PyResult;
 use std::sync::Mutex;

@@ -2,13 +2,13 @@
 //! newest weights and publishes trajectory chunks to the learner.
 
 use super::net::{ConnectArgs, stop_flag};
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_common::ids::ActorId;
 use dupac_node::actor::{ActorOptions, run_actor};
-use dupac_run::scenario::{guide_pairs_cached, make_pool, world_and_cache};
+use dupac_run::scenario::{guide_pairs_cached, pool_cached, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -62,10 +62,10 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let mut pool = match &args.pool {
         Some(p) => read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
             .with_context(|| format!("--pool {}", p.display()))?,
-        None => make_pool(&unguided, &planners, global.no_progress())?,
+        None => pool_cached(&unguided, &world, &planners, global.no_progress())?,
     };
     drop(planners);
-    guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
+    guide_pairs_cached(&cfg, &world, &rsrp, &mut pool, global.no_progress())?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let opts = ActorOptions {
         id: ActorId(args.id.unwrap_or(std::process::id())),

@@ -1,6 +1,6 @@
 //! `dupac cache build|check`: the per-site 3D RSRP cache and its interpolation error.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use dupac_common::geometry::Point;

@@ -22,7 +22,7 @@ pub fn signal(child: &Child, sig: i32) {
 
 /// Common arguments of every child: the resolved configuration file, no progress bars (the
 /// parent draws the run's), and the parent's log level (`--quiet`, `-v`…).
-pub fn child(exe: &Path, config: &Path, global: &crate::GlobalArgs) -> Command {
+pub fn child(exe: &Path, config: &Path, global: &crate::global_args::GlobalArgs) -> Command {
     let mut c = Command::new(exe);
     c.arg("--config").arg(config).arg("--no-progress");
     if global.quiet {

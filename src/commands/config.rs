@@ -1,7 +1,7 @@
 //! `dupac config`: the resolved configuration as TOML, or (`--describe`) the key reference:
 //! every key with its default and meaning, from the configuration structs' doc comments.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
 use std::process::ExitCode;

@@ -7,7 +7,7 @@
 //! recomputes the report from the saved step records without flying. Flying, records and
 //! statistics live in `dupac_eval`; the figures in `dupac_plot::eval`.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dupac_actor::pairs::Split;

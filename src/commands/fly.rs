@@ -2,7 +2,7 @@
 //! move, arg-max site) and plots it like `dupac plan`, beside the shortest flyable path flown
 //! with A3.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;

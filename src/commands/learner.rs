@@ -7,7 +7,7 @@
 use super::net::{ConnectArgs, stop_flag};
 use super::run_args::RunArgs;
 use super::training::Training;
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
 use dupac_actor::expand::Expander;

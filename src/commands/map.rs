@@ -1,6 +1,6 @@
 //! `dupac map`: best-server coverage maps on horizontal slices (paper Fig. 2(b)).
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use crate::io::{write_atomic, write_atomic_with};
 use anyhow::{Context, Result};
 use clap::Args;

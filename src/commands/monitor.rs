@@ -4,7 +4,7 @@
 //! as a JSON line (as published: [`dupac_common::jsonmsg`]).
 
 use super::net::{ConnectArgs, stop_flag};
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use dupac_common::jsonmsg::{decode_json, encode_json};

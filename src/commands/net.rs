@@ -1,7 +1,7 @@
 //! The connection arguments every networked subcommand shares (like zenoh's own tools), the
 //! Ctrl-C flag, and `dupac router`.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use dupac_node::net::{ConnectOpts, Mode};

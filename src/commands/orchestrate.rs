@@ -8,15 +8,18 @@
 use super::children::{child, free_port, reap, signal};
 use super::net::{ConnectArgs, ModeArg, stop_flag};
 use super::run_args::{DeviceArg, HeldOutSeen, TrainArgs, device, resolve_config};
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
 use dupac_actor::pairs::write_pairs_jsonl;
 use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::LearnerStats;
+use dupac_run::progress::{StageClock, stage_spinner};
 use dupac_run::run_dir::{checkpoint_to_resume, ensure_free};
-use dupac_run::scenario::{guide_pairs_cached, held_out_pairs, make_pool, world_and_cache};
+use dupac_run::scenario::{
+    guide_sets_cached, held_out_pairs, pool_cached, spread, world_and_cache,
+};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -36,20 +39,33 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     let config_path = out.join("config.toml");
     write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;
 
-    // Everything the children would otherwise each compute (and race on): built once here.
-    let (world, rsrp) = world_and_cache(&cfg, global.no_progress())?;
-    // The pairs, drawn with a planner of their clearance (no coverage classes); then the
-    // pool's guide paths, planned once here into the host's guide cache (or found there), so
-    // the actors load them instead of each planning them.
+    // Everything the children would otherwise each compute (and race on): built once here,
+    // each stage named on the progress bar while it runs and timed (`prepared in … s: …`).
+    let quiet = global.no_progress();
+    let mut clock = StageClock::new();
+    let (world, rsrp) = world_and_cache(&cfg, quiet)?;
+    clock.lap("world and RSRP cache");
+    // The pairs, drawn with a planner of their clearance (no coverage classes), the pool through
+    // the host's pool file; then the guide paths of the pool and of the learner's held-out set,
+    // planned once here into the host's guide cache (or found there), so the actors and the
+    // learner load them instead of each planning them.
     let unguided = dupac_run::scenario::unguided(&cfg);
+    let spin = stage_spinner("pairs' planner", quiet);
     let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
-    held_out_pairs(&unguided, &planners, global.no_progress())?;
+    spin.finish_and_clear();
+    clock.lap("pairs' planner");
+    let held_out = held_out_pairs(&unguided, &planners, quiet)?;
+    clock.lap("validation pairs");
     let pool_path = out.join("train_pool.jsonl");
-    let mut pool = make_pool(&unguided, &planners, global.no_progress())?;
+    let mut pool = pool_cached(&unguided, &world, &planners, quiet)?;
     write_pairs_jsonl(&pool_path, &pool)?;
     drop(planners);
-    guide_pairs_cached(&cfg, &world, &rsrp, &mut pool)?;
-    drop(pool);
+    clock.lap("training pairs");
+    let mut eval_set = spread(&held_out, cfg.train.eval_pairs);
+    guide_sets_cached(&cfg, &world, &rsrp, &mut [&mut eval_set, &mut pool], quiet)?;
+    clock.lap("guide paths");
+    eprintln!("{}", clock.summary());
+    drop((pool, eval_set, held_out));
     drop(world);
 
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -117,6 +133,8 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     };
     let total = cfg.train.total_timesteps;
     let pb = dupac_run::progress::progress_bar(total, "timesteps", global.no_progress());
+    // Until the learner's first update: the learner and the actors load the world and caches.
+    pb.set_message("starting learner, actors");
     let keys = KeySpace::new(&cfg.distributed.run);
     // Connected lazily: the learner may still be starting, or may fail before it listens.
     let mut session: Option<zenoh::Session> = None;

@@ -2,7 +2,7 @@
 //! distance, seeded, written as JSON Lines: both splits (validation, `pairs.eval_seed` →
 //! `pairs.eval_file`; test, `pairs.test_seed` → `pairs.test_file`), or the one `--split` names.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use dupac_actor::pairs::{Pair, Split, split_pairs, write_pairs_jsonl};

@@ -1,7 +1,7 @@
 //! `dupac plan`: the shortest flyable path and the coverage-aware path of one pair, flown by the
 //! scripted pilot through the environment with A3 association; table, PNG and CSVs.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;

@@ -1,6 +1,6 @@
 //! `dupac radio link` (the scriptable link calculator) and `dupac radio sites`.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::Subcommand;
 use dupac_radio::link_calc::{link_stream, write_sites_csv};

@@ -1,7 +1,7 @@
 //! Arguments every training process shares (`dupac train`, `dupac learner`, `dupac actor`,
 //! `dupac fly`), resolved into the one configuration.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use dupac_common::config::{Association, Config};

@@ -1,7 +1,7 @@
 //! `dupac scenario import`: another city from raw OpenStreetMap buildings and OpenCelliD cells
 //! (docs/scenario.md): a scenario directory and the configuration `--config` takes.
 
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use dupac_common::config::LonLatBox;

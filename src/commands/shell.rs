@@ -2,7 +2,7 @@
 //! page (clap_mangen), both generated from the command line's own definition.
 
 use anyhow::{Context, Result};
-use clap::{Args, CommandFactory};
+use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -21,16 +21,15 @@ pub struct ManArgs {
     pub dir: Option<PathBuf>,
 }
 
-/// Prints the completion script, e.g. `dupac completions bash > ~/.local/share/bash-completion/completions/dupac`.
-pub fn completions(args: &CompletionsArgs) -> Result<ExitCode> {
-    let mut cmd = crate::Cli::command();
+/// Prints the completion script of the command line `cmd` (the binary's own definition), e.g.
+/// `dupac completions bash > ~/.local/share/bash-completion/completions/dupac`.
+pub fn completions(args: &CompletionsArgs, mut cmd: clap::Command) -> Result<ExitCode> {
     clap_complete::generate(args.shell, &mut cmd, "dupac", &mut std::io::stdout());
     Ok(ExitCode::SUCCESS)
 }
 
-/// Prints the manual page (roff), or writes every page into `--dir`.
-pub fn man(args: &ManArgs) -> Result<ExitCode> {
-    let cmd = crate::Cli::command();
+/// Prints the manual page (roff) of the command line `cmd`, or writes every page into `--dir`.
+pub fn man(args: &ManArgs, cmd: clap::Command) -> Result<ExitCode> {
     match &args.dir {
         None => {
             clap_mangen::Man::new(cmd)

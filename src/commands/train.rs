@@ -5,7 +5,7 @@
 
 use super::run_args::TrainArgs;
 use super::training::Training;
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::Result;
 use std::process::ExitCode;
 

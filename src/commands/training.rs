@@ -4,7 +4,7 @@
 //! closing lines. They differ only in their trajectory source.
 
 use super::run_args::{HeldOutSeen, RunArgs, device, progress_message, resolve_config};
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::Result;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
@@ -64,7 +64,13 @@ impl Training {
         };
         drop(planners);
         let mut pool = pool.unwrap_or_default();
-        guide_sets_cached(&cfg, &world, &rsrp, &mut [&mut eval_set, &mut pool])?;
+        guide_sets_cached(
+            &cfg,
+            &world,
+            &rsrp,
+            &mut [&mut eval_set, &mut pool],
+            global.no_progress(),
+        )?;
         let local = match local {
             true => Some(LocalWorkers::new(&cfg, &world, &rsrp, &Arc::new(pool))?),
             false => None,

@@ -6,7 +6,7 @@
 //! setting as `[radio.a3]`, a configuration file of its own).
 
 use super::front_args::A3GridArgs;
-use crate::GlobalArgs;
+use crate::global_args::GlobalArgs;
 use anyhow::Result;
 use clap::Args;
 use dupac_eval::tune_a3::{Tuning, choose, grid_csv, set_options, tune_a3, tuned_toml};

@@ -27,7 +27,7 @@ impl Env {
         let link = self.associate(to, action.site);
         let mut outcome = self.arrive(crash);
         let terms = StepTerms::new(
-            &self.cfg.reward,
+            &self.reward,
             &self.thresholds,
             self.route_penalty,
             outcome,

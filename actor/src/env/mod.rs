@@ -33,7 +33,7 @@ pub use route_ahead::{Ahead, RouteMap};
 pub use serving_plan::serving_plan;
 
 use dupac_common::compact::{StateRow, TrunkRow};
-use dupac_common::config::{Association, Config, EnvConfig, WeightDraw};
+use dupac_common::config::{Association, Config, EnvConfig, RewardConfig, WeightDraw};
 use dupac_common::geometry::{Point, Vector, distance_m as dist, norm};
 use dupac_common::ids::SiteId;
 use dupac_common::obs::{ObsLayout, SENSOR_DIRECTIONS};
@@ -156,13 +156,13 @@ pub struct Env {
     sensor_dirs: [Vector; 26],
     /// The coverage-aware planner's per-metre penalties (mediocre, poor) for the route term.
     route_penalty: [f64; 2],
-    /// `env.reward.handover_reward` and `ping_pong_reward` as configured (at weight 1); the
-    /// episode's are these times its handover weight.
-    handover_costs: [f64; 2],
-    /// The episode's handover weight w (`env.reward.handover_weight`, or drawn in training).
-    handover_weight: f64,
     // Episode state.
     episode: Option<Episode>,
+    /// The episode's handover weight w (`env.reward.handover_weight`, or drawn in training).
+    handover_weight: f64,
+    /// The episode's reward terms: `env.reward` with its handover and ping-pong costs
+    /// (`handover_reward`, `ping_pong_reward`, configured at weight 1) times `handover_weight`.
+    reward: RewardConfig,
     position_m: Point,
     /// The last step's displacement in units of `max_step_m` (unitless; the velocity of the
     /// observation).
@@ -282,9 +282,9 @@ impl Env {
             expander,
             sensor_dirs,
             route_penalty: [cfg.planner.penalty_mediocre, cfg.planner.penalty_poor],
-            handover_costs: [env.reward.handover_reward, env.reward.ping_pong_reward],
-            handover_weight: env.reward.handover_weight,
             episode: None,
+            handover_weight: env.reward.handover_weight,
+            reward: env.reward.clone(),
             position_m: Point::origin(),
             velocity_per_max_step: Vector::zeros(),
             serving: SiteId(0),
@@ -526,7 +526,7 @@ impl Env {
     /// The episode's handover weight w: drawn from [0, `env.reward.handover_weight_max`] by the
     /// episode's seed in training (a stream of its own; uniform in w, or in ln(1 + w) with
     /// `env.reward.handover_weight_draw = "log"`), `env.reward.handover_weight` otherwise; the
-    /// episode's handover and ping-pong rewards are the configured ones times w.
+    /// episode's handover and ping-pong rewards (`self.reward`) are the configured ones times w.
     fn set_handover_weight(&mut self, seed: u64) {
         let r = &self.cfg.reward;
         self.handover_weight =
@@ -540,9 +540,8 @@ impl Env {
             } else {
                 r.handover_weight
             };
-        let [h, p] = self.handover_costs;
-        self.cfg.reward.handover_reward = h * self.handover_weight;
-        self.cfg.reward.ping_pong_reward = p * self.handover_weight;
+        self.reward.handover_reward = r.handover_reward * self.handover_weight;
+        self.reward.ping_pong_reward = r.ping_pong_reward * self.handover_weight;
     }
 
     /// The current episode's handover weight w (`env.reward.handover_weight`).

@@ -11,6 +11,7 @@ pub mod describe;
 mod distributed;
 mod env;
 mod learn;
+mod pairs;
 mod radio;
 mod scenario;
 
@@ -18,6 +19,7 @@ pub use channel::*;
 pub use distributed::*;
 pub use env::*;
 pub use learn::*;
+pub use pairs::*;
 pub use radio::*;
 pub use scenario::*;
 

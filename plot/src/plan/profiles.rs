@@ -1,10 +1,15 @@
 //! The right half of a plan figure: the altitude profile and the serving RSRP with the class
 //! bands against the distance flown, sharing the distance axis.
 
-use super::*;
-use crate::error::Result;
-use crate::{FONT, class_bands, fmt_num, pe};
+use super::FlightTrace;
+use super::layout::{
+    Area, CAPTION_H, CAPTION_PX, DESC_PX, Derived, HEIGHT, LABEL_PX, LEFT_W, LEGEND_PX, MARGIN,
+    TITLE_H, WIDTH, fit_text, profile_width,
+};
+use crate::error::{Result, pe};
+use crate::style::{FONT, class_bands, class_colour, fmt_num, trace_colour};
 use dupac_radio::class::RsrpThresholds;
+use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 /// `hi` raised so that the top `frac` of the axis `[lo, new hi]` lies above the data (room for

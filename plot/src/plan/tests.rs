@@ -1,5 +1,6 @@
 use super::*;
-use crate::{class_bands, fmt_num};
+use super::lines::{class_runs, clip_polyline, view_bounds};
+use crate::style::{class_bands, fmt_num};
 use dupac_common::ids::SiteId;
 use dupac_radio::sites::{Mount, SiteKind};
 

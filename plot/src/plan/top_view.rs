@@ -1,155 +1,67 @@
 //! The left half of a plan figure: the top view of the paths over the buildings and sites,
-//! each path coloured by RSRP class, with its legend.
+//! each path coloured by RSRP class, with its legend. [`draw_top_view`] reads top to bottom:
+//! the legend's entries, the map's frame, then each layer drawn over the last.
 
-use super::*;
-use crate::error::Result;
-use crate::{FONT, class_bands, clip_ring, draw_halo_text, draw_site_marker, fmt_num, pe};
+use super::FlightTrace;
+use super::layout::{
+    Area, CAPTION_H, CAPTION_PX, DESC_PX, Derived, GROUND, HEIGHT, LABEL_PX, LEFT_W, LEGEND_PX,
+    MAP_X_LABEL, MAP_Y_LABEL, MARGIN, OUTLINE, ROW_H, TITLE_H, building_grey, fit_text, map_widths,
+};
+use super::legend::{Icon, draw_icon, draw_source, draw_star, icon_w, layout_legend};
+use super::lines::{class_runs, clip_polyline, simplify, view_bounds};
+use crate::draw::{clip_ring, draw_halo_text, draw_site_marker};
+use crate::error::{Result, pe};
+use crate::style::{FONT, class_bands, class_colour, fmt_num, trace_colour};
 use dupac_common::geometry::{Bounds2, Point};
 use dupac_radio::city::Building;
-use dupac_radio::class::{RsrpClass, RsrpThresholds};
+use dupac_radio::class::RsrpThresholds;
 use dupac_radio::sites::{Site, SiteKind};
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-/// One entry of the top view's legend.
-pub(super) enum Icon {
-    Class(RsrpClass),
-    Trace(usize),
-    Source,
-    Destination,
-    Site(SiteKind),
-    Heights,
+/// The legend's entries in order; `None` starts a new row.
+type Items = Vec<Option<(Icon, String)>>;
+
+/// The map's plotting area, in metres (x east, y north).
+type MapArea<'a> = DrawingArea<BitMapBackend<'a>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Where the map lies on the figure: the view (m), the region below the caption and the map's
+/// own box (px).
+struct Frame {
+    view: Bounds2,
+    /// Top of the map's region (below the title strip and the caption), px.
+    region_top: i32,
+    /// The map's box with its axes: left edge, width and height, px.
+    left: i32,
+    width: i32,
+    height: i32,
 }
 
-/// Width of an icon in the legend (px).
-pub(super) fn icon_w(icon: &Icon) -> i32 {
-    match icon {
-        Icon::Class(_) => 34,
-        Icon::Trace(_) => 62,
-        Icon::Heights => 74,
-        _ => 24,
-    }
-}
-
-pub(super) fn draw_star(area: &Area, c: (i32, i32), r: f64, fill: RGBColor) -> Result<()> {
-    let pts: Vec<(i32, i32)> = (0..10)
-        .map(|k| {
-            let rr = if k % 2 == 0 { r } else { 0.45 * r };
-            let a = (90.0 + 36.0 * f64::from(k)).to_radians();
-            (
-                c.0 + (rr * a.cos()).round() as i32,
-                c.1 - (rr * a.sin()).round() as i32,
-            )
-        })
-        .collect();
-    area.draw(&Polygon::new(pts.clone(), fill.filled()))
-        .map_err(pe)?;
-    let mut closed = pts;
-    closed.push(closed[0]);
-    area.draw(&PathElement::new(closed, WHITE.stroke_width(2)))
-        .map_err(pe)?;
-    Ok(())
-}
-
-pub(super) fn draw_source(area: &Area, c: (i32, i32)) -> Result<()> {
-    area.draw(&Circle::new(c, 13, WHITE.filled())).map_err(pe)?;
-    area.draw(&Circle::new(c, 11, BLACK.filled())).map_err(pe)?;
-    let s = (FONT, 17.0)
-        .into_font()
-        .color(&WHITE)
-        .pos(Pos::new(HPos::Center, VPos::Center));
-    area.draw_text("S", &s, (c.0, c.1 + 1)).map_err(pe)?;
-    Ok(())
-}
-
-pub(super) fn draw_icon(
-    area: &Area,
-    icon: &Icon,
+/// The plotting area in pixels: its top-left corner and size.
+#[derive(Clone, Copy)]
+struct Pixels {
     x: i32,
     y: i32,
-    heights: (f64, f64),
-) -> Result<()> {
-    let w = icon_w(icon);
-    match *icon {
-        Icon::Class(c) => {
-            area.draw(&PathElement::new(
-                vec![(x, y), (x + w, y)],
-                class_colour(c).stroke_width(8),
-            ))
-            .map_err(pe)?;
-        }
-        Icon::Trace(i) => {
-            let (outer, inner) = map_widths(i);
-            area.draw(&PathElement::new(
-                vec![(x, y), (x + w, y)],
-                trace_colour(i).stroke_width(outer),
-            ))
-            .map_err(pe)?;
-            let third = w / 3;
-            for (k, c) in crate::CLASS_COLOURS.into_iter().enumerate() {
-                let k = k as i32;
-                area.draw(&PathElement::new(
-                    vec![(x + k * third, y), (x + (k + 1) * third, y)],
-                    c.stroke_width(inner),
-                ))
-                .map_err(pe)?;
-            }
-        }
-        Icon::Source => draw_source(area, (x + w / 2, y))?,
-        Icon::Destination => draw_star(area, (x + w / 2, y), 13.0, BLACK)?,
-        Icon::Site(kind) => draw_site_marker(area, (x + w / 2, y), kind)?,
-        Icon::Heights => {
-            for px in 0..w {
-                let z = heights.0 + (heights.1 - heights.0) * f64::from(px) / f64::from(w - 1);
-                area.draw(&Rectangle::new(
-                    [(x + px, y - 9), (x + px + 1, y + 9)],
-                    building_grey(z, heights.1).filled(),
-                ))
-                .map_err(pe)?;
-            }
-            area.draw(&Rectangle::new(
-                [(x, y - 9), (x + w, y + 9)],
-                OUTLINE.stroke_width(1),
-            ))
-            .map_err(pe)?;
-        }
-    }
-    Ok(())
+    w: i32,
+    h: i32,
 }
 
-/// A legend item placed by [`layout_legend`]: item index, x offset (px), row, text as drawn.
-pub(super) type Placed = (usize, i32, i32, String);
-
-/// Lays out legend items left to right, wrapping at `width`; `None` forces a new row.
-/// Texts too wide for a row are cut. Returns `(item index, x, row, text)` and the number of rows.
-pub(super) fn layout_legend(
-    area: &Area,
-    items: &[Option<(Icon, String)>],
-    width: i32,
-) -> Result<(Vec<Placed>, i32)> {
-    let font = (FONT, LEGEND_PX).into_text_style(area);
-    let (mut x, mut row) = (0, 0);
-    let mut placed = Vec::new();
-    for (k, item) in items.iter().enumerate() {
-        let Some((icon, text)) = item else {
-            if x > 0 {
-                x = 0;
-                row += 1;
-            }
-            continue;
-        };
-        let text = fit_text(area, text, &font, width - icon_w(icon) - 8)?;
-        let (tw, _) = area.estimate_text_size(&text, &font).map_err(pe)?;
-        let w = icon_w(icon) + 8 + tw as i32;
-        if x > 0 && x + w > width {
-            x = 0;
-            row += 1;
+impl Pixels {
+    fn of(plot: &MapArea) -> Pixels {
+        let (w, h) = plot.dim_in_pixel();
+        let (x, y) = plot.get_base_pixel();
+        Pixels {
+            x,
+            y,
+            w: w as i32,
+            h: h as i32,
         }
-        placed.push((k, x, row, text));
-        x += w + 28;
     }
-    Ok((placed, row + 1))
 }
 
+/// The top view on the left half of `root`: legend entries, frame, ground and caption,
+/// buildings, traces, sites, sources and destinations, the frame's border and axes, the legend.
 pub(super) fn draw_top_view(
     root: &Area,
     buildings: &[Building],
@@ -159,13 +71,64 @@ pub(super) fn draw_top_view(
     derived: &[Derived],
     thresholds: &RsrpThresholds,
 ) -> Result<()> {
+    let legend_w = LEFT_W - 2 * MARGIN - 20;
     // Legend content first: its height decides the map's.
-    let mut items: Vec<Option<(Icon, String)>> = class_bands(thresholds, f64::NAN, f64::NAN)
+    let mut items = legend_items(root, traces, derived, thresholds, legend_w)?;
+    let frame = frame_map(root, &items, traces, area_m, legend_w)?;
+    let [vx0, vy0, vx1, vy1] = frame.view.to_array();
+    let map_area = root
+        .clone()
+        .shrink((frame.left, frame.region_top), (frame.width, frame.height));
+    let mut chart = ChartBuilder::on(&map_area)
+        .margin(MARGIN)
+        .x_label_area_size(MAP_X_LABEL)
+        .y_label_area_size(MAP_Y_LABEL)
+        .build_cartesian_2d(vx0..vx1, vy0..vy1)
+        .map_err(pe)?;
+    let plot = chart.plotting_area().clone();
+    let px = Pixels::of(&plot);
+    draw_ground_and_caption(root, px, frame.region_top)?;
+    let heights = draw_buildings(&plot, buildings, frame.view)?;
+    draw_traces(root, &plot, traces, frame.view, px)?;
+    draw_sites(root, &plot, sites, frame.view)?;
+    draw_ends(root, &plot, traces, frame.view, px)?;
+    root.draw(&Rectangle::new(
+        [(px.x - 1, px.y - 1), (px.x + px.w, px.y + px.h)],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(pe)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x east (m)")
+        .y_desc("y north (m)")
+        .x_labels(7)
+        .y_labels(7)
+        .x_label_formatter(&|v| fmt_num(*v))
+        .y_label_formatter(&|v| fmt_num(*v))
+        .label_style((FONT, LABEL_PX))
+        .axis_desc_style((FONT, DESC_PX))
+        .axis_style(BLACK.stroke_width(1))
+        .draw()
+        .map_err(pe)?;
+    draw_legend(root, &mut items, heights, legend_w, px, &frame)
+}
+
+/// The legend's entries: the RSRP classes, each trace with its length and class shares (its
+/// label cut so the statistics stay readable), the markers, and the building heights (with a
+/// placeholder text of the final width: the heights in view are known once the map is drawn).
+fn legend_items(
+    root: &Area,
+    traces: &[FlightTrace],
+    derived: &[Derived],
+    thresholds: &RsrpThresholds,
+    legend_w: i32,
+) -> Result<Items> {
+    let mut items: Items = class_bands(thresholds, f64::NAN, f64::NAN)
         .into_iter()
         .map(|(class, _, _, label)| Some((Icon::Class(class), label)))
         .collect();
     items.push(None);
-    let legend_w = LEFT_W - 2 * MARGIN - 20;
     let legend_style = (FONT, LEGEND_PX).into_text_style(root);
     for (i, (t, d)) in traces.iter().zip(derived).enumerate() {
         let len = d.dist_m.last().copied().unwrap_or(0.0);
@@ -179,7 +142,6 @@ pub(super) fn draw_top_view(
         } else {
             ": fewer than two points".into()
         };
-        // A long label is cut so that the statistics stay readable.
         let (stats_w, _) = root.estimate_text_size(&stats, &legend_style).map_err(pe)?;
         let label_w = legend_w - icon_w(&Icon::Trace(i)) - 8 - stats_w as i32;
         let label = fit_text(root, &t.label, &legend_style, label_w.max(60))?;
@@ -196,12 +158,21 @@ pub(super) fn draw_top_view(
         Icon::Site(SiteKind::Micro),
         "micro site (id)".into(),
     )));
-
-    // Layout: caption, map (equal aspect, as large as fits), legend below it.
-    let panel_x = 0;
-    // Building heights item text depends on the view, so measure with a placeholder.
     items.push(Some((Icon::Heights, "building height 000 … 000 m".into())));
-    let (_, rows) = layout_legend(root, &items, legend_w)?;
+    Ok(items)
+}
+
+/// The map's frame: the region between the caption and the legend, the view around the traces
+/// with the region's aspect, and the map (equal aspect, as large as fits) centred in the left
+/// column.
+fn frame_map(
+    root: &Area,
+    items: &Items,
+    traces: &[FlightTrace],
+    area_m: Bounds2,
+    legend_w: i32,
+) -> Result<Frame> {
+    let (_, rows) = layout_legend(root, items, legend_w)?;
     let legend_h = rows * ROW_H + 14;
     let region_top = TITLE_H + CAPTION_H;
     let region_h = HEIGHT as i32 - region_top - legend_h - 8;
@@ -215,27 +186,24 @@ pub(super) fn draw_top_view(
     } else {
         (pw_max, ((f64::from(pw_max) / aspect).round() as i32).max(1))
     };
-    let map_w = pw + MAP_Y_LABEL + 2 * MARGIN;
-    let map_h = ph + MAP_X_LABEL + 2 * MARGIN;
-    let map_left = panel_x + ((LEFT_W - map_w) / 2).max(0);
-    let map_area = root.clone().shrink((map_left, region_top), (map_w, map_h));
+    let width = pw + MAP_Y_LABEL + 2 * MARGIN;
+    let height = ph + MAP_X_LABEL + 2 * MARGIN;
+    Ok(Frame {
+        view,
+        region_top,
+        left: ((LEFT_W - width) / 2).max(0),
+        width,
+        height,
+    })
+}
 
-    let mut chart = ChartBuilder::on(&map_area)
-        .margin(MARGIN)
-        .x_label_area_size(MAP_X_LABEL)
-        .y_label_area_size(MAP_Y_LABEL)
-        .build_cartesian_2d(vx0..vx1, vy0..vy1)
-        .map_err(pe)?;
-    let plot = chart.plotting_area().clone();
-    let (ppw, pph) = plot.dim_in_pixel();
-    let (base_x, base_y) = plot.get_base_pixel();
+/// The streets' ground under the plotting area, and the caption centred over it.
+fn draw_ground_and_caption(root: &Area, px: Pixels, region_top: i32) -> Result<()> {
     root.draw(&Rectangle::new(
-        [(base_x, base_y), (base_x + ppw as i32, base_y + pph as i32)],
+        [(px.x, px.y), (px.x + px.w, px.y + px.h)],
         GROUND.filled(),
     ))
     .map_err(pe)?;
-
-    // Caption centred over the plot.
     let cap = (FONT, CAPTION_PX)
         .into_font()
         .color(&BLACK)
@@ -243,11 +211,16 @@ pub(super) fn draw_top_view(
     root.draw_text(
         "Top view, paths coloured by RSRP class",
         &cap,
-        (base_x + ppw as i32 / 2, region_top + MARGIN - 6),
+        (px.x + px.w / 2, region_top + MARGIN - 6),
     )
-    .map_err(pe)?;
+    .map_err(pe)
+}
 
-    // Buildings in view, lowest first so taller ones stay on top.
+/// The buildings in view, clipped to it, lowest first so taller ones stay on top, filled by
+/// height with their holes and outlines. Returns the lowest and the tallest building's height
+/// in view (m; 0 and 1 when none is).
+fn draw_buildings(plot: &MapArea, buildings: &[Building], view: Bounds2) -> Result<(f64, f64)> {
+    let [vx0, vy0, vx1, vy1] = view.to_array();
     let mut visible: Vec<&Building> = buildings
         .iter()
         .filter(|b| {
@@ -288,9 +261,24 @@ pub(super) fn draw_top_view(
             plot.draw(&PathElement::new(ring, outline)).map_err(pe)?;
         }
     }
+    let z_low = visible
+        .iter()
+        .map(|b| b.z_max_m)
+        .fold(f64::INFINITY, f64::min);
+    let z_low = if z_low.is_finite() { z_low } else { 0.0 };
+    Ok((z_low, z_top))
+}
 
-    // Traces: the identity-coloured outline, then the class-coloured core, trace by trace.
-    let m_per_px = (vx1 - vx0) / f64::from(ppw.max(1));
+/// Each trace of two or more points, clipped to the view and simplified to the pixel: its
+/// identity-coloured outline, then its class-coloured core, trace by trace.
+fn draw_traces(
+    root: &Area,
+    plot: &MapArea,
+    traces: &[FlightTrace],
+    view: Bounds2,
+    px: Pixels,
+) -> Result<()> {
+    let m_per_px = (view.max_m.x - view.min_m.x) / f64::from(px.w.max(1));
     let to_px = |line: &[(f64, f64)]| -> Vec<Vec<(i32, i32)>> {
         clip_polyline(line, view)
             .into_iter()
@@ -325,8 +313,12 @@ pub(super) fn draw_top_view(
             }
         }
     }
+    Ok(())
+}
 
-    // Sites in view, above the traces.
+/// The sites in view, above the traces: each marker with its id.
+fn draw_sites(root: &Area, plot: &MapArea, sites: &[Site], view: Bounds2) -> Result<()> {
+    let [vx0, vy0, vx1, vy1] = view.to_array();
     let label_font = (FONT, LEGEND_PX).into_font();
     for s in sites {
         let (x, y) = (s.position_m[0], s.position_m[1]);
@@ -344,57 +336,64 @@ pub(super) fn draw_top_view(
             VPos::Bottom,
         )?;
     }
+    Ok(())
+}
 
-    // Sources and destinations, each place once.
+/// The ends of the traces in view, each place once: a cross where a flight ended early, a star
+/// and "D" at a reached destination (left of it at the map's right edge), the source marker.
+fn draw_ends(
+    root: &Area,
+    plot: &MapArea,
+    traces: &[FlightTrace],
+    view: Bounds2,
+    px: Pixels,
+) -> Result<()> {
+    let [vx0, vy0, vx1, vy1] = view.to_array();
     let inside = |p: &Point| p[0] >= vx0 && p[0] <= vx1 && p[1] >= vy0 && p[1] <= vy1;
-    let mut drawn: Vec<(i32, i32)> = Vec::new();
     let near = |drawn: &[(i32, i32)], c: (i32, i32)| {
         drawn
             .iter()
             .any(|d| (d.0 - c.0).abs() <= 4 && (d.1 - c.1).abs() <= 4)
     };
-    for t in traces.iter().filter(|t| !t.reached) {
-        if let Some(p) = t
-            .points_m
+    let last_in_view = |t: &FlightTrace| {
+        t.points_m
             .last()
             .filter(|p| inside(p) && t.points_m.len() >= 2)
-        {
-            let c = plot.map_coordinate(&(p[0], p[1]));
-            let r = 9;
-            for (a, b) in [((-r, -r), (r, r)), ((-r, r), (r, -r))] {
-                root.draw(&PathElement::new(
-                    vec![(c.0 + a.0, c.1 + a.1), (c.0 + b.0, c.1 + b.1)],
-                    BLACK.stroke_width(4),
-                ))?;
-            }
+            .map(|p| plot.map_coordinate(&(p[0], p[1])))
+    };
+    for c in traces
+        .iter()
+        .filter(|t| !t.reached)
+        .filter_map(last_in_view)
+    {
+        let r = 9;
+        for (a, b) in [((-r, -r), (r, r)), ((-r, r), (r, -r))] {
+            root.draw(&PathElement::new(
+                vec![(c.0 + a.0, c.1 + a.1), (c.0 + b.0, c.1 + b.1)],
+                BLACK.stroke_width(4),
+            ))?;
         }
     }
-    for t in traces.iter().filter(|t| t.reached) {
-        if let Some(p) = t
-            .points_m
-            .last()
-            .filter(|p| inside(p) && t.points_m.len() >= 2)
-        {
-            let c = plot.map_coordinate(&(p[0], p[1]));
-            if !near(&drawn, c) {
-                draw_star(root, c, 15.0, BLACK)?;
-                // "D" right of the star, or left of it at the right edge of the map.
-                let (x, h) = if c.0 + 40 < base_x + ppw as i32 {
-                    (c.0 + 16, HPos::Left)
-                } else {
-                    (c.0 - 16, HPos::Right)
-                };
-                draw_halo_text(
-                    root,
-                    "D",
-                    (x, c.1),
-                    &(FONT, 22.0).into_font(),
-                    h,
-                    VPos::Center,
-                )?;
-                drawn.push(c);
-            }
+    let mut drawn: Vec<(i32, i32)> = Vec::new();
+    for c in traces.iter().filter(|t| t.reached).filter_map(last_in_view) {
+        if near(&drawn, c) {
+            continue;
         }
+        draw_star(root, c, 15.0, BLACK)?;
+        let (x, h) = if c.0 + 40 < px.x + px.w {
+            (c.0 + 16, HPos::Left)
+        } else {
+            (c.0 - 16, HPos::Right)
+        };
+        draw_halo_text(
+            root,
+            "D",
+            (x, c.1),
+            &(FONT, 22.0).into_font(),
+            h,
+            VPos::Center,
+        )?;
+        drawn.push(c);
     }
     let mut drawn_s: Vec<(i32, i32)> = Vec::new();
     for t in traces {
@@ -406,42 +405,26 @@ pub(super) fn draw_top_view(
             }
         }
     }
+    Ok(())
+}
 
-    root.draw(&Rectangle::new(
-        [
-            (base_x - 1, base_y - 1),
-            (base_x + ppw as i32, base_y + pph as i32),
-        ],
-        BLACK.stroke_width(1),
-    ))
-    .map_err(pe)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x east (m)")
-        .y_desc("y north (m)")
-        .x_labels(7)
-        .y_labels(7)
-        .x_label_formatter(&|v| fmt_num(*v))
-        .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, LABEL_PX))
-        .axis_desc_style((FONT, DESC_PX))
-        .axis_style(BLACK.stroke_width(1))
-        .draw()
-        .map_err(pe)?;
-
-    // Legend below the map, aligned with the plot's left edge where there is room.
-    let z_low = visible
-        .iter()
-        .map(|b| b.z_max_m)
-        .fold(f64::INFINITY, f64::min);
-    let z_low = if z_low.is_finite() { z_low } else { 0.0 };
+/// The legend below the map, aligned with the plot's left edge where there is room, its
+/// building heights now those in view (`heights`: lowest and tallest, m).
+fn draw_legend(
+    root: &Area,
+    items: &mut Items,
+    heights: (f64, f64),
+    legend_w: i32,
+    px: Pixels,
+    frame: &Frame,
+) -> Result<()> {
+    let (z_low, z_top) = heights;
     if let Some(Some((_, text))) = items.last_mut() {
         *text = format!("building height {} … {} m", fmt_num(z_low), fmt_num(z_top));
     }
-    let (placed, _) = layout_legend(root, &items, legend_w)?;
-    let legend_left = (base_x - 40).max(MARGIN + 10);
-    let legend_top = region_top + map_h + 4;
+    let (placed, _) = layout_legend(root, items, legend_w)?;
+    let legend_left = (px.x - 40).max(MARGIN + 10);
+    let legend_top = frame.region_top + frame.height + 4;
     let text = (FONT, LEGEND_PX)
         .into_font()
         .color(&BLACK)
