@@ -155,19 +155,22 @@ pub fn plan_path(
 }
 
 /// [`plan_path`] for every pair, in parallel: the number of pairs `fallback` planned; a failure
-/// (one of them, if several) names its pair.
+/// (one of them, if several) names its pair. `progress(1)` is called after each pair.
 pub fn attach_paths(
     guide: &Planner,
     fallback: &Planner,
     pairs: &mut [Pair],
     lambda: f64,
+    progress: &(dyn Fn(u64) + Sync),
 ) -> Result<usize, String> {
     pairs
         .par_iter_mut()
         .map(|p| {
-            plan_path(guide, fallback, p, lambda)
+            let planned = plan_path(guide, fallback, p, lambda)
                 .map(usize::from)
-                .map_err(|e| format!("pair {}: {e}", p.id))
+                .map_err(|e| format!("pair {}: {e}", p.id));
+            progress(1);
+            planned
         })
         .try_reduce(|| 0, |a, b| Ok(a + b))
 }

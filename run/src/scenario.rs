@@ -3,7 +3,7 @@
 
 use crate::error::{Context, RunError};
 use crate::guide_cache::{GuideCache, guide_clearance_m};
-use crate::progress::progress_bar;
+use crate::progress::{progress_bar, stage_spinner};
 use dupac_actor::env::Episode;
 use dupac_actor::pairs::{
     Pair, Split, attach_paths, plan_path, read_pairs_jsonl, split_pairs, training_pool,
@@ -180,6 +180,16 @@ pub fn guide_pairs(
     planners: &Planners,
     pairs: &mut [Pair],
 ) -> Result<usize, RunError> {
+    guide_pairs_progress(cfg, planners, pairs, &|_| {})
+}
+
+/// [`guide_pairs`] calling `progress(1)` after each pair.
+fn guide_pairs_progress(
+    cfg: &Config,
+    planners: &Planners,
+    pairs: &mut [Pair],
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<usize, RunError> {
     if !cfg.env.needs_path() {
         return Ok(0);
     }
@@ -189,6 +199,7 @@ pub fn guide_pairs(
         &planners.pairs,
         pairs,
         cfg.env.observation.path_guide_lambda,
+        progress,
     )
     .map_err(|e| RunError::Refused(format!("planning the episodes' guide paths: {e}")))?;
     if fell_back > 0 {
@@ -205,14 +216,16 @@ pub fn guide_pairs(
 
 /// [`guide_pairs`] through the guide cache ([`GuideCache`]): the paths of these pairs under
 /// `cfg` are loaded when this host planned them before, else planned (with planners built here:
-/// the coverage classes are most of the cost) and cached. Returns whether they were loaded.
+/// the coverage classes are most of the cost) and cached, with a progress bar unless `quiet`.
+/// Returns whether they were loaded.
 pub fn guide_pairs_cached(
     cfg: &Config,
     world: &RadioWorld,
     rsrp: &SharedRsrp,
     pairs: &mut [Pair],
+    quiet: bool,
 ) -> Result<bool, RunError> {
-    Ok(guide_sets_cached(cfg, world, rsrp, &mut [pairs])? == 1)
+    Ok(guide_sets_cached(cfg, world, rsrp, &mut [pairs], quiet)? == 1)
 }
 
 /// [`guide_pairs_cached`] for several pair sets (each its own cache entry), the planners built at
@@ -222,6 +235,7 @@ pub fn guide_sets_cached(
     world: &RadioWorld,
     rsrp: &SharedRsrp,
     sets: &mut [&mut [Pair]],
+    quiet: bool,
 ) -> Result<usize, RunError> {
     if !cfg.env.needs_path() {
         return Ok(0);
@@ -235,8 +249,15 @@ pub fn guide_sets_cached(
             loaded += 1;
             continue;
         }
-        let planners = planners.get_or_insert_with(|| Planners::new(cfg, &[], world, rsrp, false));
-        let fell_back = guide_pairs(cfg, planners, pairs)?;
+        let planners = planners.get_or_insert_with(|| {
+            let spin = stage_spinner("guide planners", quiet);
+            let built = Planners::new(cfg, &[], world, rsrp, false);
+            spin.finish_and_clear();
+            built
+        });
+        let pb = progress_bar(pairs.len() as u64, "guide paths", quiet);
+        let fell_back = guide_pairs_progress(cfg, planners, pairs, &|n| pb.inc(n))?;
+        pb.finish_and_clear();
         cache.save(pairs, fell_back);
     }
     Ok(loaded)
@@ -357,6 +378,62 @@ pub fn spread(pairs: &[Pair], n: usize) -> Vec<Pair> {
         return pairs.to_vec();
     }
     (0..n).map(|k| pairs[k * pairs.len() / n].clone()).collect()
+}
+
+/// The training pool of `cfg` ([`make_pool`]) through the host's pool file: `pool-<key>.jsonl`
+/// in the folder of `cache.path`, beside the RSRP and guide caches, read when this host drew the
+/// same pool before, else drawn and written (atomically; a failed write is logged, never fatal).
+/// The key hashes what decides the draw: the environment fingerprint
+/// ([`Config::env_fingerprint`]: world, environment, pairs and planner sections),
+/// `train.pool_size` and `train.seed`. The pairs come back as a pairs file gives them (without
+/// the sampler's shortest paths), as the actors of a run read `train_pool.jsonl`; `cfg` must be
+/// [`unguided`] (the guide paths are the guide cache's).
+pub fn pool_cached(
+    cfg: &Config,
+    world: &RadioWorld,
+    planners: &Planners,
+    quiet: bool,
+) -> Result<Vec<Pair>, RunError> {
+    let file = pool_file(cfg, world.fingerprint());
+    if file.exists() {
+        match read_pairs_jsonl(&file, &planners.pairs, &cfg.pairs) {
+            Ok(pool) if pool.len() == cfg.train.pool_size => {
+                tracing::info!(pairs = pool.len(), file = %file.display(), "training pool loaded");
+                return Ok(pool);
+            }
+            Ok(pool) => tracing::warn!(
+                file = %file.display(),
+                pairs = pool.len(),
+                wanted = cfg.train.pool_size,
+                "pool file of another size: drawing the pool again"
+            ),
+            Err(e) => tracing::warn!("pool file not used, drawing the pool again: {e}"),
+        }
+    }
+    let mut pool = make_pool(cfg, planners, quiet)?;
+    for p in &mut pool {
+        p.path = None;
+    }
+    if let Err(e) = write_pairs_jsonl(&file, &pool) {
+        tracing::warn!("training pool not cached: {e}");
+    }
+    Ok(pool)
+}
+
+/// The file [`pool_cached`] keeps `cfg`'s pool in, in a world of fingerprint
+/// `world_fingerprint`.
+pub fn pool_file(cfg: &Config, world_fingerprint: u64) -> PathBuf {
+    let mut h = dupac_common::fingerprint::Fnv64::new();
+    h.write_u64(cfg.env_fingerprint(world_fingerprint));
+    h.write_u64(cfg.train.pool_size as u64);
+    h.write_u64(cfg.train.seed);
+    let dir = cfg
+        .cache
+        .path
+        .parent()
+        .map(PathBuf::from)
+        .unwrap_or_default();
+    dir.join(format!("pool-{:016x}.jsonl", h.finish()))
 }
 
 /// The training pool (`train.pool_size` pairs from `train.seed`), guided as `cfg`'s episodes

@@ -57,7 +57,7 @@ fn guide_paths_planned_once_are_loaded_equal_and_a_bad_file_is_planned_again() {
     };
 
     let mut first = fresh();
-    let loaded = guide_pairs_cached(&cfg, &world, &rsrp, &mut first).expect("planned");
+    let loaded = guide_pairs_cached(&cfg, &world, &rsrp, &mut first, true).expect("planned");
     assert!(!loaded, "nothing cached yet: planned");
     let file = GuideCache::new(&cfg, world.fingerprint(), &first)
         .path()
@@ -65,7 +65,7 @@ fn guide_paths_planned_once_are_loaded_equal_and_a_bad_file_is_planned_again() {
     assert!(file.exists(), "{} written", file.display());
 
     let mut second = fresh();
-    assert!(guide_pairs_cached(&cfg, &world, &rsrp, &mut second).expect("loaded"));
+    assert!(guide_pairs_cached(&cfg, &world, &rsrp, &mut second, true).expect("loaded"));
     assert_eq!(
         paths(&second),
         paths(&first),
@@ -80,17 +80,60 @@ fn guide_paths_planned_once_are_loaded_equal_and_a_bad_file_is_planned_again() {
     // Other pairs (one fewer) have another key: planned, not given the first set's paths.
     let mut fewer = fresh();
     fewer.pop();
-    assert!(!guide_pairs_cached(&cfg, &world, &rsrp, &mut fewer).expect("planned"));
+    assert!(!guide_pairs_cached(&cfg, &world, &rsrp, &mut fewer, true).expect("planned"));
     // Another λ: another key.
     let mut other = cfg.clone();
     other.env.observation.path_guide_lambda = 2.0;
-    assert!(!guide_pairs_cached(&other, &world, &rsrp, &mut fresh()).expect("planned"));
+    assert!(!guide_pairs_cached(&other, &world, &rsrp, &mut fresh(), true).expect("planned"));
 
     // A damaged file is not used: planned again, equal, and the file rewritten.
     let bytes = std::fs::read(&file).expect("read");
     std::fs::write(&file, &bytes[..bytes.len() / 2]).expect("truncate");
     let mut third = fresh();
-    assert!(!guide_pairs_cached(&cfg, &world, &rsrp, &mut third).expect("planned again"));
+    assert!(!guide_pairs_cached(&cfg, &world, &rsrp, &mut third, true).expect("planned again"));
     assert_eq!(paths(&third), paths(&first));
     assert_eq!(std::fs::read(&file).expect("rewritten"), bytes);
+}
+
+/// The training pool drawn once is read back, equal, from the host's pool file by the next
+/// process; another seed is another file; a damaged file is drawn again and rewritten.
+#[test]
+fn the_pool_drawn_once_is_read_back_equal_and_a_bad_file_is_drawn_again() {
+    use dupac_run::scenario::{Planners, pool_cached, pool_file, unguided};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut cfg = unguided(&config(dir.path()));
+    cfg.train.pool_size = 8;
+    let world = Arc::new(RadioWorld::build(&cfg).expect("procedural world"));
+    let rsrp: Arc<dyn RsrpSource + Send + Sync> = world.clone();
+    let planners = Planners::new(&cfg, &[], &world, &rsrp, false);
+    let file = pool_file(&cfg, world.fingerprint());
+    let ends = |pool: &[Pair]| -> Vec<(u64, [f64; 6])> {
+        pool.iter()
+            .map(|p| {
+                let (s, d) = (p.source_m, p.destination_m);
+                (p.id, [s.x, s.y, s.z, d.x, d.y, d.z])
+            })
+            .collect()
+    };
+
+    let drawn = pool_cached(&cfg, &world, &planners, true).expect("drawn");
+    assert_eq!(drawn.len(), 8);
+    assert!(file.exists(), "the pool is written to {}", file.display());
+    let written = std::fs::metadata(&file).expect("pool file").modified().ok();
+    let read = pool_cached(&cfg, &world, &planners, true).expect("read");
+    assert_eq!(ends(&read), ends(&drawn));
+    assert_eq!(
+        std::fs::metadata(&file).expect("pool file").modified().ok(),
+        written
+    );
+
+    let mut other = cfg.clone();
+    other.train.seed += 1;
+    assert_ne!(pool_file(&other, world.fingerprint()), file);
+
+    std::fs::write(&file, "{not a pair\n").expect("damage the file");
+    let again = pool_cached(&cfg, &world, &planners, true).expect("drawn again");
+    assert_eq!(ends(&again), ends(&drawn));
+    let text = std::fs::read_to_string(&file).expect("rewritten");
+    assert_eq!(text.lines().count(), 8);
 }
