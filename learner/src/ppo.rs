@@ -250,196 +250,36 @@ impl Ppo {
     }
 
     /// Runs `update_epochs` × `num_minibatches` gradient steps on `batch` at learning rate `lr`,
-    /// shuffling with `rng`.
+    /// shuffling with `rng`: CleanRL's loop, each step a named function below.
     pub fn update(&mut self, batch: &Batch, lr: f64, rng: &mut impl RngExt) -> UpdateStats {
         let n = batch.len();
-        let d = batch.obs_dim;
         let mb = (n / self.cfg.num_minibatches).max(1);
-        let clip = self.cfg.clip_coef;
+        let site = self.site_learning(batch);
         let mut stats = UpdateStats {
             learning_rate: lr,
+            site_expected_regret: f64::NAN,
             ..UpdateStats::default()
         };
         let mut order: Vec<usize> = (0..n).collect();
         let mut grad_norm_sum = 0.0;
-        let m = batch.n_sites;
-        let per_step = batch.per_step_rows(self.model.site_features());
-        if !batch.step_offsets.is_empty() && !per_step {
-            tracing::error!(
-                rows = batch.step_offsets.len(),
-                decisions = n,
-                "per-step site rows that do not fit the batch: the site head does not learn from them"
-            );
-        }
-        let all_sites = self.cfg.site_gradient == SiteGradient::AllSites
-            && m > 0
-            && (per_step || batch.site_rewards.len() == n * m);
-        stats.site_expected_regret = f64::NAN;
-        'epochs: for _epoch in 0..self.cfg.update_epochs {
+        for _epoch in 0..self.cfg.update_epochs {
             stats.epochs += 1;
             order.shuffle(rng);
-            let mut sums = [0.0f64; 8];
-            let mut count = 0usize;
+            let mut epoch = EpochMeans::default();
             for idx in order.chunks(mb) {
-                let b = idx.len();
-                let mut obs = Vec::with_capacity(b * d);
-                let mut moves = Vec::with_capacity(b * MOVE_DIM);
-                let mut sites = Vec::with_capacity(b);
-                let (mut oldlp, mut oldv, mut adv, mut ret) = (
-                    Vec::with_capacity(b),
-                    Vec::with_capacity(b),
-                    Vec::with_capacity(b),
-                    Vec::with_capacity(b),
-                );
-                for &i in idx {
-                    obs.extend_from_slice(&batch.obs[i * d..(i + 1) * d]);
-                    moves.extend_from_slice(&batch.moves[i * MOVE_DIM..(i + 1) * MOVE_DIM]);
-                    sites.push(batch.sites[i]);
-                    oldlp.push(batch.logprobs[i]);
-                    oldv.push(batch.values[i]);
-                    adv.push(batch.advantages[i]);
-                    ret.push(batch.returns[i]);
-                }
-                if self.cfg.norm_adv && b > 1 {
-                    let mean = adv.iter().map(|&a| f64::from(a)).sum::<f64>() / b as f64;
-                    // torch.std is the unbiased estimate.
-                    let var = adv
-                        .iter()
-                        .map(|&a| (f64::from(a) - mean).powi(2))
-                        .sum::<f64>()
-                        / (b - 1) as f64;
-                    let sd = var.sqrt() + 1e-8;
-                    adv.iter_mut()
-                        .for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
-                }
-                // w · min(ρA, clip(ρ)A) = min(ρ(wA), clip(ρ)(wA)) for w ≥ 0.
-                if !batch.is_weights.is_empty() {
-                    for (a, &i) in adv.iter_mut().zip(idx) {
-                        *a *= batch.is_weights[i];
-                    }
-                }
-                let obs = Tensor::<2>::from_data(TensorData::new(obs, [b, d]), &self.device);
-                let moves =
-                    Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), &self.device);
-                let sites = Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), &self.device);
-                // The per-step rows alone teach the site head: the decision rows' site logits
-                // are not computed.
-                let sites = (!(all_sites && per_step)).then_some(sites);
-                let Evaluated {
-                    logprob,
-                    logprob_move,
-                    site_logp,
-                    entropy_move,
-                    entropy_site,
-                    value,
-                    actor_hidden,
-                    ..
-                } = self.model.evaluate_rows(obs, moves, sites);
-                // Under the all-sites gradient the ratio and clip are the move's alone.
-                let logprob = if all_sites { logprob_move } else { logprob };
-                let oldlp = self.t1(oldlp);
-                let (pg_loss, ratio) =
-                    policy_loss(logprob.clone(), oldlp.clone(), self.t1(adv), clip);
-                // Under per-step rows the site entropy reported is of those rows (no gradient).
-                let mut step_entropy = None;
-                let site_loss = match (&site_logp, all_sites) {
-                    (_, true) if per_step => actor_hidden.map(|hidden| {
-                        let (loss, entropy) = self.step_site_loss(batch, idx, hidden, rng);
-                        step_entropy = Some(entropy);
-                        loss.mul_scalar(self.cfg.site_coef)
-                    }),
-                    (Some(logp), true) => {
-                        let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
-                        let a = Tensor::<2>::from_data(TensorData::new(a, [b, m]), &self.device);
-                        Some(all_sites_loss(logp.clone(), a).mul_scalar(self.cfg.site_coef))
-                    }
-                    _ => None,
-                };
-                let v_loss = value_loss(
-                    value,
-                    self.t1(oldv),
-                    self.t1(ret),
-                    self.cfg.clip_vloss.then_some(clip),
-                );
-                let ent_move = entropy_move.clone().mean();
-                let ent_site = entropy_site.clone().mean();
-                // The site's entropy bonus serves exploration, which the all-sites gradient
-                // does not need.
-                let ent_coef_site = if all_sites {
-                    0.0
-                } else {
-                    self.cfg.ent_coef_site
-                };
-                let mut loss = pg_loss.clone()
-                    - ent_move.clone().mul_scalar(self.cfg.ent_coef_move)
-                    - ent_site.clone().mul_scalar(ent_coef_site)
-                    + v_loss.clone().mul_scalar(self.cfg.vf_coef);
-                let mut site_v = 0.0;
-                if let Some(sl) = site_loss {
-                    site_v = f64::from(sl.clone().into_scalar::<f32>());
-                    loss = loss + sl;
-                }
-
-                // Diagnostics (no gradient): KL estimators of Schulman's blog, clip fraction.
-                let logratio = tensor_to_vec(logprob.detach() - oldlp);
-                let ratio = tensor_to_vec(ratio.detach());
-                let (mut old_kl, mut kl, mut cf) = (0.0, 0.0, 0.0);
-                for (lr_, r) in logratio.iter().zip(&ratio) {
-                    let (lr_, r) = (f64::from(*lr_), f64::from(*r));
-                    old_kl += -lr_;
-                    kl += (r - 1.0) - lr_;
-                    cf += f64::from(u8::from((r - 1.0).abs() > clip));
-                }
-                let bf = b as f64;
-                let loss_v = f64::from(loss.clone().into_scalar::<f32>());
-                let pg_v = f64::from(pg_loss.into_scalar::<f32>());
-                let vl_v = f64::from(v_loss.into_scalar::<f32>());
-                let em_v = f64::from(ent_move.into_scalar::<f32>());
-                let es_v = step_entropy.unwrap_or_else(|| f64::from(ent_site.into_scalar::<f32>()));
-
-                let grads = loss.backward();
-                let mut grads = GradientsParams::from_grads(grads, &self.model);
-                let norm = clip_global_grad_norm(&self.model, &mut grads, self.cfg.max_grad_norm);
-                if !(loss_v.is_finite() && norm.is_finite()) {
+                let minibatch = self.minibatch(batch, idx);
+                let losses = self.losses(batch, idx, minibatch, site, rng);
+                let Some(grad_norm) = self.step(&losses, lr) else {
                     stats.skipped_nonfinite += 1;
-                    tracing::warn!(
-                        loss = loss_v,
-                        grad_norm = norm,
-                        "non-finite minibatch skipped"
-                    );
                     continue;
-                }
-                self.model = self.optim.step(lr, self.model.clone(), grads);
+                };
                 stats.minibatches += 1;
-                grad_norm_sum += norm;
-                for (s, v) in sums.iter_mut().zip([
-                    pg_v,
-                    vl_v,
-                    em_v,
-                    es_v,
-                    old_kl / bf,
-                    kl / bf,
-                    cf / bf,
-                    site_v,
-                ]) {
-                    *s += v;
-                }
-                count += 1;
+                grad_norm_sum += grad_norm;
+                epoch.add(&losses.report);
             }
-            if count > 0 {
-                let c = count as f64;
-                stats.policy_loss = sums[0] / c;
-                stats.value_loss = sums[1] / c;
-                stats.entropy_move = sums[2] / c;
-                stats.entropy_site = sums[3] / c;
-                stats.entropy = stats.entropy_move + stats.entropy_site;
-                stats.old_approx_kl = sums[4] / c;
-                stats.approx_kl = sums[5] / c;
-                stats.clipfrac = sums[6] / c;
-                stats.site_loss = sums[7] / c;
-            }
+            epoch.write_into(&mut stats);
             if self.cfg.target_kl > 0.0 && stats.approx_kl > self.cfg.target_kl {
-                break 'epochs;
+                break;
             }
         }
         if stats.minibatches > 0 {
@@ -447,6 +287,263 @@ impl Ppo {
         }
         stats.explained_variance = explained_variance(&batch.values, &batch.returns);
         stats
+    }
+
+    /// How the site head learns from `batch` (`ppo.site_gradient`, and whether the per-step
+    /// rows of `env.site_every_step` are there and fit).
+    fn site_learning(&self, batch: &Batch) -> SiteLearning {
+        let m = batch.n_sites;
+        let per_step = batch.per_step_rows(self.model.site_features());
+        if !batch.step_offsets.is_empty() && !per_step {
+            tracing::error!(
+                rows = batch.step_offsets.len(),
+                decisions = batch.len(),
+                "per-step site rows that do not fit the batch: the site head does not learn from them"
+            );
+        }
+        let all_sites = self.cfg.site_gradient == SiteGradient::AllSites
+            && m > 0
+            && (per_step || batch.site_rewards.len() == batch.len() * m);
+        SiteLearning {
+            all_sites,
+            per_step,
+        }
+    }
+
+    /// The rows `idx` of `batch` as tensors, the advantages normalised over them
+    /// (`ppo.norm_adv`, torch's unbiased std) and weighted by the decoupled importance weights.
+    fn minibatch(&self, batch: &Batch, idx: &[usize]) -> Minibatch {
+        let (b, d) = (idx.len(), batch.obs_dim);
+        let mut obs = Vec::with_capacity(b * d);
+        let mut moves = Vec::with_capacity(b * MOVE_DIM);
+        let mut sites = Vec::with_capacity(b);
+        let (mut oldlp, mut oldv, mut adv, mut ret) = (
+            Vec::with_capacity(b),
+            Vec::with_capacity(b),
+            Vec::with_capacity(b),
+            Vec::with_capacity(b),
+        );
+        for &i in idx {
+            obs.extend_from_slice(&batch.obs[i * d..(i + 1) * d]);
+            moves.extend_from_slice(&batch.moves[i * MOVE_DIM..(i + 1) * MOVE_DIM]);
+            sites.push(batch.sites[i]);
+            oldlp.push(batch.logprobs[i]);
+            oldv.push(batch.values[i]);
+            adv.push(batch.advantages[i]);
+            ret.push(batch.returns[i]);
+        }
+        if self.cfg.norm_adv && b > 1 {
+            let mean = adv.iter().map(|&a| f64::from(a)).sum::<f64>() / b as f64;
+            // torch.std is the unbiased estimate.
+            let var = adv
+                .iter()
+                .map(|&a| (f64::from(a) - mean).powi(2))
+                .sum::<f64>()
+                / (b - 1) as f64;
+            let sd = var.sqrt() + 1e-8;
+            adv.iter_mut()
+                .for_each(|a| *a = ((f64::from(*a) - mean) / sd) as f32);
+        }
+        // w · min(ρA, clip(ρ)A) = min(ρ(wA), clip(ρ)(wA)) for w ≥ 0.
+        if !batch.is_weights.is_empty() {
+            for (a, &i) in adv.iter_mut().zip(idx) {
+                *a *= batch.is_weights[i];
+            }
+        }
+        let dev = &self.device;
+        Minibatch {
+            obs: Tensor::<2>::from_data(TensorData::new(obs, [b, d]), dev),
+            moves: Tensor::<2>::from_data(TensorData::new(moves, [b, MOVE_DIM]), dev),
+            sites: Tensor::<1, Int>::from_data(TensorData::new(sites, [b]), dev),
+            old_logprob: self.t1(oldlp),
+            old_value: self.t1(oldv),
+            advantages: self.t1(adv),
+            returns: self.t1(ret),
+        }
+    }
+
+    /// The forward pass over a minibatch and its loss: clipped surrogate, the site loss, value
+    /// loss, entropy bonuses; with what the update reports of it (no gradient).
+    fn losses(
+        &self,
+        batch: &Batch,
+        idx: &[usize],
+        mb: Minibatch,
+        site: SiteLearning,
+        rng: &mut impl RngExt,
+    ) -> Losses {
+        let clip = self.cfg.clip_coef;
+        // The per-step rows alone teach the site head: the decision rows' site logits are not
+        // computed.
+        let sites = (!(site.all_sites && site.per_step)).then_some(mb.sites);
+        let Evaluated {
+            logprob,
+            logprob_move,
+            site_logp,
+            entropy_move,
+            entropy_site,
+            value,
+            actor_hidden,
+            ..
+        } = self.model.evaluate_rows(mb.obs, mb.moves, sites);
+        // Under the all-sites gradient the ratio and clip are the move's alone.
+        let logprob = if site.all_sites {
+            logprob_move
+        } else {
+            logprob
+        };
+        let (pg_loss, ratio) =
+            policy_loss(logprob.clone(), mb.old_logprob.clone(), mb.advantages, clip);
+        // Under per-step rows the site entropy reported is of those rows (no gradient).
+        let mut step_entropy = None;
+        let site_loss = match (&site_logp, site.all_sites) {
+            (_, true) if site.per_step => actor_hidden.map(|hidden| {
+                let (loss, entropy) = self.step_site_loss(batch, idx, hidden, rng);
+                step_entropy = Some(entropy);
+                loss.mul_scalar(self.cfg.site_coef)
+            }),
+            (Some(logp), true) => {
+                let (b, m) = (idx.len(), batch.n_sites);
+                let a = site_advantages(&batch.site_rewards, idx, m, self.cfg.norm_adv);
+                let a = Tensor::<2>::from_data(TensorData::new(a, [b, m]), &self.device);
+                Some(all_sites_loss(logp.clone(), a).mul_scalar(self.cfg.site_coef))
+            }
+            _ => None,
+        };
+        let v_loss = value_loss(
+            value,
+            mb.old_value,
+            mb.returns,
+            self.cfg.clip_vloss.then_some(clip),
+        );
+        let ent_move = entropy_move.mean();
+        let ent_site = entropy_site.mean();
+        // The site's entropy bonus serves exploration, which the all-sites gradient does not
+        // need.
+        let ent_coef_site = if site.all_sites {
+            0.0
+        } else {
+            self.cfg.ent_coef_site
+        };
+        let mut loss = pg_loss.clone()
+            - ent_move.clone().mul_scalar(self.cfg.ent_coef_move)
+            - ent_site.clone().mul_scalar(ent_coef_site)
+            + v_loss.clone().mul_scalar(self.cfg.vf_coef);
+        let mut site_v = 0.0;
+        if let Some(sl) = site_loss {
+            site_v = f64::from(sl.clone().into_scalar::<f32>());
+            loss = loss + sl;
+        }
+
+        // Diagnostics (no gradient): KL estimators of Schulman's blog, clip fraction.
+        let logratio = tensor_to_vec(logprob.detach() - mb.old_logprob);
+        let ratio = tensor_to_vec(ratio.detach());
+        let (mut old_kl, mut kl, mut cf) = (0.0, 0.0, 0.0);
+        for (lr_, r) in logratio.iter().zip(&ratio) {
+            let (lr_, r) = (f64::from(*lr_), f64::from(*r));
+            old_kl += -lr_;
+            kl += (r - 1.0) - lr_;
+            cf += f64::from(u8::from((r - 1.0).abs() > clip));
+        }
+        let bf = idx.len() as f64;
+        let loss_value = f64::from(loss.clone().into_scalar::<f32>());
+        let report = [
+            f64::from(pg_loss.into_scalar::<f32>()),
+            f64::from(v_loss.into_scalar::<f32>()),
+            f64::from(ent_move.into_scalar::<f32>()),
+            step_entropy.unwrap_or_else(|| f64::from(ent_site.into_scalar::<f32>())),
+            old_kl / bf,
+            kl / bf,
+            cf / bf,
+            site_v,
+        ];
+        Losses {
+            loss,
+            loss_value,
+            report,
+        }
+    }
+
+    /// Backward pass, global gradient-norm clipping and the Adam step: the gradient norm before
+    /// clipping, or `None` (weights untouched, logged) when the loss or the gradient is not
+    /// finite.
+    fn step(&mut self, losses: &Losses, lr: f64) -> Option<f64> {
+        let grads = losses.loss.backward();
+        let mut grads = GradientsParams::from_grads(grads, &self.model);
+        let norm = clip_global_grad_norm(&self.model, &mut grads, self.cfg.max_grad_norm);
+        if !(losses.loss_value.is_finite() && norm.is_finite()) {
+            tracing::warn!(
+                loss = losses.loss_value,
+                grad_norm = norm,
+                "non-finite minibatch skipped"
+            );
+            return None;
+        }
+        self.model = self.optim.step(lr, self.model.clone(), grads);
+        Some(norm)
+    }
+}
+
+/// How the site head learns in an update ([`Ppo::site_learning`]).
+#[derive(Debug, Clone, Copy)]
+struct SiteLearning {
+    /// The all-sites gradient (`ppo.site_gradient = "all_sites"` with the rows it needs).
+    all_sites: bool,
+    /// From the per-step rows of `env.site_every_step`.
+    per_step: bool,
+}
+
+/// One minibatch as tensors ([`Ppo::minibatch`]).
+struct Minibatch {
+    obs: Tensor<2>,
+    moves: Tensor<2>,
+    sites: Tensor<1, Int>,
+    old_logprob: Tensor<1>,
+    old_value: Tensor<1>,
+    /// Normalised and importance-weighted.
+    advantages: Tensor<1>,
+    returns: Tensor<1>,
+}
+
+/// A minibatch's loss ([`Ppo::losses`]): the tensor to differentiate, its value, and what the
+/// update reports of it, in [`EpochMeans`]'s order.
+struct Losses {
+    loss: Tensor<1>,
+    loss_value: f64,
+    report: [f64; 8],
+}
+
+/// Sums over an epoch's minibatches of what [`Losses::report`] holds: policy loss, value loss,
+/// move entropy, site entropy, old approx KL, approx KL, clip fraction, site loss.
+#[derive(Debug, Default)]
+struct EpochMeans {
+    sums: [f64; 8],
+    count: usize,
+}
+
+impl EpochMeans {
+    fn add(&mut self, report: &[f64; 8]) {
+        for (s, v) in self.sums.iter_mut().zip(report) {
+            *s += v;
+        }
+        self.count += 1;
+    }
+
+    /// The epoch's means into `stats` (nothing when every minibatch was skipped).
+    fn write_into(&self, stats: &mut UpdateStats) {
+        if self.count == 0 {
+            return;
+        }
+        let [pg, vl, em, es, old_kl, kl, cf, site] = self.sums.map(|s| s / self.count as f64);
+        stats.policy_loss = pg;
+        stats.value_loss = vl;
+        stats.entropy_move = em;
+        stats.entropy_site = es;
+        stats.entropy = em + es;
+        stats.old_approx_kl = old_kl;
+        stats.approx_kl = kl;
+        stats.clipfrac = cf;
+        stats.site_loss = site;
     }
 }
 
