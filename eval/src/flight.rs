@@ -1,21 +1,27 @@
-//! One flight: what flying a pair needs ([`FlyCtx`]), a method flown over one pair
-//! ([`fly_one`]), its record ([`flight_record`], [`record_of`]) and how a replay of a recorded
-//! flight ends ([`replay_outcome`]). Below `fly` (every method over every pair), `refly` (the
-//! re-flights) and `trace` (A3 re-run from one recorded trace), which all use it.
+//! One flight: what flying a pair needs ([`FlyCtx`]), the one way a planned path is flown
+//! ([`fly_path`], with A3: [`fly_path_with_a3`]), the one check of a policy against the
+//! environment it flies in ([`policy_env`]), a method flown over one pair ([`fly_one`]), its
+//! record ([`flight_record`], [`record_of`]) and how a replay of a recorded flight ends
+//! ([`replay_outcome`]). Below `fly` (every method over every pair), `refly` (the re-flights),
+//! `trace` (A3 re-run from one recorded trace), `dupac plan`, `dupac fly` and the Python
+//! package, which all use it.
 
 use crate::error::refused;
 use crate::hindsight::hindsight_association;
+use crate::record::{FlightRecord, StepRecord};
 use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
 use crate::{Kind, Method};
-use dupac_actor::env::{Env, PathGuide};
+use dupac_actor::env::{Env, Episode, PathGuide};
+use dupac_actor::metrics::EpisodeAccumulator;
 use dupac_actor::pairs::Pair;
-use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
+use dupac_actor::pilot::{Flight, fly_waypoints, replay_positions};
+use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;
-use dupac_common::msg::Outcome;
+use dupac_common::msg::{EpisodeSummary, Outcome};
+use dupac_common::policy::PolicyWeights;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
 use dupac_run::error::{Context, RunError};
@@ -31,6 +37,74 @@ pub(crate) type FlyCtx<'a, 'w> = (
     &'a Planners<'w>,
     FieldSplit,
 );
+
+/// A planned path flown by the scripted pilot: the flight, the site that served before its
+/// first step (handovers are counted from it) and the episode's summary.
+#[derive(Debug, Clone)]
+pub struct FlownPath {
+    pub flight: Flight,
+    pub start_serving: SiteId,
+    pub summary: EpisodeSummary,
+}
+
+/// `waypoints_m` (m) flown from `episode`'s source by the scripted pilot in `env`, episode `id`
+/// (its seed), the environment's association choosing the site: the one way a planned path is
+/// flown (`dupac eval`'s planners with A3, the oracle or the predictive association; `dupac
+/// plan`, `dupac fly`'s reference and Python's `fly_path` with A3, [`fly_path_with_a3`]).
+pub fn fly_path(
+    env: &mut Env,
+    id: u64,
+    episode: Episode,
+    waypoints_m: &[Point],
+) -> Result<FlownPath, RunError> {
+    let shortest_m = episode.shortest_m;
+    let flight = fly_waypoints(env, id, episode, waypoints_m, |e| e.serving())?;
+    let mut acc = EpisodeAccumulator::new(env.config());
+    flight.steps.iter().for_each(|s| acc.push(s));
+    let summary = acc.finish(id, shortest_m, flight.outcome);
+    Ok(FlownPath {
+        start_serving: env.start_serving(),
+        flight,
+        summary,
+    })
+}
+
+/// [`fly_path`] with A3 choosing the site, in an environment of `cfg` over `world` and `rsrp`:
+/// pair `p`'s episode (from its source, with its guide) in `field`'s realisations.
+pub fn fly_path_with_a3(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    waypoints_m: &[Point],
+    p: &Pair,
+    field: FieldSplit,
+) -> Result<FlownPath, RunError> {
+    let mut a3_cfg = cfg.clone();
+    a3_cfg.env.association = Association::A3;
+    let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
+    fly_path(&mut env, p.id, p.episode(false, field), waypoints_m)
+}
+
+/// An environment of `cfg` over `world` and `rsrp` for `policy` to fly in, refused when it gives
+/// another number of observations than the policy takes: the one check of a policy against its
+/// environment (`dupac eval`, `dupac fly`, Python's `fly`). `cfg` is the policy's own
+/// ([`PolicyWeights::configure`]: the observation it was trained on).
+pub fn policy_env(
+    cfg: &Config,
+    world: &Arc<RadioWorld>,
+    rsrp: &SharedRsrp,
+    policy: &PolicyWeights,
+) -> Result<Env, RunError> {
+    let env = Env::new(cfg, world.clone(), rsrp.clone())?;
+    let given = env.layout().len();
+    if given != policy.obs_dim {
+        return Err(refused!(
+            "the policy expects {} observations, this configuration gives {given} with the observation the policy records: another number of sites (scenario.n_sites)?",
+            policy.obs_dim
+        ));
+    }
+    Ok(env)
+}
 
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fly_one(
@@ -54,7 +128,7 @@ pub(crate) fn fly_one(
                 // The route the predictive association reads ahead is the path flown.
                 episode.guide = PathGuide::new(w).map(Arc::new);
             }
-            fly_waypoints(&mut env, p.id, episode, w, |e| e.serving())?.steps
+            fly_path(&mut env, p.id, episode, w)?.flight.steps
         }
         Kind::Replay(_) => {
             let w = waypoints_m.ok_or_else(|| refused!("pair {}: no positions to replay", p.id))?;
@@ -83,7 +157,9 @@ pub(crate) fn fly_one(
                 .pairs
                 .coverage_aware(p.source_m, p.destination_m, *l)
                 .context_with(|| format!("pair {}: coverage-aware path (λ = {l})", p.id))?;
-            fly_waypoints(&mut env, p.id, episode, &path.waypoints_m, |e| e.serving())?.steps
+            fly_path(&mut env, p.id, episode, &path.waypoints_m)?
+                .flight
+                .steps
         }
     };
     Ok(flight_record(
@@ -100,7 +176,7 @@ pub(crate) fn fly_one(
 /// The record of pair `p`'s flight `steps` from the site `start_serving` served before its
 /// first step (its SINR per step from every site's true RSRP in the pair's field of `fs`), as
 /// `method` (`label`, training `seed`) flew it.
-pub(crate) fn flight_record(
+pub fn flight_record(
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     fs: FieldSplit,

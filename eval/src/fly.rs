@@ -3,15 +3,14 @@
 //! ([`crate::refly`]: route against association).
 
 use crate::error::refused;
-use crate::flight::{fly_one, true_rsrp};
+use crate::flight::{fly_one, policy_env, true_rsrp};
 use crate::front::write_front;
+use crate::metrics::MetricRules;
+use crate::record::FlightRecord;
 use crate::records::{RecordsFile, write_records, write_split};
 use crate::refly::{Fronts, fronts_of, replay_associations};
 use crate::{EvalPlan, Kind, methods, parse_hindsight, select};
-use dupac_actor::env::Env;
-use dupac_actor::metrics::MetricRules;
 use dupac_actor::pairs::{Pair, Split};
-use dupac_actor::record::FlightRecord;
 use dupac_common::config::{Association, Config, Knowledge};
 use dupac_common::geometry::Point;
 use dupac_radio::channel::FieldSplit;
@@ -173,16 +172,8 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
             if let Some(w) = method.handover_weight {
                 mcfg.env.reward.handover_weight = w;
             }
-            let probe = Env::new(&mcfg, world.clone(), rsrp.clone())?;
-            if probe.layout().len() != p.obs_dim {
-                return Err(refused!(
-                    "policy {} (seed {}): it expects {} observations, this configuration gives {} with its recorded observation: another number of sites (scenario.n_sites)?",
-                    method.label,
-                    method.seed,
-                    p.obs_dim,
-                    probe.layout().len(),
-                ));
-            }
+            policy_env(&mcfg, &world, &rsrp, p)
+                .map_err(|e| refused!("policy {} (seed {}): {e}", method.label, method.seed))?;
         }
         let pb = progress_bar(
             pairs.len() as u64,

@@ -13,9 +13,10 @@
 //! version), each setting's per-flight metrics; the report reads them with the records.
 
 use crate::a3_setting::A3Setting;
+use crate::method_data::is_planner;
+use crate::metrics::{FlightMetrics, flight_metrics};
 use crate::records::RecordsFile;
 use crate::stats::{Grid, Headline, SeedFlights};
-use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;
 use dupac_run::error::{Context, RunError};
@@ -227,6 +228,38 @@ pub struct FrontRow {
     /// ([`clean_envelope`]): the envelope with ping-pongs as a third axis, which the matched
     /// comparison uses.
     pub on_clean_front: bool,
+}
+
+/// The methods the fronts are drawn for, in order, each with its own point: the policies of the
+/// records (not their re-flights `LABEL+…`, nor the planners), then every other method with a
+/// front; a method's own point is the front measures of its recorded flights, flown with its own
+/// association (none without records).
+pub fn own_points(
+    files: &[RecordsFile],
+    rows: &[FrontRow],
+) -> Vec<(String, Option<FrontMeasures>)> {
+    let mut methods: Vec<&str> = files
+        .iter()
+        .map(|f| f.method.as_str())
+        .filter(|l| !l.contains('+') && !is_planner(l))
+        .chain(rows.iter().map(|r| r.method.as_str()))
+        .collect();
+    let mut seen = std::collections::BTreeSet::new();
+    methods.retain(|l| seen.insert(*l));
+    methods
+        .into_iter()
+        .map(|l| {
+            let m: Vec<FlightMetrics> = files
+                .iter()
+                .filter(|f| f.method == l)
+                .flat_map(|f| f.flights.iter().map(|r| flight_metrics(r, &f.rules)))
+                .collect();
+            (
+                l.to_string(),
+                (!m.is_empty()).then(|| FrontMeasures::of(m.iter())),
+            )
+        })
+        .collect()
 }
 
 /// Each method's front of each rule, settings in the order flown.

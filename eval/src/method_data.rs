@@ -3,8 +3,8 @@
 //! of the main table.
 
 use crate::interval::{MeanCi, Rate, mean_ci95, wilson95};
+use crate::metrics::{FlightMetrics, flight_metrics};
 use crate::records::RecordsFile;
-use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::msg::Outcome;
 use std::collections::BTreeMap;
 

@@ -3,8 +3,8 @@
 //! metrics need from the configuration; the report is computed from these alone.
 
 use crate::error::refused;
-use dupac_actor::metrics::MetricRules;
-use dupac_actor::record::FlightRecord;
+use crate::metrics::MetricRules;
+use crate::record::FlightRecord;
 use dupac_common::codec;
 use dupac_run::error::{Context, RunError};
 use std::path::{Path, PathBuf};
@@ -46,6 +46,30 @@ fn gzip(bytes: &[u8]) -> Result<Vec<u8>, RunError> {
     z.finish().context("compressing the records")
 }
 
+/// The columns of the per-step CSV, the one layout of a flight's steps (the records'
+/// `<stem>.steps.csv.gz`, `dupac fly`'s `steps.csv`, `dupac plan`'s `flight_<path>.csv`).
+const STEP_COLUMNS: [&str; 19] = [
+    "method",
+    "seed",
+    "flight",
+    "pair_id",
+    "step",
+    "x_m",
+    "y_m",
+    "z_m",
+    "serving",
+    "serving_rsrp_dbm",
+    "measured_serving_rsrp_dbm",
+    "best_site",
+    "best_rsrp_dbm",
+    "sinr_db",
+    "class",
+    "best_class",
+    "los",
+    "handover",
+    "ping_pong",
+];
+
 /// The flights and steps CSVs of `rec` (numbers as Rust prints them: each f32 reads back to the
 /// same value).
 fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
@@ -70,27 +94,7 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
         "steps",
     ])?;
     let mut s = csv::Writer::from_writer(Vec::new());
-    s.write_record([
-        "method",
-        "seed",
-        "flight",
-        "pair_id",
-        "step",
-        "x_m",
-        "y_m",
-        "z_m",
-        "serving",
-        "serving_rsrp_dbm",
-        "measured_serving_rsrp_dbm",
-        "best_site",
-        "best_rsrp_dbm",
-        "sinr_db",
-        "class",
-        "best_class",
-        "los",
-        "handover",
-        "ping_pong",
-    ])?;
+    s.write_record(STEP_COLUMNS)?;
     let seed = rec.seed.to_string();
     for (i, fl) in rec.flights.iter().enumerate() {
         let (idx, pair) = (i.to_string(), fl.pair_id.to_string());
@@ -115,35 +119,72 @@ fn records_csv(rec: &RecordsFile) -> Result<(Vec<u8>, Vec<u8>), csv::Error> {
             &start,
             &fl.steps.len().to_string(),
         ])?;
-        for (k, st) in fl.steps.iter().enumerate() {
-            let b = |x: bool| if x { "1" } else { "0" };
-            s.write_record([
-                rec.method.as_str(),
-                &seed,
-                &idx,
-                &pair,
-                &(k + 1).to_string(),
-                &st.position_m[0].to_string(),
-                &st.position_m[1].to_string(),
-                &st.position_m[2].to_string(),
-                &st.serving.to_string(),
-                &st.serving_rsrp_dbm.to_string(),
-                &st.measured_serving_rsrp_dbm.to_string(),
-                &st.best_site.to_string(),
-                &st.best_rsrp_dbm.to_string(),
-                &st.sinr_db.to_string(),
-                st.class.name(),
-                st.best_class.name(),
-                b(st.los),
-                b(st.handover),
-                b(st.ping_pong),
-            ])?;
-        }
+        step_rows(&mut s, &rec.method, &seed, i, fl)?;
     }
-    let done = |w: csv::Writer<Vec<u8>>| -> Result<Vec<u8>, csv::Error> {
-        w.into_inner().map_err(|e| csv::Error::from(e.into_error()))
-    };
-    Ok((done(f)?, done(s)?))
+    Ok((csv_bytes(f)?, csv_bytes(s)?))
+}
+
+/// The rows of flight `fl` (index `flight` in its file) of `method` (training seed `seed`) in
+/// the per-step CSV ([`STEP_COLUMNS`]).
+fn step_rows(
+    s: &mut csv::Writer<Vec<u8>>,
+    method: &str,
+    seed: &str,
+    flight: usize,
+    fl: &FlightRecord,
+) -> Result<(), csv::Error> {
+    let (idx, pair) = (flight.to_string(), fl.pair_id.to_string());
+    let b = |x: bool| if x { "1" } else { "0" };
+    for (k, st) in fl.steps.iter().enumerate() {
+        s.write_record([
+            method,
+            seed,
+            &idx,
+            &pair,
+            &(k + 1).to_string(),
+            &st.position_m[0].to_string(),
+            &st.position_m[1].to_string(),
+            &st.position_m[2].to_string(),
+            &st.serving.to_string(),
+            &st.serving_rsrp_dbm.to_string(),
+            &st.measured_serving_rsrp_dbm.to_string(),
+            &st.best_site.to_string(),
+            &st.best_rsrp_dbm.to_string(),
+            &st.sinr_db.to_string(),
+            st.class.name(),
+            st.best_class.name(),
+            b(st.los),
+            b(st.handover),
+            b(st.ping_pong),
+        ])?;
+    }
+    Ok(())
+}
+
+/// A CSV writer's bytes.
+fn csv_bytes(w: csv::Writer<Vec<u8>>) -> Result<Vec<u8>, csv::Error> {
+    w.into_inner().map_err(|e| csv::Error::from(e.into_error()))
+}
+
+/// Writes the steps of `flights`, flown by `method` (training `seed`), into `path` (atomically)
+/// as the per-step CSV of the records: what `dupac fly` (`steps.csv`) and `dupac plan`
+/// (`flight_<path>.csv`) write.
+pub fn write_steps_csv(
+    path: &Path,
+    method: &str,
+    seed: u32,
+    flights: &[FlightRecord],
+) -> Result<(), RunError> {
+    let bytes = (|| {
+        let mut s = csv::Writer::from_writer(Vec::new());
+        s.write_record(STEP_COLUMNS)?;
+        for (i, fl) in flights.iter().enumerate() {
+            step_rows(&mut s, method, &seed.to_string(), i, fl)?;
+        }
+        csv_bytes(s)
+    })()
+    .context_with(|| format!("encoding {} as CSV", path.display()))?;
+    dupac_run::run_dir::write_plain(path, &bytes)
 }
 
 /// The `.bin` files of `dir` (not of its subfolders), in name order.

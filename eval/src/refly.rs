@@ -11,11 +11,11 @@
 use crate::a3_setting::A3Setting;
 use crate::flight::{FlyCtx, fly_one, replay_outcome};
 use crate::front::{FrontFile, FrontPoint, FrontRule, FrontSetting};
+use crate::metrics::{FlightMetrics, MetricRules, flight_metrics};
+use crate::record::FlightRecord;
 use crate::trace::{Flown, ReplayTrace};
 use crate::{Hindsight, Kind, Method};
-use dupac_actor::metrics::{FlightMetrics, MetricRules, flight_metrics};
 use dupac_actor::pairs::Pair;
-use dupac_actor::record::FlightRecord;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
 use dupac_run::error::RunError;

@@ -1,5 +1,5 @@
 //! The SINR of a recorded step from every site's RSRP (spec/env.md "Metrics"): what
-//! `dupac eval` records per step (`dupac_actor::record::StepRecord::sinr_db`).
+//! `dupac eval` records per step (`crate::record::StepRecord::sinr_db`).
 
 /// Thermal noise per LTE resource element (dBm): −174 dBm/Hz + 10·log10(15 kHz) + a UE noise
 /// figure of 9 dB. RSRP is a per-resource-element power, so SINR from RSRPs uses this noise.

@@ -11,8 +11,8 @@
 //! of the resamples' statistics (linear interpolation between order statistics); a resample
 //! whose statistic is undefined (no successful flight drawn) is left out.
 
+use crate::metrics::{FlightMetrics, flight_metrics};
 use crate::records::RecordsFile;
-use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::msg::Outcome;
 use dupac_run::error::RunError;
 use rand::{RngExt, SeedableRng};

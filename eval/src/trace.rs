@@ -11,12 +11,14 @@
 
 use crate::a3_setting::A3Setting;
 use crate::flight::{flight_end, record_of, replay_outcome, true_rsrp};
+use crate::metrics::{FlightMetrics, MetricRules, flight_metrics};
+use crate::record::{FlightRecord, StepRecord};
 use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
 use dupac_actor::env::{Env, Episode};
-use dupac_actor::metrics::{FlightMetrics, HandoverCounter, MetricRules, flight_metrics};
+use dupac_actor::metrics::HandoverCounter;
 use dupac_actor::pairs::Pair;
 use dupac_actor::pilot::{fly_waypoints, replay_positions};
-use dupac_actor::record::{FlightRecord, StepInfo, StepRecord};
+use dupac_actor::record::StepInfo;
 use dupac_common::config::{A3Config, Association, Config};
 use dupac_common::geometry::Point;
 use dupac_common::ids::SiteId;

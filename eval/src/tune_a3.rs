@@ -5,15 +5,15 @@
 //! a3-Offset × Hysteresis × timeToTrigger × A3's own filter coefficient (TS 36.331 values,
 //! docs/spec/radio.md §4; [`crate::trace`]: what the flight through the environment with that
 //! setting gives); per setting the excellent-RSRP time, handovers and ping-pongs per km and the
-//! time below −6 dB SINR ([`dupac_actor::metrics::flight_metrics`]); the chosen setting
+//! time below −6 dB SINR ([`crate::metrics::flight_metrics`]); the chosen setting
 //! ([`choose`]): the most excellent time among those with no more ping-pongs per km than the
 //! reference (`radio.a3`, 3 dB / 1 dB / 160 ms by default), ties to fewer handovers per km.
 //!
 //! Deterministic: every flight is a function of the pair and the setting, the pairs are flown in
 //! parallel and gathered in order, so the same inputs give a byte-identical `a3_grid.csv`.
 
+use crate::metrics::FlightMetrics;
 use crate::trace::{Flown, ReplayTrace};
-use dupac_actor::metrics::FlightMetrics;
 use dupac_actor::pairs::Split;
 use dupac_common::config::Config;
 use dupac_common::msg::Outcome;
@@ -105,7 +105,7 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
     guide_cfg.env.observation.path_guide = true;
     guide_cfg.env.observation.path_guide_lambda = lambda;
     guide_pairs_cached(&guide_cfg, &world, &rsrp, &mut pairs, quiet)?;
-    let rules = dupac_actor::metrics::MetricRules::from_config(cfg);
+    let rules = crate::metrics::MetricRules::from_config(cfg);
     let pb = progress_bar(pairs.len() as u64, "A3 settings × pairs", quiet);
     // metrics[pair][setting]: each pair's guide path flown once, re-associated by every setting.
     let metrics: Vec<Vec<FlightMetrics>> = pairs

@@ -7,14 +7,14 @@ use super::plan::{FlightTrace, render_world_plan};
 use crate::draw::write_png_atomic;
 use crate::error::{Context, Result};
 use crate::style::{CLASS_COLOURS, FONT, series_colour};
-use dupac_actor::metrics::{FlightMetrics, flight_metrics};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::Point;
 use dupac_common::msg::Outcome;
-use dupac_eval::front::{FrontFile, FrontMeasures, FrontRow, FrontRule, front_rows};
+use dupac_eval::front::{FrontFile, FrontMeasures, FrontRow, FrontRule, front_rows, own_points};
 use dupac_eval::interval::MeanCi;
+use dupac_eval::metrics::FlightMetrics;
 use dupac_eval::records::RecordsFile;
-use dupac_eval::report::{MethodData, is_planner};
+use dupac_eval::report::MethodData;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -385,26 +385,12 @@ pub fn draw_examples(
 pub fn draw_fronts(out: &Path, files: &[RecordsFile], fronts: &[FrontFile]) -> Result<()> {
     let rows = front_rows(fronts);
     // The policies of the records (a learned front is several of them: DUPAC at several handover
-    // weights), then the methods whose flights have a front.
-    let mut methods: Vec<&str> = files
+    // weights), then the methods whose flights have a front, each with its own point.
+    let points = own_points(files, &rows);
+    let methods: Vec<&str> = points.iter().map(|(l, _)| l.as_str()).collect();
+    let own: Vec<(String, FrontMeasures)> = points
         .iter()
-        .map(|f| f.method.as_str())
-        .filter(|l| !l.contains('+') && !is_planner(l))
-        .chain(rows.iter().map(|r| r.method.as_str()))
-        .collect();
-    let mut seen = std::collections::BTreeSet::new();
-    methods.retain(|l| seen.insert(*l));
-    // Each method's own point (its recorded flights with its own association).
-    let own: Vec<(String, FrontMeasures)> = methods
-        .iter()
-        .filter_map(|l| {
-            let m: Vec<FlightMetrics> = files
-                .iter()
-                .filter(|f| f.method == *l)
-                .flat_map(|f| f.flights.iter().map(|r| flight_metrics(r, &f.rules)))
-                .collect();
-            (!m.is_empty()).then(|| (l.to_string(), FrontMeasures::of(m.iter())))
-        })
+        .filter_map(|(l, m)| m.map(|m| (l.clone(), m)))
         .collect();
     let xs = rows
         .iter()

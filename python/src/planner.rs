@@ -8,9 +8,9 @@ use crate::policy::summary_dict;
 use crate::scenario::{Scenario, Shared, Split};
 use dupac_actor::planner::{Endpoint, Path, Planner as RustPlanner};
 use dupac_common::geometry::Point;
+use dupac_eval::flight::fly_path_with_a3;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
-use dupac_run::flights::fly_path_with_a3;
 use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use pyo3::prelude::*;
@@ -164,7 +164,7 @@ pub fn fly_path<'py>(
     let split = Split::parse(split)?;
     let w = crate::scenario::points(&waypoints_m, "waypoints_m")?;
     let sh = scenario.shared.clone();
-    let (flight, summary) = py.detach(|| -> PyResult<_> {
+    let flown = py.detach(|| -> PyResult<_> {
         let pairs = sh.pairs(split)?;
         let p = pairs.get(pair).ok_or_else(|| {
             value_error(format!("pair {pair}: the split has {} pairs", pairs.len()))
@@ -172,7 +172,7 @@ pub fn fly_path<'py>(
         fly_path_with_a3(&sh.cfg, &sh.world, &sh.rsrp, &w, p, split.field()).map_err(runtime_error)
     })?;
     Ok((
-        summary_dict(py, &summary)?,
-        crate::env::steps_dict(py, &flight.steps)?,
+        summary_dict(py, &flown.summary)?,
+        crate::env::steps_dict(py, &flown.flight.steps)?,
     ))
 }

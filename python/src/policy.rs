@@ -5,10 +5,10 @@
 use crate::arrays::{Real, view1, view2};
 use crate::errors::{runtime_error, value_error};
 use crate::scenario::{Scenario, Split};
-use dupac_actor::env::Env as RustEnv;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::{PolicyWeights, Scratch};
+use dupac_eval::flight::policy_env;
 use dupac_learner::checkpoint::load_policy;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -151,18 +151,13 @@ pub fn fly<'py>(
         let p = pairs.get(pair).ok_or_else(|| {
             value_error(format!("pair {pair}: the split has {} pairs", pairs.len()))
         })?;
-        let mut env = RustEnv::new(&sh.cfg, sh.world.clone(), sh.rsrp.clone())
-            .map_err(value_error)?;
-        if env.layout().len() != w.obs_dim {
-            return Err(value_error(format!(
-                "{}: the policy expects {} observations, the scenario gives {}: build it with Scenario(policy=…)",
-                policy.path.display(),
-                w.obs_dim,
-                env.layout().len()
-            )));
-        }
-        fly_policy(&mut env, w, p.id, p.episode(false, split.field()), p.id)
-            .map_err(runtime_error)
+        let mut env = policy_env(&sh.cfg, &sh.world, &sh.rsrp, w).map_err(|e| {
+            value_error(format!(
+                "{}: {e}: build the scenario with Scenario(policy=…)",
+                policy.path.display()
+            ))
+        })?;
+        fly_policy(&mut env, w, p.id, p.episode(false, split.field()), p.id).map_err(runtime_error)
     })?;
     Ok((
         summary_dict(py, &summary)?,

@@ -53,11 +53,13 @@ def test_dupac_fly_matches_the_binary(trained, small_set, dupac_bin, tmp_path, a
     with open(out / "steps.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == len(steps["step"]) == summary["length"]
+    # The records' per-step layout: positions and powers as f32, each read back exactly.
     for i, r in enumerate(rows):
+        assert int(r["step"]) == steps["step"][i]
         for k, axis in (("x_m", 0), ("y_m", 1), ("z_m", 2)):
-            assert f"{steps['position_m'][i, axis]:.3f}" == r[k]
+            assert np.float32(r[k]) == np.float32(steps["position_m"][i, axis])
         assert int(r["serving"]) == steps["serving"][i]
-        assert f"{steps['reward'][i]:.5f}" == r["reward"]
+        assert np.float32(r["serving_rsrp_dbm"]) == np.float32(steps["serving_rsrp_dbm"][i])
 
 
 def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, small_set, dupac_bin, tmp_path):
@@ -81,5 +83,6 @@ def test_the_gym_env_flies_held_out_pairs_in_the_evaluation_fields(trained, smal
             rows = list(csv.DictReader(f))
         assert len(rows) == len(rust["step"])
         for i, r in enumerate(rows):
-            assert f"{rust['reward'][i]:.5f}" == r["reward"], (pair, i)
+            want = np.float32(rust["serving_rsrp_dbm"][i])
+            assert np.float32(r["serving_rsrp_dbm"]) == want, (pair, i)
             assert int(r["serving"]) == rust["serving"][i]

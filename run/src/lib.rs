@@ -7,7 +7,6 @@
 
 pub mod error;
 pub mod export;
-pub mod flights;
 pub mod guide_cache;
 pub mod held_out;
 pub mod local;

@@ -12,14 +12,14 @@ use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
 use dupac_common::msg::Outcome;
+use dupac_eval::flight::{flight_record, fly_path_with_a3, policy_env};
+use dupac_eval::pair_flights::{best_rsrp_at, summary_md, versions_md, write_versions_csv};
+use dupac_eval::records::write_steps_csv;
 use dupac_learner::checkpoint::load_policy;
 use dupac_node::actor::Follower;
 use dupac_node::follow::fly_following;
 use dupac_plot::plan::{render_world_plan, trace_of};
 use dupac_radio::class::RsrpThresholds;
-use dupac_run::flights::{
-    env_rsrp_at, episodes_md, shortest_with_a3, versions_md, write_steps_csv, write_versions_csv,
-};
 use dupac_run::scenario::{held_out_unguided, world_and_cache};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -137,15 +137,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     // Held-out pairs and the user's own fly in the validation's realisations (docs/env.md).
     let field = dupac_radio::channel::FieldSplit::Eval;
     let episode = p.episode(false, field);
-    let mut env = Env::new(&cfg, world.clone(), rsrp.clone())?;
-    if env.layout().len() != policy.obs_dim {
-        bail!(
-            "{}: the policy expects {} observations, this configuration gives {}",
-            policy_name,
-            policy.obs_dim,
-            env.layout().len()
-        );
-    }
+    let mut env = policy_env(&cfg, &world, &rsrp, &policy).with_context(|| policy_name.clone())?;
     let (summary, steps, versions) = match &mut follower {
         None => {
             let (summary, steps) = fly_policy(&mut env, &policy, p.id, episode, p.id)?;
@@ -156,10 +148,11 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
 
     // The shortest flyable path flown with A3, for comparison.
-    let (base, base_summary) = shortest_with_a3(&cfg, &world, &rsrp, &planners.pairs, p, field)?;
+    let shortest_path = planners.pairs.shortest(p.source_m, p.destination_m)?;
+    let base = fly_path_with_a3(&cfg, &world, &rsrp, &shortest_path.waypoints_m, p, field)?;
 
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
-    let r0 = env_rsrp_at(rsrp.as_ref(), &world, p.source_m);
+    let r0 = best_rsrp_at(rsrp.as_ref(), &world, p.source_m);
     let trace =
         |label: String, steps: &[StepInfo]| trace_of(label, p.source_m, r0, thresholds, steps);
     let method = if learned {
@@ -169,8 +162,8 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     };
     let mut flown = trace(format!("{method} v{}", policy.version), &steps);
     flown.reached = summary.outcome == Outcome::Goal;
-    let mut shortest = trace("shortest path (A3)".into(), &base.steps);
-    shortest.reached = base.outcome == Outcome::Goal;
+    let mut shortest = trace("shortest path (A3)".into(), &base.flight.steps);
+    shortest.reached = base.flight.outcome == Outcome::Goal;
     let traces = vec![flown, shortest];
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -185,11 +178,29 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         &title,
         &args.out.join("fly.png"),
     )?;
-    write_steps_csv(&args.out.join("steps.csv"), &steps)?;
+    let record = flight_record(
+        &world,
+        &rsrp,
+        field,
+        "policy",
+        0,
+        p,
+        (env.start_serving(), &steps),
+    );
+    write_steps_csv(&args.out.join("steps.csv"), "policy", 0, &[record])?;
     write_versions_csv(&args.out.join("versions.csv"), &steps, &versions)?;
-    let mut md = episodes_md(
+    let mut md = summary_md(
         &title,
-        &[(method, &summary), ("shortest path (A3)", &base_summary)],
+        &[
+            (method, None, &summary),
+            (
+                "shortest path (A3)",
+                Some(shortest_path.length_m),
+                &base.summary,
+            ),
+        ],
+        "The policy flies deterministically (mean move, arg-max site); the shortest path is \
+         flown by the scripted pilot with A3 association.",
     );
     if follower.is_some() {
         md.push_str(&versions_md(&versions));

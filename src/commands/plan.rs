@@ -6,17 +6,18 @@ use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode, PathGuide};
-use dupac_actor::pairs::{Split, read_pairs_jsonl};
-use dupac_actor::pilot::fly_waypoints;
+use dupac_actor::pairs::{Pair, Split, read_pairs_jsonl};
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
 use dupac_common::geometry::{Point, distance_m as dist};
+use dupac_eval::flight::{flight_record, fly_path};
+use dupac_eval::pair_flights::{best_rsrp_at, slug, summary_md};
+use dupac_eval::records::write_steps_csv;
 use dupac_plot::plan::{render_world_plan, trace_of};
 use dupac_radio::cache::RsrpCache;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::flights::{env_rsrp_at, slug, summarise, summary_md, write_steps_csv};
 use dupac_run::scenario::held_out_unguided;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -116,13 +117,26 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     let thresholds = RsrpThresholds::from_config(&cfg.radio);
     planner.with_coverage(cache.as_ref(), thresholds);
     let straight = dist(source, destination);
-    // Planned endpoints fly in the validation's realisations, as `dupac fly` flies a pair.
+    // Planned endpoints fly in the validation's realisations, as `dupac fly` flies a pair: as
+    // episode 0 of the field of pair 0.
+    let field = dupac_radio::channel::FieldSplit::Eval;
     let episode = Episode {
         source_m: source,
         destination_m: destination,
-        field: dupac_radio::channel::FieldSplit::Eval,
+        field,
         shortest_m: shortest.length_m,
         guide: PathGuide::new(&shortest.waypoints_m).map(Arc::new),
+    };
+    let pair = Pair {
+        id: 0,
+        source_m: source,
+        destination_m: destination,
+        shortest_m: shortest.length_m,
+        straight_m: straight,
+        bin_m: None,
+        path: None,
+        path_lambda: 0.0,
+        path_clearance_m: 0.0,
     };
     let lambdas = if args.lambdas.is_empty() {
         vec![cfg.planner.lambda]
@@ -141,22 +155,22 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut traces = Vec::new();
-    let mut rows = Vec::new();
+    let mut flown = Vec::new();
+    let start_rsrp = best_rsrp_at(cache.as_ref(), &world, source);
     for (label, plan) in &plans {
-        let flight = fly_waypoints(&mut env, 0, episode.clone(), &plan.waypoints_m, |e| {
-            e.serving()
-        })?;
-        rows.push(summarise(label, plan.length_m, episode.shortest_m, &flight));
-        let start_rsrp = env_rsrp_at(cache.as_ref(), &world, source);
+        let f = fly_path(&mut env, pair.id, episode.clone(), &plan.waypoints_m)?;
+        let steps = (f.start_serving, f.flight.steps.as_slice());
+        let record = flight_record(&world, &cache, field, label, 0, &pair, steps);
         let file = format!("flight_{}.csv", slug(label));
-        write_steps_csv(&args.out.join(&file), &flight.steps)?;
+        write_steps_csv(&args.out.join(&file), label, 0, &[record])?;
         traces.push(trace_of(
             format!("{label} (A3)"),
             source,
             start_rsrp,
             thresholds,
-            &flight.steps,
+            &f.flight.steps,
         ));
+        flown.push((label.as_str(), plan.length_m, f.summary));
     }
     let title = format!(
         "{}: ({:.0}, {:.0}, {:.0}) → ({:.0}, {:.0}, {:.0}) m, straight {:.0} m, shortest {:.0} m",
@@ -177,7 +191,12 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         &title,
         &args.out.join("plan.png"),
     )?;
-    let md = summary_md(&title, &rows);
+    let rows: Vec<_> = flown.iter().map(|(l, m, s)| (*l, Some(*m), s)).collect();
+    let md = summary_md(
+        &title,
+        &rows,
+        "Every path is flown by the scripted pilot through the environment with A3 association.",
+    );
     write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");
     eprintln!("wrote {}", args.out.display());

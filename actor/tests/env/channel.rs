@@ -2,8 +2,7 @@
 //! observes and A3 compares the measured one, both are recorded, and the metrics score the true.
 
 use super::*;
-use dupac_actor::metrics::{MetricRules, flight_metrics};
-use dupac_actor::record::{FlightRecord, StepRecord};
+use dupac_actor::metrics::{EpisodeAccumulator, count_handovers};
 use dupac_common::compact::code;
 use dupac_common::config::ChannelModel;
 use dupac_radio::channel::FieldSplit;
@@ -85,60 +84,35 @@ fn true_rsrp_has_the_fields_shadowing_and_the_uav_observes_the_measured() {
     }
 }
 
+/// The episode's metrics score the true RSRP, not the measured one; the handovers recounted from
+/// the site the environment started with are the environment's. (Evaluation's records keep
+/// both RSRPs: `dupac_eval::record`'s test.)
 #[test]
-fn metrics_score_the_true_rsrp_and_records_keep_both() {
+fn metrics_score_the_true_rsrp_and_count_the_environments_handovers() {
     let (mut e, split) = real_env(Association::A3, FieldSplit::Eval);
     let steps = fly_in(&mut e, split, 3);
-    let records: Vec<StepRecord> = steps
-        .iter()
-        .map(|s| StepRecord::from_info(s, 0.0))
+    let mut acc = EpisodeAccumulator::new(e.config());
+    steps.iter().for_each(|s| acc.push(s));
+    let summary = acc.finish(0, 120.0, dupac_common::msg::Outcome::TimeLimit);
+    let serving: Vec<u16> = std::iter::once(e.start_serving().0)
+        .chain(steps.iter().map(|s| s.serving.0))
         .collect();
-    for (r, s) in records.iter().zip(&steps) {
-        assert_eq!(r.serving_rsrp_dbm, s.serving_rsrp_dbm as f32);
-        assert_eq!(
-            r.measured_serving_rsrp_dbm,
-            s.measured_serving_rsrp_dbm as f32
-        );
-    }
-    let flight = FlightRecord {
-        method: "t".into(),
-        seed: 1,
-        pair_id: 0,
-        bin_m: 100.0,
-        shortest_m: 120.0,
-        straight_m: 120.0,
-        outcome: dupac_common::msg::Outcome::TimeLimit,
-        source_m: Point::new(0.0, -60.0, 50.0),
-        destination_m: Point::new(0.0, 60.0, 50.0),
-        remaining_m: 80.0,
-        start_serving: e.start_serving().0,
-        steps: records.clone(),
-    };
-    let rules = MetricRules {
-        ping_pong_window_steps: 20,
-        site_regret_threshold_db: 3.0,
-        interruption_steps: 1.0,
-    };
-    let m = flight_metrics(&flight, &rules);
-    // Counted from the site the environment started with, the recount is the environment's.
     let flagged = steps.iter().filter(|s| s.handover).count() as u32;
-    assert_eq!(m.handovers, flagged);
-    let true_mean = records
+    assert_eq!(count_handovers(&serving, 20).0, flagged);
+    assert_eq!(summary.handovers, flagged);
+    let n = steps.len() as f64;
+    let true_mean = steps.iter().map(|s| s.serving_rsrp_dbm).sum::<f64>() / n;
+    let measured_mean = steps
         .iter()
-        .map(|r| f64::from(r.serving_rsrp_dbm))
+        .map(|s| s.measured_serving_rsrp_dbm)
         .sum::<f64>()
-        / records.len() as f64;
-    let measured_mean = records
-        .iter()
-        .map(|r| f64::from(r.measured_serving_rsrp_dbm))
-        .sum::<f64>()
-        / records.len() as f64;
+        / n;
     assert!(
-        (m.mean_rsrp_dbm - true_mean).abs() < 1e-4,
+        (summary.mean_rsrp_dbm - true_mean).abs() < 1e-9,
         "{} vs {true_mean}",
-        m.mean_rsrp_dbm
+        summary.mean_rsrp_dbm
     );
-    assert!((m.mean_rsrp_dbm - measured_mean).abs() > 1e-3);
+    assert!((summary.mean_rsrp_dbm - measured_mean).abs() > 1e-3);
 }
 
 #[test]

@@ -116,7 +116,7 @@ fn an_envelope_point_bought_by_ping_pongs_is_marked_and_left_out_of_the_clean_en
 fn the_matched_a3_brackets_the_policy_on_the_envelope_without_marked_points() {
     // The policy's own flight: 2 km at 12.5 handovers/km, between B (12) and C (13) on the
     // 2-D envelope, between B and D (16) without the marked C.
-    let step = |i: usize| dupac_actor::record::StepRecord {
+    let step = |i: usize| crate::record::StepRecord {
         position_m: [i as f32, 0.0, 50.0],
         serving: u16::from(i / 80 % 2 == 1),
         serving_rsrp_dbm: -70.0,
@@ -130,7 +130,7 @@ fn the_matched_a3_brackets_the_policy_on_the_envelope_without_marked_points() {
         handover: false,
         ping_pong: false,
     };
-    let record = dupac_actor::record::FlightRecord {
+    let record = crate::record::FlightRecord {
         method: "dupac".into(),
         seed: 0,
         pair_id: 0,
@@ -147,7 +147,7 @@ fn the_matched_a3_brackets_the_policy_on_the_envelope_without_marked_points() {
     let records = [RecordsFile {
         method: "dupac".into(),
         seed: 0,
-        rules: dupac_actor::metrics::MetricRules {
+        rules: crate::metrics::MetricRules {
             ping_pong_window_steps: 5,
             site_regret_threshold_db: 3.0,
             interruption_steps: 1.0,

@@ -1,7 +1,7 @@
 use super::*;
 use crate::interval::mean_ci95;
+use crate::record::{FlightRecord, StepRecord};
 use crate::stats_tables::{SeedStats, comparisons, write_paired, write_per_seed};
-use dupac_actor::record::{FlightRecord, StepRecord};
 use dupac_common::geometry::Point;
 use dupac_radio::class::RsrpClass;
 
@@ -355,7 +355,7 @@ fn records_file(method: &str, seed: u32, r: &mut ChaCha8Rng) -> RecordsFile {
     RecordsFile {
         method: method.into(),
         seed,
-        rules: dupac_actor::metrics::MetricRules {
+        rules: crate::metrics::MetricRules {
             ping_pong_window_steps: 5,
             site_regret_threshold_db: 3.0,
             interruption_steps: 1.0,

@@ -1,5 +1,5 @@
-use super::*;
 use super::lines::{class_runs, clip_polyline, view_bounds};
+use super::*;
 use crate::style::{class_bands, fmt_num};
 use dupac_common::ids::SiteId;
 use dupac_radio::sites::{Mount, SiteKind};
