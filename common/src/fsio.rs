@@ -1,5 +1,7 @@
 //! The one atomic file writer of DUPAC: every result, checkpoint, cache, pairs file
-//! and figure is written through [`write_atomic_with`].
+//! and figure is written through [`write_atomic_with`] ([`write_atomic`] for checkpoints and
+//! policies, with a crash point; [`write_plain`] for the rest; [`write_atomic_via_path`] for
+//! encoders that write a path of their own).
 //!
 //! A write goes to a temporary file in the target's directory (a unique random name holding
 //! [`TMP_MARK`], so two processes on a shared volume never collide), is flushed and `fsync`ed,
@@ -51,6 +53,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FsError> {
         crate::fault::crash_point("atomic-write");
         w.write_all(second)
     })
+}
+
+/// Writes `bytes` to `path` atomically like [`write_atomic`], without its `atomic-write` crash
+/// point, which the reliability tests count in checkpoints and policies only: what results,
+/// tables, metrics rows and records are written with.
+pub fn write_plain(path: &Path, bytes: &[u8]) -> Result<(), FsError> {
+    write_atomic_with(path, |w| w.write_all(bytes))
 }
 
 /// Writes what `fill` produces to `path` atomically; parent directories are created.

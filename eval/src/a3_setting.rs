@@ -2,8 +2,8 @@
 //! layer-3 filterCoefficient: §5.5.3.2; docs/spec/radio.md §4) and the grid of settings
 //! `dupac tune-a3` tries and `dupac eval --a3-front` re-flies.
 
+use crate::error::EvalError;
 use dupac_common::config::A3Config;
-use dupac_run::error::RunError;
 use serde::{Deserialize, Serialize};
 
 /// TS 36.331 ReportConfigEUTRA timeToTrigger values (ms).
@@ -135,7 +135,7 @@ impl Default for A3Grid {
 impl A3Grid {
     /// Every setting, offset outermost, the filter innermost, duplicates dropped; refused
     /// (naming the flag and the value) when a list is empty or a value is not TS 36.331's.
-    pub fn settings(&self) -> Result<Vec<A3Setting>, RunError> {
+    pub fn settings(&self) -> Result<Vec<A3Setting>, EvalError> {
         let base = A3Setting {
             offset_db: 0.0,
             hysteresis_db: 0.0,
@@ -145,12 +145,12 @@ impl A3Grid {
         // Each flag's values, each in a setting that is legal but for it.
         let check = |flag: &str, n: usize, at: &dyn Fn(usize) -> A3Setting| {
             if n == 0 {
-                return Err(RunError::Refused(format!("{flag}: no values")));
+                return Err(EvalError::Refused(format!("{flag}: no values")));
             }
             (0..n).try_for_each(|i| {
                 at(i)
                     .check_legal()
-                    .map_err(|e| RunError::Refused(format!("{flag}: {e}")))
+                    .map_err(|e| EvalError::Refused(format!("{flag}: {e}")))
             })
         };
         check("--offset-db", self.offsets_db.len(), &|i| A3Setting {

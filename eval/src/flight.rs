@@ -7,6 +7,7 @@
 //! package, which all use it.
 
 use crate::error::refused;
+use crate::error::{Context, EvalError};
 use crate::hindsight::hindsight_association;
 use crate::record::{FlightRecord, StepRecord};
 use crate::sinr::{NOISE_PER_RE_DBM, sinr_db};
@@ -24,8 +25,8 @@ use dupac_common::msg::{EpisodeSummary, Outcome};
 use dupac_common::policy::PolicyWeights;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
-use dupac_run::error::{Context, RunError};
-use dupac_run::scenario::{Planners, SharedRsrp};
+use dupac_scenario::planners::Planners;
+use dupac_scenario::world::SharedRsrp;
 use std::sync::Arc;
 
 /// What a re-flight needs: the configuration, the world, its RSRP, the planners and the field
@@ -56,7 +57,7 @@ pub fn fly_path(
     id: u64,
     episode: Episode,
     waypoints_m: &[Point],
-) -> Result<FlownPath, RunError> {
+) -> Result<FlownPath, EvalError> {
     let shortest_m = episode.shortest_m;
     let flight = fly_waypoints(env, id, episode, waypoints_m, |e| e.serving())?;
     let mut acc = EpisodeAccumulator::new(env.config());
@@ -78,7 +79,7 @@ pub fn fly_path_with_a3(
     waypoints_m: &[Point],
     p: &Pair,
     field: FieldSplit,
-) -> Result<FlownPath, RunError> {
+) -> Result<FlownPath, EvalError> {
     let mut a3_cfg = cfg.clone();
     a3_cfg.env.association = Association::A3;
     let mut env = Env::new(&a3_cfg, world.clone(), rsrp.clone())?;
@@ -94,7 +95,7 @@ pub fn policy_env(
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     policy: &PolicyWeights,
-) -> Result<Env, RunError> {
+) -> Result<Env, EvalError> {
     let env = Env::new(cfg, world.clone(), rsrp.clone())?;
     let given = env.layout().len();
     if given != policy.obs_dim {
@@ -117,9 +118,9 @@ pub(crate) fn fly_one(
     p: &Pair,
     // The shortest path (`Kind::Shortest`) or the recorded positions (`Kind::Replay`).
     waypoints_m: Option<&[Point]>,
-) -> Result<FlightRecord, RunError> {
+) -> Result<FlightRecord, EvalError> {
     let mut env = Env::new(cfg, world.clone(), rsrp.clone())?;
-    let mut episode = dupac_run::scenario::episode(cfg, planners, p, fs)?;
+    let mut episode = dupac_scenario::pairs::episode(cfg, planners, p, fs)?;
     let steps = match &method.kind {
         Kind::Policy(policy) => fly_policy(&mut env, policy, p.id, episode, p.id)?.1,
         Kind::Shortest(a) => {
@@ -245,14 +246,14 @@ pub(crate) fn record_of(
 
 /// The true RSRP pair `id` is flown in: field `id mod radio.channel.eval_fields` of `fs` (the
 /// validation's or the test split's realisations) under the real channel
-/// ([`dupac_run::scenario::true_source`]).
+/// ([`dupac_scenario::world::true_source`]).
 pub(crate) fn true_rsrp(
     world: &Arc<RadioWorld>,
     rsrp: &SharedRsrp,
     fs: FieldSplit,
     id: u64,
 ) -> SharedRsrp {
-    dupac_run::scenario::true_source(world, rsrp, fs, id)
+    dupac_scenario::world::true_source(world, rsrp, fs, id)
 }
 
 /// How a replay of `recorded` that took `replay_steps` steps ends: as the recorded flight ended

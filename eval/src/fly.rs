@@ -3,6 +3,7 @@
 //! ([`crate::refly`]: route against association).
 
 use crate::error::refused;
+use crate::error::{Context, EvalError};
 use crate::flight::{fly_one, policy_env, true_rsrp};
 use crate::front::write_front;
 use crate::metrics::MetricRules;
@@ -15,15 +16,15 @@ use dupac_common::config::{Association, Config, Knowledge};
 use dupac_common::geometry::Point;
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::world::RadioWorld;
-use dupac_run::error::{Context, RunError};
-use dupac_run::progress::progress_bar;
-use dupac_run::scenario::{SharedRsrp, read_eval_pairs, world_and_cache};
+use dupac_scenario::pairs::read_eval_pairs;
+use dupac_scenario::progress::progress_bar;
+use dupac_scenario::world::{SharedRsrp, world_and_cache};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
 
 /// Flies every method of `args` and writes its records (and its replays') into `dir`.
-pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result<(), RunError> {
+pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result<(), EvalError> {
     let methods = methods(args)?;
     let rules = MetricRules::from_config(cfg);
     let window = rules.ping_pong_window_steps;
@@ -36,7 +37,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
         .hindsight
         .iter()
         .map(|h| parse_hindsight(h, window))
-        .collect::<Result<Vec<_>, RunError>>()?;
+        .collect::<Result<Vec<_>, EvalError>>()?;
     let learned_site = methods
         .iter()
         .any(|m| matches!(&m.kind, Kind::Policy(p) if p.n_sites > 0));
@@ -73,9 +74,9 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
     // The planner methods and the replays fly unguided (they observe nothing, their reward is
     // not reported); the pairs are guided once, as the first guided policy flies them (another
     // policy's guide, if different, is planned per flight: `scenario::episode`).
-    let unguided_cfg = dupac_run::scenario::unguided(cfg);
+    let unguided_cfg = dupac_scenario::planners::unguided(cfg);
     let planners =
-        dupac_run::scenario::Planners::new(&unguided_cfg, &flown, &world, &rsrp, coverage);
+        dupac_scenario::planners::Planners::new(&unguided_cfg, &flown, &world, &rsrp, coverage);
     let planner = &planners.pairs;
     let guide_cfg = flown
         .iter()
@@ -107,7 +108,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                 .filter(|p| p.id % fp.len() as u64 == k as u64)
                 .cloned()
                 .collect();
-            dupac_run::scenario::guide_pairs(guide_cfg, planners, &mut mine)?;
+            dupac_scenario::pairs::guide_pairs(guide_cfg, planners, &mut mine)?;
             for q in mine {
                 if let Some(p) = pairs.iter_mut().find(|p| p.id == q.id) {
                     *p = q;
@@ -197,7 +198,7 @@ pub fn fly_all(cfg: &Config, args: &EvalPlan, dir: &Path, quiet: bool) -> Result
                 pb.inc(1);
                 r
             })
-            .collect::<Result<_, RunError>>()?;
+            .collect::<Result<_, EvalError>>()?;
         pb.finish_and_clear();
         // A learned site choice: the same moves re-flown with the A3 rule and with the
         // best-RSRP oracle choosing the site, so the report separates route from association.
@@ -243,7 +244,7 @@ fn true_field_planners<'w>(
     rsrp: &SharedRsrp,
     fs: FieldSplit,
     coverage: bool,
-) -> Option<Vec<dupac_run::scenario::Planners<'w>>> {
+) -> Option<Vec<dupac_scenario::planners::Planners<'w>>> {
     let c = &cfg.radio.channel;
     if world.channel.is_none() || c.knowledge != Knowledge::TrueField {
         return None;
@@ -252,7 +253,13 @@ fn true_field_planners<'w>(
         (0..u64::from(c.eval_fields))
             .map(|k| {
                 let truth = true_rsrp(world, rsrp, fs, k);
-                dupac_run::scenario::Planners::new(unguided_cfg, flown, world, &truth, coverage)
+                dupac_scenario::planners::Planners::new(
+                    unguided_cfg,
+                    flown,
+                    world,
+                    &truth,
+                    coverage,
+                )
             })
             .collect(),
     )

@@ -13,13 +13,13 @@
 //! version), each setting's per-flight metrics; the report reads them with the records.
 
 use crate::a3_setting::A3Setting;
+use crate::error::{Context, EvalError};
 use crate::method_data::is_planner;
 use crate::metrics::{FlightMetrics, flight_metrics};
 use crate::records::RecordsFile;
 use crate::stats::{Grid, Headline, SeedFlights};
 use dupac_common::codec;
 use dupac_common::fsio::write_atomic_with;
-use dupac_run::error::{Context, RunError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -132,11 +132,11 @@ pub struct FrontPoint {
 }
 
 /// Writes `f` into `records_dir/front/` (atomically).
-pub fn write_front(records_dir: &Path, f: &FrontFile) -> Result<(), RunError> {
+pub fn write_front(records_dir: &Path, f: &FrontFile) -> Result<(), EvalError> {
     let dir = records_dir.join(FRONT_DIR);
     std::fs::create_dir_all(&dir).context_with(|| format!("creating {}", dir.display()))?;
     let bytes = codec::encode(FRONT_MAGIC, FRONT_VERSION, f, "front")?;
-    dupac_run::run_dir::write_plain(
+    Ok(dupac_common::fsio::write_plain(
         &dir.join(format!(
             "{}__{}__seed{}.bin",
             f.method,
@@ -144,12 +144,12 @@ pub fn write_front(records_dir: &Path, f: &FrontFile) -> Result<(), RunError> {
             f.seed
         )),
         &bytes,
-    )
+    )?)
 }
 
 /// Every front file of `records_dir/front/` in name order (none when the folder is absent); a
 /// file whose points are not all of its rule is refused, naming it.
-pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, RunError> {
+pub fn read_fronts(records_dir: &Path) -> Result<Vec<FrontFile>, EvalError> {
     let dir = records_dir.join(FRONT_DIR);
     if !dir.is_dir() {
         return Ok(Vec::new());
@@ -360,7 +360,7 @@ pub fn upper_envelope(points: &[(f64, f64)]) -> Vec<usize> {
 /// `front.csv`: every method's front of every rule, one row per setting (the columns of another
 /// rule's setting empty; `margin_db` = offset + hysteresis, what A3's entering condition
 /// depends on; `l3_filter_k` empty where A3 compares what the UAV holds).
-pub fn write_front_csv(path: &Path, rows: &[FrontRow]) -> Result<(), RunError> {
+pub fn write_front_csv(path: &Path, rows: &[FrontRow]) -> Result<(), EvalError> {
     Ok(write_atomic_with(path, |w| {
         writeln!(
             w,

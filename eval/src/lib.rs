@@ -9,9 +9,11 @@
 //! [`interval`]; seed-aware bootstrap, per-seed rows and paired differences: [`stats`],
 //! [`stats_tables`]). What `plot` draws is this crate's data: records, fronts, per-method data.
 //! The figures are `dupac-plot`'s; training's periodic held-out check is `dupac_run::held_out`.
+//! Over the scenario (`dupac-scenario`: world, planners, pairs), beside `dupac-run`; errors as
+//! [`error::EvalError`].
 
 pub mod a3_setting;
-mod error;
+pub mod error;
 pub mod flight;
 pub mod fly;
 pub mod front;
@@ -32,11 +34,11 @@ pub mod tune_a3;
 
 use crate::a3_setting::{A3Grid, A3Setting};
 use crate::error::refused;
+use crate::error::{Context, EvalError};
 use dupac_actor::pairs::{Pair, Split};
 use dupac_common::config::Association;
 use dupac_common::policy::PolicyWeights;
 use dupac_learner::checkpoint::load_policy;
-use dupac_run::error::{Context, RunError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -99,7 +101,7 @@ pub struct Hindsight {
     pub min_stay_steps: u32,
 }
 
-pub fn parse_hindsight(spec: &str, window_steps: u32) -> Result<(String, Hindsight), RunError> {
+pub fn parse_hindsight(spec: &str, window_steps: u32) -> Result<(String, Hindsight), EvalError> {
     let (c, mts) = match spec.split_once(':') {
         Some((c, "mts")) => (c, true),
         Some(_) => return Err(refused!("--hindsight {spec}: expected C or C:mts")),
@@ -148,7 +150,7 @@ pub struct Method {
 }
 
 /// The methods of `plan`: its policies (seeds numbered per label in order), then the planners.
-pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, RunError> {
+pub fn methods(args: &EvalPlan) -> Result<Vec<Method>, EvalError> {
     if let Some(w) = args
         .handover_weights
         .iter()

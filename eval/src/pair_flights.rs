@@ -5,12 +5,12 @@
 //! flight's steps are written in the records' per-step layout
 //! ([`crate::records::write_steps_csv`]).
 
+use crate::error::EvalError;
 use dupac_actor::record::StepInfo;
 use dupac_common::geometry::Point;
 use dupac_common::msg::EpisodeSummary;
 use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::error::RunError;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -81,12 +81,12 @@ pub fn write_versions_csv(
     path: &Path,
     steps: &[StepInfo],
     versions: &[u64],
-) -> Result<(), RunError> {
+) -> Result<(), EvalError> {
     let mut csv = String::from("step,policy_version\n");
     for (s, v) in steps.iter().zip(versions) {
         let _ = writeln!(csv, "{},{v}", s.step);
     }
-    dupac_run::run_dir::write_plain(path, csv.as_bytes())
+    Ok(dupac_common::fsio::write_plain(path, csv.as_bytes())?)
 }
 
 /// The line a flight with live weights adds to its summary: the distinct policy versions that

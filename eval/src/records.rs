@@ -3,10 +3,10 @@
 //! metrics need from the configuration; the report is computed from these alone.
 
 use crate::error::refused;
+use crate::error::{Context, EvalError};
 use crate::metrics::MetricRules;
 use crate::record::FlightRecord;
 use dupac_common::codec;
-use dupac_run::error::{Context, RunError};
 use std::path::{Path, PathBuf};
 
 /// Magic and version of a records file (`OUT/records/<method>__seed<k>.bin`).
@@ -27,19 +27,22 @@ pub struct RecordsFile {
 /// for readers without this binary (pandas: `pd.read_csv(path)`): `<stem>.flights.csv.gz`, a
 /// row per flight, and `<stem>.steps.csv.gz`, a row per step with its flight's index
 /// (`flight`, 0-based in the flights file). The `.bin` is what `--report-only` reads.
-pub fn write_records(dir: &Path, rec: &RecordsFile) -> Result<(), RunError> {
+pub fn write_records(dir: &Path, rec: &RecordsFile) -> Result<(), EvalError> {
     let stem = format!("{}__seed{}", rec.method, rec.seed);
     let bytes = codec::encode(RECORDS_MAGIC, RECORDS_VERSION, rec, "eval records")?;
-    dupac_run::run_dir::write_plain(&dir.join(format!("{stem}.bin")), &bytes)?;
+    dupac_common::fsio::write_plain(&dir.join(format!("{stem}.bin")), &bytes)?;
     let (flights, steps) = records_csv(rec).context("encoding the records as CSV")?;
-    dupac_run::run_dir::write_plain(
+    dupac_common::fsio::write_plain(
         &dir.join(format!("{stem}.flights.csv.gz")),
         &gzip(&flights)?,
     )?;
-    dupac_run::run_dir::write_plain(&dir.join(format!("{stem}.steps.csv.gz")), &gzip(&steps)?)
+    Ok(dupac_common::fsio::write_plain(
+        &dir.join(format!("{stem}.steps.csv.gz")),
+        &gzip(&steps)?,
+    )?)
 }
 
-fn gzip(bytes: &[u8]) -> Result<Vec<u8>, RunError> {
+fn gzip(bytes: &[u8]) -> Result<Vec<u8>, EvalError> {
     use std::io::Write;
     let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     z.write_all(bytes).context("compressing the records")?;
@@ -174,7 +177,7 @@ pub fn write_steps_csv(
     method: &str,
     seed: u32,
     flights: &[FlightRecord],
-) -> Result<(), RunError> {
+) -> Result<(), EvalError> {
     let bytes = (|| {
         let mut s = csv::Writer::from_writer(Vec::new());
         s.write_record(STEP_COLUMNS)?;
@@ -184,11 +187,11 @@ pub fn write_steps_csv(
         csv_bytes(s)
     })()
     .context_with(|| format!("encoding {} as CSV", path.display()))?;
-    dupac_run::run_dir::write_plain(path, &bytes)
+    Ok(dupac_common::fsio::write_plain(path, &bytes)?)
 }
 
 /// The `.bin` files of `dir` (not of its subfolders), in name order.
-pub(crate) fn bin_files(dir: &Path) -> Result<Vec<PathBuf>, RunError> {
+pub(crate) fn bin_files(dir: &Path) -> Result<Vec<PathBuf>, EvalError> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .context_with(|| format!("reading {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -199,7 +202,7 @@ pub(crate) fn bin_files(dir: &Path) -> Result<Vec<PathBuf>, RunError> {
 }
 
 /// Every records file of `dir`, in name order.
-pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
+pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, EvalError> {
     bin_files(dir)?
         .iter()
         .map(|p| {
@@ -231,9 +234,12 @@ pub fn read_records(dir: &Path) -> Result<Vec<RecordsFile>, RunError> {
 pub const SPLIT_FILE: &str = "split.txt";
 
 /// Writes [`SPLIT_FILE`] into `dir` (atomically): `line` (`split: …`) and the pairs file.
-pub fn write_split(dir: &Path, line: &str, pairs_file: &Path) -> Result<(), RunError> {
+pub fn write_split(dir: &Path, line: &str, pairs_file: &Path) -> Result<(), EvalError> {
     let text = format!("{line}\nfile: {}\n", pairs_file.display());
-    dupac_run::run_dir::write_plain(&dir.join(SPLIT_FILE), text.as_bytes())
+    Ok(dupac_common::fsio::write_plain(
+        &dir.join(SPLIT_FILE),
+        text.as_bytes(),
+    )?)
 }
 
 /// The `split: …` line of [`SPLIT_FILE`] in `dir`; `None` when the records have none (an

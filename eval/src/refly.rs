@@ -9,6 +9,7 @@
 //! (within 0.1 mm).
 
 use crate::a3_setting::A3Setting;
+use crate::error::EvalError;
 use crate::flight::{FlyCtx, fly_one, replay_outcome};
 use crate::front::{FrontFile, FrontPoint, FrontRule, FrontSetting};
 use crate::metrics::{FlightMetrics, MetricRules, flight_metrics};
@@ -18,8 +19,7 @@ use crate::{Hindsight, Kind, Method};
 use dupac_actor::pairs::Pair;
 use dupac_common::config::{Association, Config};
 use dupac_common::geometry::Point;
-use dupac_run::error::RunError;
-use dupac_run::progress::progress_bar;
+use dupac_scenario::progress::progress_bar;
 use rayon::prelude::*;
 
 /// Pair `p`'s recorded flight `recorded` re-flown through its positions under `rcfg` as `replay`
@@ -30,7 +30,7 @@ pub(crate) fn replay_one(
     replay: &Method,
     p: &Pair,
     recorded: &FlightRecord,
-) -> Result<FlightRecord, RunError> {
+) -> Result<FlightRecord, EvalError> {
     let w: Vec<Point> = recorded
         .steps
         .iter()
@@ -49,7 +49,7 @@ fn refly(
     replay: &Method,
     pairs: &[Pair],
     flights: &[FlightRecord],
-) -> Result<Vec<FlightRecord>, RunError> {
+) -> Result<Vec<FlightRecord>, EvalError> {
     pairs
         .par_iter()
         .zip(flights)
@@ -59,7 +59,7 @@ fn refly(
 
 /// `ctx`'s configuration without the path guide, with `association` choosing the site.
 fn replay_config(ctx: FlyCtx, association: Association) -> Config {
-    let mut rcfg = dupac_run::scenario::unguided(ctx.0);
+    let mut rcfg = dupac_scenario::planners::unguided(ctx.0);
     rcfg.env.association = association;
     rcfg
 }
@@ -87,7 +87,7 @@ pub(crate) fn replay_associations(
     flights: &[FlightRecord],
     hindsight: &[(String, Hindsight)],
     quiet: bool,
-) -> Result<Vec<(String, Vec<FlightRecord>)>, RunError> {
+) -> Result<Vec<(String, Vec<FlightRecord>)>, EvalError> {
     let rules = [
         (Association::A3, "a3"),
         (Association::BestRsrp, "oracle"),
@@ -143,7 +143,7 @@ pub(crate) fn fronts_of(
     flights: &[FlightRecord],
     rules: &MetricRules,
     quiet: bool,
-) -> Result<Vec<FrontFile>, RunError> {
+) -> Result<Vec<FrontFile>, EvalError> {
     let learned_site = match &method.kind {
         Kind::Policy(p) if p.n_sites > 0 => true,
         Kind::Shortest(Association::A3) | Kind::Coverage(_, Association::A3)
@@ -205,7 +205,7 @@ fn a3_front(
     flights: &[FlightRecord],
     rules: &MetricRules,
     quiet: bool,
-) -> Result<Vec<FrontPoint>, RunError> {
+) -> Result<Vec<FrontPoint>, EvalError> {
     let (_, world, rsrp, planners, fs) = ctx;
     let rcfg = replay_config(ctx, Association::A3);
     let pb = progress_bar(
@@ -223,12 +223,12 @@ fn a3_front(
         .par_iter()
         .zip(flights)
         .map(|(p, f)| {
-            let episode = dupac_run::scenario::episode(&rcfg, planners, p, fs)?;
+            let episode = dupac_scenario::pairs::episode(&rcfg, planners, p, fs)?;
             let trace = ReplayTrace::fly(&rcfg, world, rsrp, fs, p, episode, Flown::Replay(f))?;
             pb.inc(1);
             Ok(trace.a3_metrics(settings, rules))
         })
-        .collect::<Result<_, RunError>>()?;
+        .collect::<Result<_, EvalError>>()?;
     pb.finish_and_clear();
     Ok(settings
         .iter()
@@ -255,7 +255,7 @@ fn env_front(
     flights: &[FlightRecord],
     rules: &MetricRules,
     quiet: bool,
-) -> Result<Vec<FrontPoint>, RunError> {
+) -> Result<Vec<FrontPoint>, EvalError> {
     let pb = progress_bar(
         settings.len() as u64,
         &format!("{} seed {}: fronts", method.label, method.seed),
@@ -278,7 +278,7 @@ fn env_front(
                     }),
                 ),
                 FrontSetting::A3(_) => {
-                    return Err(RunError::Refused(
+                    return Err(EvalError::Refused(
                         "an A3 front is re-associated from traces, not re-flown".into(),
                     ));
                 }
@@ -298,7 +298,7 @@ fn env_front(
                 flights: v,
             })
         })
-        .collect::<Result<Vec<_>, RunError>>();
+        .collect::<Result<Vec<_>, EvalError>>();
     pb.finish_and_clear();
     points
 }

@@ -5,6 +5,7 @@
 //! The seed-aware statistics (bootstrap intervals over seeds and pairs, `per_seed.csv`,
 //! `paired.csv`) are [`crate::stats_tables`]'.
 
+use crate::error::EvalError;
 use crate::front::{self, FrontFile};
 use crate::interval::{MeanCi, Rate};
 use crate::records::RecordsFile;
@@ -14,7 +15,6 @@ use crate::stats_tables::{SeedStats, markdown, write_paired, write_per_seed};
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::geometry::{Point, norm};
 use dupac_common::msg::Outcome;
-use dupac_run::error::RunError;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -62,7 +62,7 @@ pub fn write_tables(
     (dupac, base): (&str, &str),
     (boot, eval_fields): (Bootstrap, Option<u32>),
     split: Option<&str>,
-) -> Result<(Vec<MethodData>, Vec<f64>), RunError> {
+) -> Result<(Vec<MethodData>, Vec<f64>), EvalError> {
     let data = gather(files);
     let bins = bins_of(&data);
     let mut seed_stats = SeedStats::compute(files, dupac, base, boot);
@@ -179,7 +179,7 @@ pub fn write_tables(
         .filter(|d| !d.label.contains('+'))
         .cloned()
         .collect();
-    dupac_run::run_dir::write_plain(
+    dupac_common::fsio::write_plain(
         &out.join("report.md"),
         report_md(
             &data,
@@ -206,7 +206,7 @@ pub fn write_tables(
                 m.alpha
             );
         }
-        dupac_run::run_dir::write_plain(&out.join("matched.md"), md.as_bytes())?;
+        dupac_common::fsio::write_plain(&out.join("matched.md"), md.as_bytes())?;
     }
     Ok((methods, bins))
 }
@@ -219,7 +219,7 @@ fn write_paired_by_field(
     files: &[RecordsFile],
     st: &SeedStats,
     fields: u32,
-) -> Result<(), RunError> {
+) -> Result<(), EvalError> {
     let grids = crate::stats::grids(files);
     let grid = |l: &str| grids.iter().find(|g| g.label == l);
     let f = u64::from(fields);
@@ -258,7 +258,7 @@ fn write_paired_by_field(
 /// fail: how far along the straight line they got, the altitude, the last move, and the angle
 /// between the last move and the direction to the destination (a collision flown head-on into
 /// the goal direction reads ≈ 0°; one while sliding along a wall ≈ 45–90°).
-fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<(), RunError> {
+fn write_failures(path: &Path, files: &[RecordsFile]) -> Result<(), EvalError> {
     write_atomic_with(path, |w| {
         writeln!(
             w,

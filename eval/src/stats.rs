@@ -11,10 +11,10 @@
 //! of the resamples' statistics (linear interpolation between order statistics); a resample
 //! whose statistic is undefined (no successful flight drawn) is left out.
 
+use crate::error::EvalError;
 use crate::metrics::{FlightMetrics, flight_metrics};
 use crate::records::RecordsFile;
 use dupac_common::msg::Outcome;
-use dupac_run::error::RunError;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -48,9 +48,9 @@ impl Default for Bootstrap {
 
 impl Bootstrap {
     /// `resamples` draws from [`BOOTSTRAP_SEED`]; refused outside 1..=[`MAX_RESAMPLES`].
-    pub fn with_resamples(resamples: usize) -> Result<Bootstrap, RunError> {
+    pub fn with_resamples(resamples: usize) -> Result<Bootstrap, EvalError> {
         if !(1..=MAX_RESAMPLES).contains(&resamples) {
-            return Err(RunError::Refused(format!(
+            return Err(EvalError::Refused(format!(
                 "--bootstrap {resamples}: the resamples must be between 1 and {MAX_RESAMPLES}"
             )));
         }

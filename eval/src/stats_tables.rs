@@ -3,6 +3,7 @@
 //! (columns of `summary.csv`), `paired.csv` (paired differences between the compared methods)
 //! and their sections of `report.md`. The statistics are [`crate::stats`]'.
 
+use crate::error::EvalError;
 use crate::method_data::{MethodData, gather, is_planner};
 use crate::records::RecordsFile;
 use crate::stats::{
@@ -10,7 +11,6 @@ use crate::stats::{
 };
 use dupac_common::fsio::write_atomic_with;
 use dupac_common::msg::Outcome;
-use dupac_run::error::RunError;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -97,7 +97,7 @@ impl SeedStats {
 
 /// `per_seed.csv`: one row per method and training seed, summary.csv's columns over that seed's
 /// flights.
-pub fn write_per_seed(path: &Path, st: &SeedStats) -> Result<(), RunError> {
+pub fn write_per_seed(path: &Path, st: &SeedStats) -> Result<(), EvalError> {
     write_atomic_with(path, |w| {
         writeln!(
             w,
@@ -132,7 +132,7 @@ pub fn write_per_seed(path: &Path, st: &SeedStats) -> Result<(), RunError> {
 /// `paired.csv`: one row per compared pair of methods and headline: the matched flights
 /// counted, A − B and its 95 % bootstrap interval (in the headline's unit), whether the
 /// interval excludes 0.
-pub fn write_paired(path: &Path, st: &SeedStats) -> Result<(), RunError> {
+pub fn write_paired(path: &Path, st: &SeedStats) -> Result<(), EvalError> {
     write_atomic_with(path, |w| {
         writeln!(
             w,

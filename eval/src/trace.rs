@@ -10,6 +10,7 @@
 //! gives the `FlightMetrics` of the flight re-flown through `Env` with that setting.
 
 use crate::a3_setting::A3Setting;
+use crate::error::EvalError;
 use crate::flight::{flight_end, record_of, replay_outcome, true_rsrp};
 use crate::metrics::{FlightMetrics, MetricRules, flight_metrics};
 use crate::record::{FlightRecord, StepRecord};
@@ -27,8 +28,7 @@ use dupac_radio::a3::{A3Params, A3State};
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::world::RadioWorld;
-use dupac_run::error::RunError;
-use dupac_run::scenario::SharedRsrp;
+use dupac_scenario::world::SharedRsrp;
 use std::sync::Arc;
 
 /// How the traced flight moves.
@@ -117,7 +117,7 @@ impl ReplayTrace {
         p: &Pair,
         episode: Episode,
         flown: Flown,
-    ) -> Result<ReplayTrace, RunError> {
+    ) -> Result<ReplayTrace, EvalError> {
         let mut fcfg = cfg.clone();
         fcfg.env.association = Association::A3;
         let mut env = Env::new(&fcfg, world.clone(), rsrp.clone())?;

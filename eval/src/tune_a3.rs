@@ -12,15 +12,17 @@
 //! Deterministic: every flight is a function of the pair and the setting, the pairs are flown in
 //! parallel and gathered in order, so the same inputs give a byte-identical `a3_grid.csv`.
 
+use crate::error::{Context, EvalError};
 use crate::metrics::FlightMetrics;
 use crate::trace::{Flown, ReplayTrace};
 use dupac_actor::pairs::Split;
 use dupac_common::config::Config;
 use dupac_common::msg::Outcome;
 use dupac_radio::channel::FieldSplit;
-use dupac_run::error::{Context, RunError};
-use dupac_run::progress::progress_bar;
-use dupac_run::scenario::{guide_pairs_cached, split_unguided, unguided, world_and_cache};
+use dupac_scenario::pairs::{guide_pairs_cached, split_unguided};
+use dupac_scenario::planners::unguided;
+use dupac_scenario::progress::progress_bar;
+use dupac_scenario::world::world_and_cache;
 use rayon::prelude::*;
 use serde::Deserialize;
 use std::fmt::Write as _;
@@ -81,9 +83,9 @@ impl SettingResult {
 /// `env.observation.path_guide_clearance_m`) with every setting of `grid` and with the reference
 /// (`radio.a3`, added when the grid lacks it); one result per setting, in grid order, the
 /// reference last when it was added.
-pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<Tuning, RunError> {
+pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<Tuning, EvalError> {
     if !(lambda.is_finite() && lambda > 0.0) {
-        return Err(RunError::Refused(format!(
+        return Err(EvalError::Refused(format!(
             "--lambda {lambda}: must be a finite number > 0 (the coverage-aware guide path)"
         )));
     }
@@ -114,7 +116,7 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
             let path = p
                 .path
                 .as_ref()
-                .ok_or_else(|| RunError::Refused(format!("pair {}: no guide path", p.id)))?;
+                .ok_or_else(|| EvalError::Refused(format!("pair {}: no guide path", p.id)))?;
             let episode = p.episode(false, FieldSplit::Eval);
             let flown = Flown::Waypoints(path.points_m());
             let trace = ReplayTrace::fly(
@@ -129,7 +131,7 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
             pb.inc(1);
             Ok(trace.a3_metrics(&settings, &rules))
         })
-        .collect::<Result<_, RunError>>()?;
+        .collect::<Result<_, EvalError>>()?;
     pb.finish_and_clear();
     let results = settings
         .iter()
@@ -149,11 +151,11 @@ pub fn tune_a3(cfg: &Config, grid: &A3Grid, lambda: f64, quiet: bool) -> Result<
 /// km than the reference's; ties (within 1e−9) to fewer handovers per km, then to the first in
 /// grid order. The reference itself qualifies, so the choice is never worse than it on either
 /// measure of the rule.
-pub fn choose(results: &[SettingResult]) -> Result<&SettingResult, RunError> {
+pub fn choose(results: &[SettingResult]) -> Result<&SettingResult, EvalError> {
     let reference = results
         .iter()
         .find(|r| r.reference)
-        .ok_or_else(|| RunError::Refused("no reference setting among the results".into()))?;
+        .ok_or_else(|| EvalError::Refused("no reference setting among the results".into()))?;
     let mut best = reference;
     for r in results {
         if r.ping_pongs_per_km > reference.ping_pongs_per_km + 1e-9 {
@@ -256,7 +258,7 @@ pub fn set_options(setting: &A3Setting) -> String {
 /// Reads a `tuned_a3.toml` (`dupac eval --a3-tuned FILE`): `[radio.a3]` with exactly
 /// `offset_db`, `hysteresis_db`, `time_to_trigger_ms` and optionally `l3_filter_k`, TS 36.331
 /// values; every error names the file.
-pub fn read_tuned(path: &Path) -> Result<A3Setting, RunError> {
+pub fn read_tuned(path: &Path) -> Result<A3Setting, EvalError> {
     #[derive(Deserialize)]
     #[serde(deny_unknown_fields)]
     struct File {
@@ -267,7 +269,7 @@ pub fn read_tuned(path: &Path) -> Result<A3Setting, RunError> {
     struct Radio {
         a3: A3Setting,
     }
-    let bad = |m: String| RunError::Refused(format!("--a3-tuned {}: {m}", path.display()));
+    let bad = |m: String| EvalError::Refused(format!("--a3-tuned {}: {m}", path.display()));
     let meta = std::fs::metadata(path).context_with(|| format!("--a3-tuned {}", path.display()))?;
     if meta.len() > 64 * 1024 {
         return Err(bad("over 64 KiB: not a tuned_a3.toml".into()));

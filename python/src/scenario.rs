@@ -11,9 +11,9 @@ use dupac_learner::checkpoint::load_policy;
 use dupac_radio::class::{RsrpClass, RsrpThresholds};
 use dupac_radio::coverage::{Server, compute_slice};
 use dupac_radio::world::RadioWorld;
-use dupac_run::scenario::{
-    Planners, SharedRsrp, guide_sets_cached, held_out_pairs, make_pool, unguided, world_and_cache,
-};
+use dupac_scenario::pairs::{guide_sets_cached, held_out_pairs, make_pool};
+use dupac_scenario::planners::{Planners, unguided};
+use dupac_scenario::world::{SharedRsrp, world_and_cache};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayMethods};
 use pyo3::prelude::*;

@@ -25,6 +25,8 @@ pub enum RunError {
     #[error(transparent)]
     Checkpoint(#[from] dupac_learner::checkpoint::CheckpointError),
     #[error(transparent)]
+    Scenario(#[from] dupac_scenario::error::ScenarioError),
+    #[error(transparent)]
     Radio(#[from] dupac_radio::error::RadioError),
     #[error(transparent)]
     Pairs(#[from] dupac_actor::pairs::PairsError),

@@ -2,7 +2,6 @@
 //! environment per task (spec/env.md "Metrics").
 
 use crate::error::RunError;
-use crate::scenario::SharedRsrp;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::fly_policy;
@@ -10,6 +9,7 @@ use dupac_common::config::Config;
 use dupac_common::msg::EpisodeSummary;
 use dupac_common::policy::PolicyWeights;
 use dupac_radio::world::RadioWorld;
+use dupac_scenario::world::SharedRsrp;
 use rayon::prelude::*;
 use std::sync::Arc;
 

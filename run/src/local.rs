@@ -6,7 +6,6 @@
 //! uninterrupted one).
 
 use crate::error::RunError;
-use crate::scenario::SharedRsrp;
 use dupac_actor::env::Env;
 use dupac_actor::pairs::Pair;
 use dupac_actor::rollout::Worker;
@@ -17,6 +16,7 @@ use dupac_common::policy::PolicyWeights;
 use dupac_common::seed::stream_seed;
 use dupac_learner::source::{Collected, Progress, SourceError, Sourced, TrajectorySource};
 use dupac_radio::world::RadioWorld;
+use dupac_scenario::world::SharedRsrp;
 use rayon::prelude::*;
 use std::sync::Arc;
 

@@ -6,7 +6,7 @@
 use crate::error::{BoxError, Context, RunError};
 use crate::metrics_table::MetricsTable;
 use dupac_common::config::Config;
-use dupac_common::fsio::write_atomic_with;
+use dupac_common::fsio::{write_atomic_with, write_plain};
 use dupac_common::metric;
 use dupac_learner::checkpoint::{LoadedCheckpoint, load_checkpoint, save_policy};
 use dupac_learner::learner::{Learner, MetricsRow};
@@ -214,14 +214,7 @@ fn write_rows(path: &Path, rows: &[MetricsRow]) -> Result<(), RunError> {
         text.push_str(&serde_json::to_string(r).context("encoding a metrics row")?);
         text.push('\n');
     }
-    write_plain(path, text.as_bytes())
-}
-
-/// Atomic like every write here, but without the `atomic-write` crash point of
-/// [`dupac_common::fsio::write_atomic`], which the reliability tests count in checkpoints and
-/// policies only.
-pub fn write_plain(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
-    Ok(write_atomic_with(path, |w| w.write_all(bytes))?)
+    Ok(write_plain(path, text.as_bytes())?)
 }
 
 fn write_csv(path: &Path, rows: &MetricsTable) -> Result<(), RunError> {

@@ -8,7 +8,8 @@ use clap::Args;
 use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_common::ids::ActorId;
 use dupac_node::actor::{ActorOptions, run_actor};
-use dupac_run::scenario::{guide_pairs_cached, pool_cached, world_and_cache};
+use dupac_scenario::pairs::{guide_pairs_cached, pool_cached};
+use dupac_scenario::world::world_and_cache;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -57,8 +58,8 @@ pub fn run(global: &GlobalArgs, args: &ActorArgs) -> Result<ExitCode> {
     let fingerprint = cfg.env_fingerprint(world.fingerprint());
     // The pairs with a planner of their own clearance (no coverage classes); their guide paths
     // from the host's guide cache, planned only when this host has not planned them yet.
-    let unguided = dupac_run::scenario::unguided(&cfg);
-    let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+    let unguided = dupac_scenario::planners::unguided(&cfg);
+    let planners = dupac_scenario::planners::Planners::new(&unguided, &[], &world, &rsrp, false);
     let mut pool = match &args.pool {
         Some(p) => read_pairs_jsonl(p, &planners.pairs, &cfg.pairs)
             .with_context(|| format!("--pool {}", p.display()))?,

@@ -35,7 +35,8 @@ pub fn run(global: &GlobalArgs, cmd: &CacheCommand) -> Result<ExitCode> {
     let cfg = global.config()?;
     let world = RadioWorld::build(&cfg).context("building the radio world")?;
     let grid = GridSpec::covering(world.city.area_m, &cfg.cache);
-    let pb = dupac_run::progress::progress_bar(grid.ny as u64, "RSRP cache", global.no_progress());
+    let pb =
+        dupac_scenario::progress::progress_bar(grid.ny as u64, "RSRP cache", global.no_progress());
     match cmd {
         CacheCommand::Build { force } => {
             if *force && cfg.cache.path.exists() {

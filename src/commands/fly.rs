@@ -3,7 +3,6 @@
 //! with A3.
 
 use crate::global_args::GlobalArgs;
-use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::Env;
@@ -11,6 +10,7 @@ use dupac_actor::pairs::read_pairs_jsonl;
 use dupac_actor::record::StepInfo;
 use dupac_actor::rollout::fly_policy;
 use dupac_common::config::Association;
+use dupac_common::fsio::write_plain;
 use dupac_common::msg::Outcome;
 use dupac_eval::flight::{flight_record, fly_path_with_a3, policy_env};
 use dupac_eval::pair_flights::{best_rsrp_at, summary_md, versions_md, write_versions_csv};
@@ -20,7 +20,8 @@ use dupac_node::actor::Follower;
 use dupac_node::follow::fly_following;
 use dupac_plot::plan::{render_world_plan, trace_of};
 use dupac_radio::class::RsrpThresholds;
-use dupac_run::scenario::{held_out_unguided, world_and_cache};
+use dupac_scenario::pairs::held_out_unguided;
+use dupac_scenario::world::world_and_cache;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -117,7 +118,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
         Some(wr) => wr,
         None => world_and_cache(&cfg, global.no_progress())?,
     };
-    let planners = dupac_run::scenario::Planners::new(&cfg, &[], &world, &rsrp, false);
+    let planners = dupac_scenario::planners::Planners::new(&cfg, &[], &world, &rsrp, false);
     let mut pairs = match &args.pairs {
         Some(file) => read_pairs_jsonl(file, &planners.pairs, &cfg.pairs)?,
         None => held_out_unguided(&cfg, &planners.pairs, global.no_progress())?,
@@ -132,7 +133,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     }
     // Only the flown pair needs its guide path.
     let mut chosen = [pairs.swap_remove(args.pair)];
-    dupac_run::scenario::guide_pairs(&cfg, &planners, &mut chosen)?;
+    dupac_scenario::pairs::guide_pairs(&cfg, &planners, &mut chosen)?;
     let p = &chosen[0];
     // Held-out pairs and the user's own fly in the validation's realisations (docs/env.md).
     let field = dupac_radio::channel::FieldSplit::Eval;
@@ -205,7 +206,7 @@ pub fn run(global: &GlobalArgs, args: &FlyArgs) -> Result<ExitCode> {
     if follower.is_some() {
         md.push_str(&versions_md(&versions));
     }
-    write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
+    write_plain(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");
     eprintln!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)

@@ -1,9 +1,9 @@
 //! `dupac map`: best-server coverage maps on horizontal slices (paper Fig. 2(b)).
 
 use crate::global_args::GlobalArgs;
-use crate::io::{write_atomic, write_atomic_with};
 use anyhow::{Context, Result};
 use clap::Args;
+use dupac_common::fsio::{write_atomic_with, write_plain};
 use dupac_radio::channel::FieldSplit;
 use dupac_radio::coverage::{Server, SliceSummary, compute_slice, summarise, write_slice_csv};
 use dupac_radio::world::RadioWorld;
@@ -68,7 +68,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         None => what,
     };
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    write_atomic(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
+    write_plain(&out.join("config.toml"), cfg.to_toml_string().as_bytes())?;
     write_atomic_with(&out.join("sites.csv"), |w| {
         dupac_radio::link_calc::write_sites_csv(&world, w)
     })?;
@@ -79,8 +79,11 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         let ny = ((world.city.area_m.max_m.y - world.city.area_m.min_m.y) / cfg.map.resolution_m)
             .floor()
             .max(1.0) as u64;
-        let pb =
-            dupac_run::progress::progress_bar(ny, &format!("map at {alt} m"), global.no_progress());
+        let pb = dupac_scenario::progress::progress_bar(
+            ny,
+            &format!("map at {alt} m"),
+            global.no_progress(),
+        );
         let slice = compute_slice(
             &world,
             server,
@@ -121,7 +124,7 @@ pub fn run(global: &GlobalArgs, args: &MapArgs) -> Result<ExitCode> {
         summaries.push(s);
     }
     let md = summary_markdown(&world, &summaries);
-    write_atomic(&out.join("summary.md"), md.as_bytes())?;
+    write_plain(&out.join("summary.md"), md.as_bytes())?;
     write_atomic_with(&out.join("summary.csv"), |w| {
         let mut c = csv::Writer::from_writer(w);
         for s in &summaries {

@@ -9,17 +9,16 @@ use super::children::{child, free_port, reap, signal};
 use super::net::{ConnectArgs, ModeArg, stop_flag};
 use super::run_args::{DeviceArg, HeldOutSeen, TrainArgs, device, resolve_config};
 use crate::global_args::GlobalArgs;
-use crate::io::write_atomic;
 use anyhow::{Context, Result, bail};
 use dupac_actor::pairs::write_pairs_jsonl;
+use dupac_common::fsio::write_plain;
 use dupac_common::jsonmsg::decode_json;
 use dupac_common::keys::KeySpace;
 use dupac_common::msg::LearnerStats;
-use dupac_run::progress::{StageClock, stage_spinner};
 use dupac_run::run_dir::{checkpoint_to_resume, ensure_free};
-use dupac_run::scenario::{
-    guide_sets_cached, held_out_pairs, pool_cached, spread, world_and_cache,
-};
+use dupac_scenario::pairs::{guide_sets_cached, held_out_pairs, pool_cached, spread};
+use dupac_scenario::progress::{StageClock, stage_spinner};
+use dupac_scenario::world::world_and_cache;
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -37,7 +36,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     ensure_free(&out)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let config_path = out.join("config.toml");
-    write_atomic(&config_path, cfg.to_toml_string().as_bytes())?;
+    write_plain(&config_path, cfg.to_toml_string().as_bytes())?;
 
     // Everything the children would otherwise each compute (and race on): built once here,
     // each stage named on the progress bar while it runs and timed (`prepared in … s: …`).
@@ -49,9 +48,9 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
     // the host's pool file; then the guide paths of the pool and of the learner's held-out set,
     // planned once here into the host's guide cache (or found there), so the actors and the
     // learner load them instead of each planning them.
-    let unguided = dupac_run::scenario::unguided(&cfg);
+    let unguided = dupac_scenario::planners::unguided(&cfg);
     let spin = stage_spinner("pairs' planner", quiet);
-    let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+    let planners = dupac_scenario::planners::Planners::new(&unguided, &[], &world, &rsrp, false);
     spin.finish_and_clear();
     clock.lap("pairs' planner");
     let held_out = held_out_pairs(&unguided, &planners, quiet)?;
@@ -132,7 +131,7 @@ pub fn run(global: &GlobalArgs, args: &TrainArgs) -> Result<ExitCode> {
         ..ConnectArgs::default()
     };
     let total = cfg.train.total_timesteps;
-    let pb = dupac_run::progress::progress_bar(total, "timesteps", global.no_progress());
+    let pb = dupac_scenario::progress::progress_bar(total, "timesteps", global.no_progress());
     // Until the learner's first update: the learner and the actors load the world and caches.
     pb.set_message("starting learner, actors");
     let keys = KeySpace::new(&cfg.distributed.run);

@@ -74,7 +74,7 @@ fn audit_pairs(planner: &Planner, pairs: &[Pair], out: &std::path::Path) -> Resu
             r.gap_m()
         ));
     }
-    crate::io::write_atomic(&csv_path, csv.as_bytes())?;
+    dupac_common::fsio::write_plain(&csv_path, csv.as_bytes())?;
     // 1 µm: what the paths' f64 sums agree to.
     let s = AuditSummary::of(&rows, 1e-6);
     println!("audit: {s}; {}", csv_path.display());
@@ -97,7 +97,7 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
     // The audit's coverage-aware paths need the RSRP cache (built if missing); the pairs alone
     // need the world.
     let (world, rsrp) = if args.audit {
-        let (w, r) = dupac_run::scenario::world_and_cache(&cfg, global.no_progress())?;
+        let (w, r) = dupac_scenario::world::world_and_cache(&cfg, global.no_progress())?;
         (w, Some(r))
     } else {
         let w = RadioWorld::build(&cfg).context("building the radio world")?;
@@ -119,7 +119,7 @@ pub fn run(global: &GlobalArgs, args: &PairsArgs) -> Result<ExitCode> {
             .unwrap_or_else(|| split.file(&cfg.pairs, planner.city()));
         let total = (cfg.pairs.eval_bins_m.len() * cfg.pairs.eval_per_bin) as u64;
         let label = format!("{} pairs", split.name());
-        let pb = dupac_run::progress::progress_bar(total, &label, global.no_progress());
+        let pb = dupac_scenario::progress::progress_bar(total, &label, global.no_progress());
         let pairs = split_pairs(&planner, &cfg.pairs, &cfg.env, split, &|n| pb.inc(n));
         pb.finish_and_clear();
         write_pairs_jsonl(&out, &pairs)?;

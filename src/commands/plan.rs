@@ -2,13 +2,13 @@
 //! scripted pilot through the environment with A3 association; table, PNG and CSVs.
 
 use crate::global_args::GlobalArgs;
-use crate::io::write_atomic;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use dupac_actor::env::{Env, Episode, PathGuide};
 use dupac_actor::pairs::{Pair, Split, read_pairs_jsonl};
 use dupac_actor::planner::Planner;
 use dupac_common::config::Association;
+use dupac_common::fsio::write_plain;
 use dupac_common::geometry::{Point, distance_m as dist};
 use dupac_eval::flight::{flight_record, fly_path};
 use dupac_eval::pair_flights::{best_rsrp_at, slug, summary_md};
@@ -18,7 +18,7 @@ use dupac_radio::cache::RsrpCache;
 use dupac_radio::class::RsrpThresholds;
 use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::scenario::held_out_unguided;
+use dupac_scenario::pairs::held_out_unguided;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -109,8 +109,11 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         .context("planning the shortest flyable path")?;
     // The radio map only after the endpoints are known to be good (it may take a while).
     let grid_rows = dupac_radio::cache::GridSpec::covering(world.city.area_m, &cfg.cache).ny;
-    let pb =
-        dupac_run::progress::progress_bar(grid_rows as u64, "RSRP cache", global.no_progress());
+    let pb = dupac_scenario::progress::progress_bar(
+        grid_rows as u64,
+        "RSRP cache",
+        global.no_progress(),
+    );
     let (cache, _) = RsrpCache::open_or_build(&world, &cfg.cache, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     let cache: Arc<dyn RsrpSource + Send + Sync> = Arc::new(cache);
@@ -197,7 +200,7 @@ pub fn run(global: &GlobalArgs, args: &PlanArgs) -> Result<ExitCode> {
         &rows,
         "Every path is flown by the scripted pilot through the environment with A3 association.",
     );
-    write_atomic(&args.out.join("summary.md"), md.as_bytes())?;
+    write_plain(&args.out.join("summary.md"), md.as_bytes())?;
     print!("{md}");
     eprintln!("wrote {}", args.out.display());
     Ok(ExitCode::SUCCESS)

@@ -16,12 +16,11 @@ use dupac_plot::curves::render_curves;
 use dupac_radio::world::RadioWorld;
 use dupac_run::held_out::evaluate;
 use dupac_run::local::LocalWorkers;
-use dupac_run::progress::progress_bar;
 use dupac_run::run_dir::{CurveRenderer, RunOutput, checkpoint_to_resume};
-use dupac_run::scenario::{
-    SharedRsrp, guide_sets_cached, held_out_pairs, make_pool, spread, world_and_cache,
-};
 use dupac_run::train_loop::{self, Finish, method_name, summary_line};
+use dupac_scenario::pairs::{guide_sets_cached, held_out_pairs, make_pool, spread};
+use dupac_scenario::progress::progress_bar;
+use dupac_scenario::world::{SharedRsrp, world_and_cache};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -52,8 +51,9 @@ impl Training {
         let (obs_dim, n_sites) = Env::new(&cfg, world.clone(), rsrp.clone())?.policy_shape();
         // The pairs with a planner of their clearance (no coverage classes); the guide paths of
         // the evaluated ones and of the pool through the host's guide cache.
-        let unguided = dupac_run::scenario::unguided(&cfg);
-        let planners = dupac_run::scenario::Planners::new(&unguided, &[], &world, &rsrp, false);
+        let unguided = dupac_scenario::planners::unguided(&cfg);
+        let planners =
+            dupac_scenario::planners::Planners::new(&unguided, &[], &world, &rsrp, false);
         let mut eval_set = spread(
             &held_out_pairs(&unguided, &planners, global.no_progress())?,
             cfg.train.eval_pairs,

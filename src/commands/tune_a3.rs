@@ -45,9 +45,9 @@ pub fn run(global: &GlobalArgs, args: &TuneA3Args) -> Result<ExitCode> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| anyhow::anyhow!("--out {}: cannot create: {e}", args.out.display()))?;
     let grid_file = args.out.join("a3_grid.csv");
-    crate::io::write_atomic(&grid_file, grid_csv(&results, chosen).as_bytes())?;
+    dupac_common::fsio::write_plain(&grid_file, grid_csv(&results, chosen).as_bytes())?;
     let tuned_file = args.out.join("tuned_a3.toml");
-    crate::io::write_atomic(
+    dupac_common::fsio::write_plain(
         &tuned_file,
         tuned_toml(chosen, reference, &pairs_file, args.lambda).as_bytes(),
     )?;

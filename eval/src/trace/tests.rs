@@ -2,7 +2,7 @@ use super::*;
 use crate::refly::replay_one;
 use crate::{Kind, Method};
 use dupac_common::config::{ChannelModel, CityKind};
-use dupac_run::scenario::Planners;
+use dupac_scenario::planners::Planners;
 
 /// The small procedural city (500 m, 8 sites) with exact radio, deterministic or under the real
 /// channel (shadow fading, measurement error and the UAV's layer-3 filter).
@@ -15,7 +15,7 @@ fn world(real: bool) -> (Config, Arc<RadioWorld>, SharedRsrp) {
     if real {
         cfg.radio.channel.model = ChannelModel::Real;
     }
-    let cfg = dupac_run::scenario::unguided(&cfg);
+    let cfg = dupac_scenario::planners::unguided(&cfg);
     let world = Arc::new(RadioWorld::build(&cfg).expect("radio world"));
     let rsrp: SharedRsrp = world.clone();
     (cfg, world, rsrp)

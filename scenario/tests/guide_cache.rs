@@ -6,8 +6,8 @@ use dupac_actor::planner::Planner;
 use dupac_common::config::{CityKind, Config, RadioMode};
 use dupac_radio::source::RsrpSource;
 use dupac_radio::world::RadioWorld;
-use dupac_run::guide_cache::GuideCache;
-use dupac_run::scenario::guide_pairs_cached;
+use dupac_scenario::guide_cache::GuideCache;
+use dupac_scenario::pairs::guide_pairs_cached;
 use std::sync::Arc;
 
 fn config(dir: &std::path::Path) -> Config {
@@ -99,7 +99,8 @@ fn guide_paths_planned_once_are_loaded_equal_and_a_bad_file_is_planned_again() {
 /// process; another seed is another file; a damaged file is drawn again and rewritten.
 #[test]
 fn the_pool_drawn_once_is_read_back_equal_and_a_bad_file_is_drawn_again() {
-    use dupac_run::scenario::{Planners, pool_cached, pool_file, unguided};
+    use dupac_scenario::pairs::{pool_cached, pool_file};
+    use dupac_scenario::planners::{Planners, unguided};
     let dir = tempfile::tempdir().expect("temp dir");
     let mut cfg = unguided(&config(dir.path()));
     cfg.train.pool_size = 8;

@@ -35,7 +35,7 @@ pub fn stage_spinner(what: &str, quiet: bool) -> ProgressBar {
 
 /// The wall-clock time of each preparation stage of a command, in order: what `dupac train`
 /// prints before it starts training (`prepared in 95 s: RSRP cache 31 s, …`) and logs
-/// (`tracing`, target `dupac_run::progress`, one event per stage with `stage` and `seconds`).
+/// (`tracing`, target `dupac_scenario::progress`, one event per stage with `stage` and `seconds`).
 #[derive(Debug)]
 pub struct StageClock {
     start: Instant,
