@@ -1,4 +1,5 @@
-//! The zenoh nodes of the actor and learner processes: the only crate that names zenoh.
+//! The zenoh nodes of the actor and learner processes: the only library crate that names zenoh
+//! (the binary's `monitor`, `orchestrate` and connection flags use it too; `relay` is plain TCP).
 //!
 //! - [`net`]: the connection options every process takes (zenoh's examples' shared arguments).
 //! - [`actor`]: an actor process's node: environments stepped with the newest weights,
