@@ -5,7 +5,7 @@
 //! comparable; the RSRP class boundaries −80 and −100 dBm (spec/radio.md §3, the defaults of
 //! `radio.rsrp_excellent_dbm` / `radio.rsrp_poor_dbm`) are marked on the colour bar.
 
-use crate::draw::{clip_ring, draw_halo_text, draw_site_marker, write_png_atomic};
+use crate::draw::{clip_ring, draw_halo_text, draw_map_axes, draw_site_marker, write_png_atomic};
 use crate::error::{Context, PlotError, Result, pe};
 use crate::style::{FONT, class_bands, ensure_font, fmt_num};
 use dupac_common::geometry::Bounds2;
@@ -291,20 +291,7 @@ fn draw(
         )?;
     }
 
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x east (m)")
-        .y_desc("y north (m)")
-        .x_labels(8)
-        .y_labels(8)
-        .x_label_formatter(&|v| fmt_num(*v))
-        .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, LABEL_PX))
-        .axis_desc_style((FONT, DESC_PX))
-        .axis_style(BLACK.stroke_width(1))
-        .draw()
-        .map_err(pe)?;
+    draw_map_axes(&mut chart, 8, LABEL_PX, DESC_PX)?;
 
     draw_side(&side, slice.altitude_m, thresholds, MARGIN, ph as i32)?;
 

@@ -2,9 +2,11 @@
 //! marker, text with a halo, and a PNG written atomically.
 
 use crate::error::{Result, pe};
+use crate::style::{FONT, fmt_num};
 use dupac_common::geometry::Bounds2;
 use dupac_radio::sites::SiteKind;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
@@ -72,6 +74,31 @@ pub(crate) fn write_png_atomic(path: &Path, draw: impl FnOnce(&Path) -> Result<(
         (_, Some(e)) => Err(e),
         (r, None) => Ok(r?),
     }
+}
+
+/// The axes of a top-view map, x east and y north in m with `labels` ticks each, labels and
+/// descriptions of DejaVu Sans at `label_px` and `desc_px`: the one axis style of every map
+/// figure (the coverage maps, the planned paths' top view).
+pub(crate) fn draw_map_axes<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    labels: usize,
+    label_px: f64,
+    desc_px: f64,
+) -> Result<()> {
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x east (m)")
+        .y_desc("y north (m)")
+        .x_labels(labels)
+        .y_labels(labels)
+        .x_label_formatter(&|v| fmt_num(*v))
+        .y_label_formatter(&|v| fmt_num(*v))
+        .label_style((FONT, label_px))
+        .axis_desc_style((FONT, desc_px))
+        .axis_style(BLACK.stroke_width(1))
+        .draw()
+        .map_err(pe)
 }
 
 /// A site marker centred at pixel `c` on `area` (pixel coordinates).

@@ -9,7 +9,7 @@ use super::layout::{
 };
 use super::legend::{Icon, draw_icon, draw_source, draw_star, icon_w, layout_legend};
 use super::lines::{class_runs, clip_polyline, simplify, view_bounds};
-use crate::draw::{clip_ring, draw_halo_text, draw_site_marker};
+use crate::draw::{clip_ring, draw_halo_text, draw_map_axes, draw_site_marker};
 use crate::error::{Result, pe};
 use crate::style::{FONT, class_bands, class_colour, fmt_num, trace_colour};
 use dupac_common::geometry::{Bounds2, Point};
@@ -97,20 +97,7 @@ pub(super) fn draw_top_view(
         BLACK.stroke_width(1),
     ))
     .map_err(pe)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x east (m)")
-        .y_desc("y north (m)")
-        .x_labels(7)
-        .y_labels(7)
-        .x_label_formatter(&|v| fmt_num(*v))
-        .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, LABEL_PX))
-        .axis_desc_style((FONT, DESC_PX))
-        .axis_style(BLACK.stroke_width(1))
-        .draw()
-        .map_err(pe)?;
+    draw_map_axes(&mut chart, 7, LABEL_PX, DESC_PX)?;
     draw_legend(root, &mut items, heights, legend_w, px, &frame)
 }
 
